@@ -1,0 +1,1 @@
+"""Hydropneumatic strut models: gas, oil, valves, friction; rig tests (no vehicle knowledge)."""

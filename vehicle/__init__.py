@@ -1,0 +1,1 @@
+"""The vehicle: assembles `struts` and `terrain` into a multi-axle hull DAE and runs scenarios."""
