@@ -1,0 +1,87 @@
+"""Math that works on NumPy values and CasADi symbols alike.
+
+Physics functions in `struts`, `terrain` and `vehicle` use these instead of
+`np.*` or `ca.*` directly, so the same equation can be evaluated numerically
+(tests, tables) or assembled into a CasADi DAE. Also the smooth approximations
+of non-smooth laws (sign, abs, max, step) that implicit and explicit integrators
+handle well.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+_CASADI = (ca.SX, ca.MX, ca.DM)
+
+
+def is_symbolic(*values) -> bool:
+    return any(isinstance(v, _CASADI) for v in values)
+
+
+def exp(x):
+    return ca.exp(x) if is_symbolic(x) else np.exp(x)
+
+
+def log(x):
+    return ca.log(x) if is_symbolic(x) else np.log(x)
+
+
+def log10(x):
+    return ca.log10(x) if is_symbolic(x) else np.log10(x)
+
+
+def sqrt(x):
+    return ca.sqrt(x) if is_symbolic(x) else np.sqrt(x)
+
+
+def tanh(x):
+    return ca.tanh(x) if is_symbolic(x) else np.tanh(x)
+
+
+def fabs(x):
+    return ca.fabs(x) if is_symbolic(x) else np.abs(x)
+
+
+def fmax(a, b):
+    return ca.fmax(a, b) if is_symbolic(a, b) else np.maximum(a, b)
+
+
+def fmin(a, b):
+    return ca.fmin(a, b) if is_symbolic(a, b) else np.minimum(a, b)
+
+
+def if_else(cond, a, b):
+    """cond ? a : b (both branches are evaluated)."""
+    if is_symbolic(cond, a, b):
+        return ca.if_else(cond, a, b)
+    return np.where(cond, a, b)
+
+
+def vertcat(*xs):
+    if is_symbolic(*xs):
+        return ca.vertcat(*xs)
+    return np.concatenate([np.atleast_1d(np.asarray(x, dtype=float)).ravel() for x in xs])
+
+
+# --- smooth approximations -------------------------------------------------------------
+
+def smooth_sign(x, eps):
+    """sgn(x) ~ x / sqrt(x^2 + eps^2): odd, C-infinity, |.| < 1 (REFERENCE §7)."""
+    return x / sqrt(x * x + eps * eps)
+
+
+def smooth_abs(x, eps):
+    """|x| ~ sqrt(x^2 + eps^2) - eps: even, zero at zero."""
+    return sqrt(x * x + eps * eps) - eps
+
+
+def smooth_pos(x, eps):
+    """max(x, 0) ~ (x + sqrt(x^2 + eps^2)) / 2."""
+    return 0.5 * (x + sqrt(x * x + eps * eps))
+
+
+def smooth_step(x, x0, x1):
+    """0 below x0, 1 above x1, C1 cubic in between (x1 > x0)."""
+    s = (x - x0) / (x1 - x0)
+    s = fmin(fmax(s, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
