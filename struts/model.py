@@ -1,0 +1,269 @@
+"""Strut models as equations (PyBaMM-style: a model is equations, parameters fill them).
+
+A strut model exposes its internal differential states, its algebraic variables,
+and `equations(...)`, which returns symbolic (CasADi) or numeric (NumPy)
+expressions for the state rates, the algebraic residuals, the force and the
+power dissipated by each mechanism. The rig (`struts.rig`) and the vehicle
+(`vehicle.model`) both assemble these equations; neither re-implements them.
+
+Inputs from the outside world (the rig or the vehicle):
+  x        deflection [m], 0 at full extension, > 0 in compression
+  v        deflection rate [m/s], > 0 in compression
+  T_wall   strut body (oil, cylinder) temperature [K]
+  m_gas    gas mass [kg] (constant in a sealed strut, set by the charge)
+  dV_oil   oil added to the strut by a levelling system [m^3] (reduces the gas volume)
+  dV_oil_rate, dT_wall_rate   their rates (gas-volume work from oil flow and expansion)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+from hpsim import symbolic as sym
+
+from . import friction as fr
+from . import gas as gaslaw
+from . import oil as oillaw
+from . import valves
+from .params import StrutParams
+
+MECHANISMS = ("valve", "friction", "gas", "end_stop")
+
+
+@dataclass(frozen=True)
+class StrutInputs:
+    x: object
+    v: object
+    T_wall: object
+    m_gas: object
+    dV_oil: object = 0.0
+    dV_oil_rate: object = 0.0
+    dT_wall_rate: object = 0.0
+    x_mid: object = 0.0     # centre of the motion (for the seed-001 hysteresis band)
+
+
+class SeparatedStrut:
+    """Seed 000 strut: gas chamber, floating piston, oil chambers, damping valve.
+
+    Gas volume (seed 000 eq. 4 with eq. 6): V_g = V_g0 - beta_o V_oil (T_wall - T_charge) - A x - dV_oil.
+    Gas pressure: energy process -> EOS(T_gas, V_g/m) with the REFERENCE §6 energy equation;
+    polytropic process -> p_ext(T_wall) (V_ext/V_g)^n (seed 000 eq. 5, isochoric p_ext with eq. 6).
+    Force: F = p_g A + dp_valve A_v + F_friction + F_end_stops.
+    """
+
+    def __init__(self, params: StrutParams, gas_properties=None):
+        self.p = params
+        self.gas = gas_properties or gaslaw.load_gas("nitrogen")
+
+    # --- structure ------------------------------------------------------------------------
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        names = ()
+        if self.p.gas.process == "energy":
+            names += ("T_gas",)
+        if self.p.friction.model == "lugre":
+            names += ("z_bristle",)
+        return names
+
+    @property
+    def algebraic_names(self) -> tuple[str, ...]:
+        return ("dp_valve",)
+
+    # --- charge and gas volume ---------------------------------------------------------------
+    @cached_property
+    def charge_gas_mass(self) -> float:
+        """Gas mass [kg] from the charge: pressure at full extension at the charge temperature."""
+        g, c = self.p.geometry, self.p.charge
+        return float(gaslaw.gas_mass(c.pressure, c.temperature, g.gas_volume_extended, self.gas, self.p.gas.eos))
+
+    def gas_mass_for(self, pressure_Pa: float, temperature_K: float) -> float:
+        """Gas mass for another fill pressure at full extension and temperature."""
+        V_ext = float(self.extended_gas_volume(temperature_K))
+        return float(gaslaw.gas_mass(pressure_Pa, temperature_K, V_ext, self.gas, self.p.gas.eos))
+
+    def extended_gas_volume(self, T_wall, dV_oil=0.0):
+        """Gas volume at full extension [m^3]: oil thermal expansion eats gas space (seed 000 eq. 6)."""
+        g, o = self.p.geometry, self.p.oil
+        expansion = oillaw.thermal_expansion_into_gas(T_wall, g.oil_volume, self.p.charge.temperature, o.expansion)
+        return g.gas_volume_extended - expansion - dV_oil
+
+    def gas_volume(self, x, T_wall, dV_oil=0.0):
+        """Gas volume [m^3] at deflection x (seed 000 eq. 4)."""
+        return self.extended_gas_volume(T_wall, dV_oil) - self.p.geometry.gas_area * x
+
+    def gas_pressure(self, x, T_gas, T_wall, m_gas, dV_oil=0.0):
+        """Gas pressure [Pa]. With the polytropic process T_gas is ignored."""
+        eos = self.p.gas.eos
+        V = self.gas_volume(x, T_wall, dV_oil)
+        if self.p.gas.process == "polytropic":
+            V_ext = self.extended_gas_volume(T_wall, dV_oil)
+            p_ext = gaslaw.pressure(T_wall, V_ext / m_gas, self.gas, eos)
+            return gaslaw.polytropic_pressure(p_ext, V_ext, V, self.p.gas.polytropic_exponent)
+        return gaslaw.pressure(T_gas, V / m_gas, self.gas, eos)
+
+    def static_gas_force(self, x, T, m_gas, dV_oil=0.0, process: str | None = None):
+        """Gas force [N] at rest with gas and body at temperature T.
+
+        process=None uses the file's: "energy" -> isothermal at T (the gas has had time to
+        exchange heat); "polytropic" -> seed 000 eq. 5 from full extension.
+        """
+        if process == "isothermal" or (process is None and self.p.gas.process == "energy"):
+            V = self.gas_volume(x, T, dV_oil)
+            return gaslaw.pressure(T, V / m_gas, self.gas, self.p.gas.eos) * self.p.geometry.gas_area
+        if process in ("polytropic", None):
+            V_ext = self.extended_gas_volume(T, dV_oil)
+            p_ext = gaslaw.pressure(T, V_ext / m_gas, self.gas, self.p.gas.eos)
+            V = self.gas_volume(x, T, dV_oil)
+            return gaslaw.polytropic_pressure(p_ext, V_ext, V, self.p.gas.polytropic_exponent) * self.p.geometry.gas_area
+        raise ValueError(f"unknown static process {process!r}")
+
+    # --- oil properties -----------------------------------------------------------------------
+    @cached_property
+    def _walther(self):
+        o = self.p.oil
+        return oillaw.walther_coefficients(o.viscosity_T1, o.viscosity_nu1, o.viscosity_T2, o.viscosity_nu2)
+
+    def oil_viscosity(self, T_wall):
+        A, B = self._walther
+        return oillaw.walther_kinematic_viscosity(T_wall, A, B)
+
+    def oil_density(self, T_wall):
+        o = self.p.oil
+        return oillaw.oil_density(T_wall, o.density, o.reference_temperature, o.expansion)
+
+    # --- valve ----------------------------------------------------------------------------------
+    def valve_arguments(self, T_wall) -> dict:
+        """Keyword arguments of struts.valves.valve_flow at body temperature T_wall.
+
+        The laminar/turbulent transition pressure follows the viscosity: at the critical
+        Reynolds number Re_c in the bleed orifice of hydraulic diameter d,
+        p_crit = rho/2 (Re_c nu / (C_d d))^2.
+        """
+        v = self.p.valve
+        rho = self.oil_density(T_wall)
+        nu = self.oil_viscosity(T_wall)
+        d_h = sym.sqrt(4.0 * v.bleed_area / 3.141592653589793)
+        p_crit = 0.5 * rho * (v.critical_reynolds * nu / (v.discharge_coefficient * d_h)) ** 2
+        return dict(
+            cd=v.discharge_coefficient, rho=rho, p_crit=p_crit,
+            bleed_area=v.bleed_area * v.number_of_orifices,
+            check_area_max=v.check_area_max * v.check_number,
+            check_dp_crack=v.check_dp_crack, check_dp_full=v.check_dp_full,
+            relief_comp_area=v.relief_comp_area, relief_comp_crack=v.relief_comp_crack,
+            relief_comp_full=v.relief_comp_full,
+            relief_reb_area=v.relief_reb_area, relief_reb_crack=v.relief_reb_crack,
+            relief_reb_full=v.relief_reb_full,
+            k_leak=v.leakage,
+        )
+
+    def valve_flow_demand(self, v):
+        """Oil flow [m^3/s] forced through the damping valve (incompressible oil, seed 000 eq. 2)."""
+        return self.p.geometry.valve_area * v
+
+    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 4):
+        """Eliminates the algebraic dp_valve: solves valve_flow(dp) = A_v v."""
+        return valves.valve_pressure_drop(self.valve_flow_demand(v), newton_iterations=newton_iterations,
+                                          dp_guess=dp_guess, **self.valve_arguments(T_wall))
+
+    # --- friction -----------------------------------------------------------------------------
+    def friction_viscous(self, T_wall):
+        """Viscous seal friction scales with the oil film viscosity (relative to T_ref)."""
+        f = self.p.friction
+        return f.viscous * self.oil_viscosity(T_wall) / self.oil_viscosity(self.p.oil.reference_temperature)
+
+    def friction_force(self, v, x_rel, p_gas, T_wall, z_bristle=None):
+        f = self.p.friction
+        f_v = self.friction_viscous(T_wall)
+        if f.model == "lugre":
+            F_c = fr.coulomb_level(p_gas, 0.5 * (f.F0_compression + f.F0_rebound), f.pressure_coefficient)
+            F_s = F_c * f.breakaway_ratio
+            dz = fr.lugre_bristle_rate(z_bristle, v, F_c, F_s, f.stribeck_velocity, f.bristle_stiffness,
+                                       f.smoothing_velocity)
+            return fr.lugre_force(z_bristle, dz, v, f.bristle_stiffness, f.bristle_damping, f_v), dz
+        F = fr.seal_friction(
+            v, x_rel, p_gas, F0_comp=f.F0_compression, F0_reb=f.F0_rebound, f_p=f.pressure_coefficient,
+            K_brk=f.breakaway_ratio, v_s=f.stribeck_velocity, f_v=f_v, eps=f.smoothing_velocity,
+            v_h_comp=f.hysteresis_velocity_compression, v_h_reb=f.hysteresis_velocity_rebound)
+        return F, None
+
+    # --- end stops ------------------------------------------------------------------------------
+    def end_stop_force(self, x, v):
+        """Elastic stops beyond full extension (x < 0) and full compression (x > stroke): (force, damping part)."""
+        e, stroke = self.p.end_stops, self.p.geometry.stroke
+        pen_c = sym.smooth_pos(x - stroke, e.smoothing)
+        pen_r = sym.smooth_pos(-x, e.smoothing)
+        engaged = pen_c / (pen_c + e.smoothing) + pen_r / (pen_r + e.smoothing)
+        damping = e.damping * engaged * v
+        return e.stiffness * (pen_c - pen_r) + damping, damping
+
+    # --- the equations ----------------------------------------------------------------------------
+    def equations(self, u: StrutInputs, states: dict, dp_valve) -> dict:
+        """All strut equations at one instant.
+
+        Returns a dict with: rates (dict state -> d/dt), residual (valve flow balance, m^3/s
+        scaled to Pa-like units), force [N], gas_pressure [Pa], gas_temperature [K],
+        gas_force, valve_force, friction_force, end_stop_force [N], and power by mechanism
+        [W]: power_valve, power_friction, power_end_stop (dissipated, >= 0) and heat_gas
+        (heat flow from gas to wall, net >= 0 over a cycle).
+        """
+        P = self.p
+        A = P.geometry.gas_area
+        m_gas = u.m_gas
+        V = self.gas_volume(u.x, u.T_wall, u.dV_oil)
+        # oil expanding with the body temperature (seed 000 eq. 6) also compresses the gas
+        dVdt = -A * u.v - P.geometry.oil_volume * P.oil.expansion * u.dT_wall_rate - u.dV_oil_rate
+        rates = {}
+        if P.gas.process == "energy":
+            T_gas = states["T_gas"]
+            p_gas = gaslaw.pressure(T_gas, V / m_gas, self.gas, P.gas.eos)
+            rates["T_gas"] = gaslaw.gas_temperature_rate(T_gas, u.T_wall, P.gas.thermal_time_constant,
+                                                         V / m_gas, dVdt / m_gas, self.gas, P.gas.eos)
+            cv = gaslaw.cv(T_gas, V / m_gas, self.gas, P.gas.eos)
+            heat_gas = gaslaw.heat_flow_to_wall(T_gas, u.T_wall, P.gas.thermal_time_constant, m_gas, cv)
+        else:
+            p_gas = self.gas_pressure(u.x, None, u.T_wall, m_gas, u.dV_oil)
+            T_gas = u.T_wall
+            heat_gas = 0.0 * u.v  # a reversible polytrope exchanges no net heat over a cycle
+        F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_gas, u.T_wall, states.get("z_bristle"))
+        if dz is not None:
+            rates["z_bristle"] = dz
+        F_stop, F_stop_damping = self.end_stop_force(u.x, u.v)
+        q = self.valve_flow_demand(u.v)
+        vargs = self.valve_arguments(u.T_wall)
+        residual = valves.valve_flow(dp_valve, **vargs) - q
+        F_valve = dp_valve * P.geometry.valve_area
+        F_gas = p_gas * A
+        return dict(
+            rates=rates,
+            residual=residual,
+            force=F_gas + F_valve + F_fric + F_stop,
+            gas_pressure=p_gas,
+            gas_temperature=T_gas,
+            gas_volume=V,
+            gas_force=F_gas,
+            valve_force=F_valve,
+            friction_force=F_fric,
+            end_stop_force=F_stop,
+            power_valve=dp_valve * q,
+            power_friction=F_fric * u.v,
+            power_end_stop=F_stop_damping * u.v,
+            heat_gas=heat_gas,
+            gas_work_rate=-p_gas * dVdt,     # mechanical power into the gas [W]
+        )
+
+    def initial_states(self, T_wall) -> dict:
+        out = {}
+        if "T_gas" in self.state_names:
+            out["T_gas"] = T_wall
+        if "z_bristle" in self.state_names:
+            out["z_bristle"] = 0.0
+        return out
+
+
+def make_strut(params: StrutParams, gas_properties=None):
+    """The model class for a parameter set's layout."""
+    if params.layout == "separated":
+        return SeparatedStrut(params, gas_properties)
+    from .integrated import IntegratedStrut
+
+    return IntegratedStrut(params, gas_properties)

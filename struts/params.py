@@ -1,0 +1,184 @@
+"""Typed strut parameters loaded from YAML files with units and provenance.
+
+A strut file (struts/data/<name>.yaml, or any path) holds every quantity as
+`key: "4.8 MPa"` or `key: {value: "4.8 MPa", source: "seed 000 §2"}`; bare numbers
+are SI. Unknown keys are rejected. `load_strut("apc")` returns a `StrutParams`.
+"""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+from pydantic import model_validator
+
+from hpsim.config import Model, Plain, Quantity, deep_update, load_yaml, validate
+from hpsim.errors import UserInputError
+
+Pa = Quantity("Pa")
+K = Quantity("K")
+m = Quantity("m")
+m2 = Quantity("m**2")
+m3 = Quantity("m**3")
+s = Quantity("s")
+N = Quantity("N")
+m_per_s = Quantity("m/s")
+N_s_per_m = Quantity("N*s/m")
+N_per_m = Quantity("N/m")
+per_K = Quantity("1/K")
+kg_per_m3 = Quantity("kg/m**3")
+m2_per_s = Quantity("m**2/s")
+Pa_per_K = Quantity("Pa/K")
+Number = Plain()
+
+
+class Geometry(Model):
+    """Areas and volumes (seed 000 eq. 2-5 for the separated strut)."""
+
+    gas_area: m2                 # A = A_o1 - A_d: gas volume change per unit deflection
+    gas_volume_extended: m3      # V_g0 at full extension (x = 0), at the charge temperature
+    stroke: m                    # usable deflection from full extension to the bump stop
+    valve_area: m2               # oil displaced through the damping valve per unit deflection
+    oil_volume: m3               # total oil volume (thermal expansion, seed 000 eq. 6)
+    # integrated strut (seed 001 eq. 1, 5-7)
+    rod_area: m2 = 0.0
+    rod_chamber_volume: m3 = 0.0
+    piston_chamber_oil_volume: m3 = 0.0
+
+
+class Charge(Model):
+    """Gas charge: pressure at full extension at the charge temperature (seed 000 §2)."""
+
+    pressure: Pa
+    temperature: K
+
+    @model_validator(mode="after")
+    def _positive(self):
+        if self.pressure <= 0:
+            raise ValueError(f"charge.pressure must be > 0 Pa, got {self.pressure}")
+        if self.temperature <= 0:
+            raise ValueError(f"charge.temperature must be > 0 K, got {self.temperature}")
+        return self
+
+
+class Gas(Model):
+    eos: Literal["ideal", "bwr"] = "bwr"
+    # "energy": gas temperature state with heat exchange (REFERENCE §6);
+    # "polytropic": p V^n = const from the state at full extension (seed 000 eq. 1, 5)
+    process: Literal["energy", "polytropic"] = "energy"
+    polytropic_exponent: Number = 1.3
+    thermal_time_constant: s = 2.0
+
+
+class Oil(Model):
+    density: kg_per_m3                   # at reference temperature
+    reference_temperature: K
+    expansion: per_K                     # volumetric thermal expansion beta_o (seed 000 eq. 6)
+    bulk_modulus: Pa
+    bulk_modulus_slope: Pa_per_K = 0.0   # fall per kelvin (seed 001: 8 MPa/K)
+    # Walther/ASTM D341 viscosity from two datasheet points (REFERENCE §7)
+    viscosity_T1: K
+    viscosity_nu1: m2_per_s
+    viscosity_T2: K
+    viscosity_nu2: m2_per_s
+
+
+class Valve(Model):
+    """Damping valve assembly between the oil chambers (REFERENCE §7)."""
+
+    discharge_coefficient: Number = 0.7
+    bleed_area: m2
+    # laminar-turbulent transition of the orifice law: Re_crit at the bleed hydraulic diameter
+    critical_reynolds: Number = 1000.0
+    check_area_max: m2 = 0.0
+    check_dp_crack: Pa = 0.1e6
+    check_dp_full: Pa = 0.5e6
+    relief_comp_area: m2 = 0.0
+    relief_comp_crack: Pa = 10e6
+    relief_comp_full: Pa = 12e6
+    relief_reb_area: m2 = 0.0
+    relief_reb_crack: Pa = 10e6
+    relief_reb_full: Pa = 12e6
+    leakage: Quantity("m**3/(Pa*s)") = 0.0
+    number_of_orifices: Number = 1.0
+    check_number: Number = 1.0
+
+
+class Friction(Model):
+    """Seal friction: Coulomb (pressure dependent) + Stribeck + viscous (REFERENCE §7, seed 001 eq. 2-3)."""
+
+    model: Literal["stribeck", "lugre"] = "stribeck"
+    F0_compression: N
+    F0_rebound: N
+    pressure_coefficient: Quantity("N/Pa") = 0.0     # f_p in F_C = F0 + f_p p
+    breakaway_ratio: Number = 1.0                    # K_brk = F_static / F_C
+    stribeck_velocity: m_per_s = 0.01
+    viscous: N_s_per_m = 0.0
+    smoothing_velocity: m_per_s = 1e-3               # width of the smooth sign
+    hysteresis_velocity_compression: m_per_s = 0.0   # seed 001 eq. 3 band (0: off)
+    hysteresis_velocity_rebound: m_per_s = 0.0
+    bristle_stiffness: N_per_m = 1e7                 # LuGre sigma0
+    bristle_damping: N_s_per_m = 0.0                 # LuGre sigma1
+
+
+class EndStops(Model):
+    """Elastic end stops at full extension and full compression (assumed values)."""
+
+    stiffness: N_per_m = 2e7
+    damping: N_s_per_m = 2e4
+    smoothing: m = 0.5e-3
+
+
+class Emulsion(Model):
+    """Gas-oil emulsion of the integrated strut (seed 001 eq. 8-11)."""
+
+    initial_gas_fraction: Number = 0.006
+
+
+class StrutParams(Model):
+    name: str
+    description: str = ""
+    layout: Literal["separated", "integrated"]
+    geometry: Geometry
+    charge: Charge
+    gas: Gas
+    oil: Oil
+    valve: Valve
+    friction: Friction
+    end_stops: EndStops = EndStops()
+    emulsion: Emulsion = Emulsion()
+    calibration: dict = {}      # free text: what was fitted to what
+
+    def with_overrides(self, overrides: dict) -> "StrutParams":
+        data = deep_update(self.model_dump(), overrides)
+        return validate(StrutParams, data, f"strut {self.name} (overrides)")
+
+
+def builtin_struts() -> list[str]:
+    folder = resources.files("struts") / "data"
+    return sorted(p.name[:-5] for p in folder.iterdir()
+                  if p.name.endswith(".yaml") and p.name != "nitrogen.yaml")
+
+
+def strut_file(name_or_path: str | Path) -> Path:
+    """Resolve a built-in strut name ("apc") or a path to its YAML file."""
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml"):
+        if not p.exists():
+            raise UserInputError(f"strut file {p}: not found")
+        return p
+    if str(name_or_path) in builtin_struts():
+        return Path(str(resources.files("struts") / "data" / f"{name_or_path}.yaml"))
+    raise UserInputError(
+        f"--strut: unknown strut {str(name_or_path)!r}; built-in: {', '.join(builtin_struts())} "
+        "(or a path to a .yaml file)")
+
+
+def load_strut(name_or_path: str | Path, overrides: dict | None = None) -> StrutParams:
+    path = strut_file(name_or_path)
+    data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise UserInputError(f"{path}: expected a mapping of strut parameters")
+    if overrides:
+        data = deep_update(data, overrides)
+    return validate(StrutParams, data, str(path))
