@@ -1,0 +1,194 @@
+"""The strut test rig: what a lab does with an Instron or a shaker.
+
+- `characteristic`: quasi-static force-deflection curve F(x) at a fill pressure and temperature.
+- `static_point`: static deflection and local stiffness at a given load.
+- `cycle_test`: displacement-driven sinusoid from the gas state at rest; force-displacement
+  and force-velocity loops, energy per cycle E = closed integral of F dx (seed 000 eq. 7),
+  split by mechanism (valve, friction, gas heat exchange, end stops).
+
+The strut is held at the rig temperature (body = wall temperature constant); the gas
+exchanges heat with it through the thermal time constant.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+from scipy.optimize import brentq
+
+from hpsim.errors import UserInputError
+
+from .model import MECHANISMS, StrutInputs, make_strut
+from .params import StrutParams
+
+# Ranges a rig can do: the checks give clear messages rather than solver failures.
+_MAX_FREQUENCY_HZ = 50.0
+
+
+def _gas_mass(strut, p0_Pa, T_K):
+    p = strut.p
+    if p0_Pa is None:
+        p0_Pa = p.charge.pressure
+    # the fill pressure is stated at full extension at the charge temperature (seed 000 §2)
+    return strut.gas_mass_for(p0_Pa, p.charge.temperature)
+
+
+def characteristic(params: StrutParams, *, p0_Pa=None, T_K=None, process=None, n_points=200) -> dict:
+    """Quasi-static F(x) over the stroke: dict with x_m, force_N, gas_pressure_Pa."""
+    strut = make_strut(params)
+    T = params.charge.temperature if T_K is None else T_K
+    m_gas = _gas_mass(strut, p0_Pa, T)
+    x = np.linspace(0.0, params.geometry.stroke, n_points)
+    F = np.asarray(strut.static_gas_force(x, T, m_gas, process=process), dtype=float)
+    return {"x_m": x, "force_N": F, "gas_pressure_Pa": F / params.geometry.gas_area,
+            "temperature_K": T, "p0_Pa": params.charge.pressure if p0_Pa is None else p0_Pa}
+
+
+def static_point(params: StrutParams, load_N: float, *, p0_Pa=None, T_K=None, process=None) -> dict:
+    """Static deflection [m] and local stiffness dF/dx [N/m] at `load_N`."""
+    strut = make_strut(params)
+    T = params.charge.temperature if T_K is None else T_K
+    m_gas = _gas_mass(strut, p0_Pa, T)
+    stroke = params.geometry.stroke
+
+    def f(x):
+        return float(strut.static_gas_force(x, T, m_gas, process=process)) - load_N
+
+    F_lo, F_hi = f(0.0) + load_N, f(stroke) + load_N
+    if not (F_lo <= load_N <= F_hi):
+        raise UserInputError(
+            f"--load: {load_N / 1e3:.4g} kN is outside what the strut carries at this fill and temperature "
+            f"({F_lo / 1e3:.4g} kN at full extension to {F_hi / 1e3:.4g} kN at full compression)")
+    x = brentq(f, 0.0, stroke, xtol=1e-12)
+    h = 1e-6
+    k = (f(min(x + h, stroke)) - f(max(x - h, 0.0))) / (min(x + h, stroke) - max(x - h, 0.0))
+    V = float(strut.gas_volume(x, T))
+    return {
+        "static_deflection_m": x,
+        "stiffness_N_per_m": k,
+        "gas_pressure_Pa": load_N / params.geometry.gas_area,
+        "gas_temperature_K": T,
+        "gas_volume_m3": V,
+        "gas_mass_kg": m_gas,
+    }
+
+
+@dataclass
+class CycleResult:
+    amplitude_m: float
+    frequency_Hz: float
+    mean_m: float
+    cycles: int
+    t_s: np.ndarray = field(repr=False)
+    x_m: np.ndarray = field(repr=False)
+    v_m_per_s: np.ndarray = field(repr=False)
+    force_N: np.ndarray = field(repr=False)
+    components_N: dict = field(repr=False)
+    gas_pressure_Pa: np.ndarray = field(repr=False)
+    gas_temperature_K: np.ndarray = field(repr=False)
+    energy_per_cycle_J: float = 0.0
+    energy_by_mechanism_J: dict = field(default_factory=dict)
+    work_in_J: float = 0.0
+    heat_out_J: float = 0.0
+    peak_force_compression_N: float = 0.0
+    peak_force_rebound_N: float = 0.0
+
+    def summary(self) -> dict:
+        return {
+            "amplitude_m": self.amplitude_m,
+            "frequency_Hz": self.frequency_Hz,
+            "mean_m": self.mean_m,
+            "energy_per_cycle_J": self.energy_per_cycle_J,
+            "energy_by_mechanism_J": dict(self.energy_by_mechanism_J),
+            "peak_force_compression_N": self.peak_force_compression_N,
+            "peak_force_rebound_N": self.peak_force_rebound_N,
+        }
+
+
+def check_cycle_arguments(params: StrutParams, amplitude, frequency, mean, cycles):
+    stroke = params.geometry.stroke
+    if not amplitude > 0:
+        raise UserInputError(f"--amplitude: must be > 0 m, got {amplitude} m")
+    if not 0 < frequency <= _MAX_FREQUENCY_HZ:
+        raise UserInputError(f"--frequency: must be in (0, {_MAX_FREQUENCY_HZ}] Hz, got {frequency} Hz")
+    if mean - amplitude < -1e-12 or mean + amplitude > stroke + 1e-12:
+        raise UserInputError(
+            f"--mean/--amplitude: mean ± amplitude = [{(mean - amplitude) * 1e3:.4g}, {(mean + amplitude) * 1e3:.4g}] mm "
+            f"leaves the stroke [0, {stroke * 1e3:.4g}] mm")
+    if int(cycles) < 1:
+        raise UserInputError(f"--cycles: must be >= 1, got {cycles}")
+
+
+def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mean_m: float, *,
+               cycles: int = 3, T_K: float | None = None, p0_Pa: float | None = None,
+               samples_per_cycle: int = 400, rtol: float = 1e-9) -> CycleResult:
+    """Displacement-driven sinusoid x(t) = mean + A sin(2 pi f t), starting from rest.
+
+    The gas starts at the rig temperature at the mean position. The DAE (gas temperature
+    state, valve pressure drop as algebraic variable) and the energy quadratures are
+    integrated with IDAS; the last cycle gives the loop and the energy per cycle.
+    """
+    check_cycle_arguments(params, amplitude_m, frequency_Hz, mean_m, cycles)
+    strut = make_strut(params)
+    T = params.charge.temperature if T_K is None else T_K
+    m_gas = _gas_mass(strut, p0_Pa, T)
+    omega = 2.0 * math.pi * frequency_Hz
+    period = 1.0 / frequency_Hz
+
+    t = ca.SX.sym("t")
+    x_t = mean_m + amplitude_m * ca.sin(omega * t)
+    v_t = amplitude_m * omega * ca.cos(omega * t)
+    names = strut.state_names
+    xs = ca.SX.sym("xs", len(names))
+    energies = ca.SX.sym("E", len(MECHANISMS) + 1)  # valve, friction, gas, end_stop, work in
+    dp_scale = 1e6
+    z = ca.SX.sym("z")  # dp_valve / 1 MPa
+    inputs = StrutInputs(x=x_t, v=v_t, T_wall=T, m_gas=m_gas, x_mid=mean_m)
+    eq = strut.equations(inputs, {n: xs[i] for i, n in enumerate(names)}, z * dp_scale)
+    rates = [eq["rates"][n] for n in names]
+    powers = [eq["power_valve"], eq["power_friction"], eq["heat_gas"], eq["power_end_stop"], eq["force"] * v_t]
+    q_scale = params.geometry.valve_area * max(amplitude_m * omega, 1e-3)
+    dae = {"t": t, "x": ca.vertcat(xs, energies), "z": z,
+           "ode": ca.vertcat(*rates, *powers), "alg": eq["residual"] / q_scale}
+    n_out = int(cycles) * samples_per_cycle + 1
+    grid = np.linspace(0.0, cycles * period, n_out)
+    integ = ca.integrator("rig", "idas", dae, 0.0, grid[1:],
+                          {"reltol": rtol, "abstol": 1e-10, "max_num_steps": 200000,
+                           "calc_ic": True})
+    x0 = [float(v) for v in strut.initial_states(T).values()] + [0.0] * (len(MECHANISMS) + 1)
+    z0 = float(strut.valve_pressure_drop(amplitude_m * omega, T)) / dp_scale  # v(0) = A omega
+    try:
+        sol = integ(x0=x0, z0=z0)
+    except RuntimeError as exc:
+        raise RuntimeError(f"rig integration failed at A={amplitude_m} m, f={frequency_Hz} Hz: {exc}") from None
+    X = np.hstack([np.asarray(x0, float).reshape(-1, 1), np.asarray(sol["xf"])])
+    Z = np.hstack([[[z0]], np.asarray(sol["zf"])])
+    outs = ca.Function("outs", [t, xs, z], [eq["force"], eq["gas_force"], eq["valve_force"],
+                                            eq["friction_force"], eq["end_stop_force"],
+                                            eq["gas_pressure"], eq["gas_temperature"]])
+    nx = len(names)
+    vals = np.asarray(outs.map(n_out)(grid, X[:nx, :] if nx else np.zeros((0, n_out)), Z))
+    F, Fg, Fv, Ff, Fs, pg, Tg = vals
+    E = X[nx:, :]
+    last = slice(n_out - samples_per_cycle - 1, n_out)
+    dE = E[:, -1] - E[:, n_out - samples_per_cycle - 1]
+    by_mech = {m: float(dE[i]) for i, m in enumerate(MECHANISMS)}
+    x_arr = mean_m + amplitude_m * np.sin(omega * grid)
+    v_arr = amplitude_m * omega * np.cos(omega * grid)
+    res = CycleResult(
+        amplitude_m=amplitude_m, frequency_Hz=frequency_Hz, mean_m=mean_m, cycles=int(cycles),
+        t_s=grid[last], x_m=x_arr[last], v_m_per_s=v_arr[last], force_N=F[last],
+        components_N={"gas": Fg[last], "valve": Fv[last], "friction": Ff[last], "end_stop": Fs[last]},
+        gas_pressure_Pa=pg[last], gas_temperature_K=Tg[last],
+        energy_per_cycle_J=float(dE[-1]),
+        energy_by_mechanism_J=by_mech,
+        work_in_J=float(dE[-1]),
+        heat_out_J=float(sum(dE[:-1])),
+        # peaks per stroke direction: the largest force while compressing (v > 0) and the
+        # smallest while extending (v < 0), where the resisting forces subtract from the gas force
+        peak_force_compression_N=float(np.max(F[last][v_arr[last] > 0])),
+        peak_force_rebound_N=float(np.min(F[last][v_arr[last] < 0])),
+    )
+    return res
