@@ -1,6 +1,215 @@
-"""`hpsim strut ...` sub-commands."""
+"""`hpsim strut ...`: the strut rig on the command line.
+
+    hpsim strut static --strut apc --load 41.8kN [--p0 4.8MPa] [--temperature 20degC] [--json]
+    hpsim strut cycle --strut apc --amplitude 10mm,50mm --frequency 0.1Hz --mean 115mm [--cycles 3]
+                      [--json] [--plot loops.png] [--csv loops.csv]
+    hpsim strut characteristic --strut apc [--p0 ...] [--temperature ...] [--plot f.png] [--csv f.csv]
+    hpsim strut fit --strut apc --data rig.csv --fit name1,name2 [--json]
+"""
+from __future__ import annotations
+
+import csv
+import itertools
+from pathlib import Path
+
+from hpsim.cli import format_table, print_json
+from hpsim.errors import UserInputError
+from hpsim.units import parse_quantity, parse_quantity_list
+
+PROCESSES = ("polytropic", "isothermal")
 
 
 def register(sub):
     p = sub.add_parser("strut", help="strut rig: static, cycle, characteristic, fit")
-    p.set_defaults(func=lambda a: p.print_help())
+    ssub = p.add_subparsers(dest="strut_command", required=True, parser_class=type(p))
+
+    def common(sp):
+        sp.add_argument("--strut", default="apc", help="built-in strut name or path to a strut .yaml (default apc)")
+        sp.add_argument("--p0", help="fill pressure at full extension, e.g. 4.8MPa (default: the file's)")
+        sp.add_argument("--temperature", help="strut and gas temperature, e.g. 20degC (default: charge temperature)")
+        sp.add_argument("--json", action="store_true", help="print only JSON on stdout")
+
+    s = ssub.add_parser("static", help="static deflection and stiffness at a load")
+    common(s)
+    s.add_argument("--load", required=True, help="strut force, e.g. 41.8kN")
+    s.add_argument("--process", choices=PROCESSES, default="polytropic",
+                   help="quasi-static gas law: polytropic with the file's exponent (seed 000 eq. 5, default) "
+                        "or isothermal (long standing)")
+    s.add_argument("--n", help="polytropic exponent (default: the file's)")
+    s.set_defaults(func=cmd_static)
+
+    c = ssub.add_parser("characteristic", help="quasi-static force-deflection curve")
+    common(c)
+    c.add_argument("--process", choices=PROCESSES, default="polytropic")
+    c.add_argument("--n", help="polytropic exponent (default: the file's)")
+    c.add_argument("--plot", help="write a PNG")
+    c.add_argument("--csv", help="write a CSV (x_m,force_N,gas_pressure_Pa)")
+    c.set_defaults(func=cmd_characteristic)
+
+    y = ssub.add_parser("cycle", help="displacement-driven sinusoidal test")
+    common(y)
+    y.add_argument("--amplitude", required=True, help="one or more, e.g. 10mm,50mm")
+    y.add_argument("--frequency", required=True, help="one or more, e.g. 0.1Hz,1Hz")
+    y.add_argument("--mean", required=True, help="mean deflection, e.g. 115mm")
+    y.add_argument("--cycles", type=int, default=3)
+    y.add_argument("--plot", help="write force-displacement and force-velocity loops as PNG")
+    y.add_argument("--csv", help="write the last-cycle loops as CSV")
+    y.set_defaults(func=cmd_cycle)
+
+    f = ssub.add_parser("fit", help="identify parameters from rig data")
+    common(f)
+    f.add_argument("--data", required=True, help="CSV: energy table or loops (see struts/fit.py)")
+    f.add_argument("--fit", required=True, help="comma-separated names, e.g. F0,pressure_coefficient")
+    f.add_argument("--cycles", type=int, default=3)
+    f.add_argument("--write", help="write the strut file with the fitted values to this path")
+    f.set_defaults(func=cmd_fit)
+
+
+def _params(args, process=None, n=None):
+    from struts.params import load_strut
+
+    overrides = {}
+    if process == "polytropic":
+        overrides["gas.process"] = "polytropic"
+    if n is not None:
+        n_val = parse_quantity(n, "dimensionless", where="--n")
+        if not 1.0 <= n_val <= 1.7:
+            raise UserInputError(f"--n: polytropic exponent must be in [1.0, 1.7], got {n_val}")
+        overrides["gas.polytropic_exponent"] = n_val
+    params = load_strut(args.strut, overrides)
+    p0 = None
+    if args.p0 is not None:
+        p0 = parse_quantity(args.p0, "Pa", where="--p0")
+        if not 0.1e6 <= p0 <= 30e6:
+            raise UserInputError(f"--p0: fill pressure must be in [0.1, 30] MPa, got {p0 / 1e6:.4g} MPa")
+    T = None
+    if args.temperature is not None:
+        T = parse_quantity(args.temperature, "K", where="--temperature")
+        if not 200.0 <= T <= 450.0:
+            raise UserInputError(f"--temperature: must be in [-73, 177] degC, got {T - 273.15:.4g} degC")
+    return params, p0, T
+
+
+def cmd_static(args):
+    from struts.rig import static_point
+
+    params, p0, T = _params(args, None, args.n)
+    load = parse_quantity(args.load, "N", where="--load")
+    if load <= 0:
+        raise UserInputError(f"--load: must be > 0 N, got {load} N")
+    process = "polytropic" if args.process == "polytropic" else "isothermal"
+    res = static_point(params, load, p0_Pa=p0, T_K=T, process=process)
+    out = {k: res[k] for k in ("static_deflection_m", "stiffness_N_per_m", "gas_pressure_Pa", "gas_temperature_K")}
+    if args.json:
+        print_json(out)
+    else:
+        print(format_table(["quantity", "value"], [
+            ("strut", params.name), ("load [kN]", load / 1e3), ("process", process),
+            ("static deflection [mm]", out["static_deflection_m"] * 1e3),
+            ("stiffness [kN/m]", out["stiffness_N_per_m"] / 1e3),
+            ("gas pressure [MPa]", out["gas_pressure_Pa"] / 1e6),
+            ("gas temperature [degC]", out["gas_temperature_K"] - 273.15)]))
+
+
+def cmd_characteristic(args):
+    from struts.rig import characteristic
+
+    params, p0, T = _params(args, None, args.n)
+    res = characteristic(params, p0_Pa=p0, T_K=T, process=args.process)
+    if args.csv:
+        _write_csv(args.csv, ["x_m", "force_N", "gas_pressure_Pa"],
+                   zip(res["x_m"], res["force_N"], res["gas_pressure_Pa"]))
+    if args.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(6, 4))
+        ax.plot(res["x_m"] * 1e3, res["force_N"] / 1e3)
+        ax.set_xlabel("deflection [mm]"); ax.set_ylabel("gas force [kN]"); ax.grid(True)
+        ax.set_title(f"{params.name}: p0 = {res['p0_Pa'] / 1e6:.3g} MPa, T = {res['temperature_K'] - 273.15:.3g} degC, {args.process}")
+        fig.tight_layout(); fig.savefig(args.plot, dpi=120); plt.close(fig)
+    rows = [{"x_m": float(x), "force_N": float(F)} for x, F in zip(res["x_m"][::20], res["force_N"][::20])]
+    if args.json:
+        print_json({"x_m": res["x_m"], "force_N": res["force_N"], "gas_pressure_Pa": res["gas_pressure_Pa"]})
+    else:
+        print(format_table(["x [mm]", "F [kN]"], [(r["x_m"] * 1e3, r["force_N"] / 1e3) for r in rows]))
+
+
+def cmd_cycle(args):
+    from struts.rig import check_cycle_arguments, cycle_test
+
+    params, p0, T = _params(args)
+    amps = parse_quantity_list(args.amplitude, "m", where="--amplitude")
+    freqs = parse_quantity_list(args.frequency, "Hz", where="--frequency")
+    mean = parse_quantity(args.mean, "m", where="--mean")
+    for A, f in itertools.product(amps, freqs):  # validate all before any work
+        check_cycle_arguments(params, A, f, mean, args.cycles)
+    results = [cycle_test(params, A, f, mean, cycles=args.cycles, T_K=T, p0_Pa=p0)
+               for A, f in itertools.product(amps, freqs)]
+    if args.csv:
+        header = ["amplitude_m", "frequency_Hz", "mean_m", "t_s", "x_m", "v_m_per_s", "force_N",
+                  "gas_force_N", "valve_force_N", "friction_force_N", "end_stop_force_N", "gas_temperature_K"]
+        rows = []
+        for r in results:
+            for i in range(len(r.t_s)):
+                rows.append([r.amplitude_m, r.frequency_Hz, r.mean_m, r.t_s[i] - r.t_s[0], r.x_m[i], r.v_m_per_s[i],
+                             r.force_N[i], r.components_N["gas"][i], r.components_N["valve"][i],
+                             r.components_N["friction"][i], r.components_N["end_stop"][i], r.gas_temperature_K[i]])
+        _write_csv(args.csv, header, rows)
+    if args.plot:
+        plot_loops(results, args.plot, params.name)
+    if args.json:
+        print_json([r.summary() for r in results])
+    else:
+        print(format_table(
+            ["A [mm]", "f [Hz]", "E/cycle [J]", "valve [J]", "friction [J]", "gas [J]", "Fmax comp [kN]", "Fmin reb [kN]"],
+            [(r.amplitude_m * 1e3, r.frequency_Hz, r.energy_per_cycle_J, r.energy_by_mechanism_J["valve"],
+              r.energy_by_mechanism_J["friction"], r.energy_by_mechanism_J["gas"],
+              r.peak_force_compression_N / 1e3, r.peak_force_rebound_N / 1e3) for r in results]))
+
+
+def plot_loops(results, path, name):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for r in results:
+        lab = f"A={r.amplitude_m * 1e3:.3g} mm, f={r.frequency_Hz:.3g} Hz, E={r.energy_per_cycle_J:.4g} J"
+        a1.plot(r.x_m * 1e3, r.force_N / 1e3, label=lab)
+        a2.plot(r.v_m_per_s * 1e3, (r.force_N - r.components_N["gas"]) / 1e3, label=lab)
+    a1.set_xlabel("deflection [mm]"); a1.set_ylabel("force [kN]"); a1.grid(True); a1.legend(fontsize=7)
+    a2.set_xlabel("velocity [mm/s]"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
+    fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)")
+    fig.tight_layout(); fig.savefig(path, dpi=120); plt.close(fig)
+
+
+def cmd_fit(args):
+    from struts.fit import fit, read_rig_csv
+
+    params, _, _ = _params(args)
+    data = read_rig_csv(args.data)
+    names = [n.strip() for n in args.fit.split(",") if n.strip()]
+    res = fit(params, data, names, cycles=args.cycles)
+    if args.write:
+        from struts.fit import with_values
+        import yaml
+        fitted = with_values(params, names, [res.values[n] for n in names])
+        Path(args.write).write_text(yaml.safe_dump(fitted.model_dump(), sort_keys=False))
+    if args.json:
+        print_json(res.as_dict())
+    else:
+        print(format_table(["parameter", "initial", "fitted", "95% CI low", "95% CI high"],
+                           [(n, res.initial[n], res.values[n], *res.confidence_95[n]) for n in names]))
+        print()
+        print(format_table(["test", "measured", "model", "rel. error [%]"],
+                           [(i + 1, m, s, 100 * (s - m) / m) for i, (m, s) in enumerate(zip(res.measured, res.model))]))
+
+
+def _write_csv(path, header, rows):
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for r in rows:
+            w.writerow([f"{float(v):.10g}" for v in r])
