@@ -33,6 +33,18 @@ def Quantity(unit: str):
     return Annotated[float, BeforeValidator(_parse)]
 
 
+def QuantityList(unit: str):
+    """Annotated list of floats, each a number (SI) or a string with units."""
+
+    def _parse(value: Any) -> list[float]:
+        value = _strip_source(value)
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(f"expected a list of quantities in {unit}")
+        return [parse_quantity(_strip_source(v), unit, where=f"item {i} (in {unit})") for i, v in enumerate(value)]
+
+    return Annotated[list[float], BeforeValidator(_parse)]
+
+
 def Plain():
     """Annotated float that also accepts the {value:, source:} provenance form."""
     return Annotated[float, BeforeValidator(_strip_source)]

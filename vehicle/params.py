@@ -1,0 +1,211 @@
+"""Typed vehicle parameters (hull, stations, tyres, heat, compensation, charging) from YAML.
+
+`load_vehicle("apc_8x8")` or a path. Quantities accept units; every value in the shipped
+file carries its source or "assumed". Hull mass and CG may be omitted: they are then derived
+from the charging loads (sum of wheel loads = weight, moment balance), which is how the
+REFERENCE §3 numbers were derived.
+"""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from hpsim.config import Model, Plain, Quantity, QuantityList, deep_update, load_yaml, validate
+from hpsim.errors import UserInputError
+
+GRAVITY = 9.80665  # m/s^2, standard gravity (ISO 80000-3)
+
+m = Quantity("m")
+kg = Quantity("kg")
+K = Quantity("K")
+N = Quantity("N")
+s = Quantity("s")
+Number = Plain()
+
+
+class Tyre(Model):
+    radius: m
+    stiffness: Quantity("N/m")
+    damping: Quantity("N*s/m")
+    contact_length: m = 0.35       # enveloping filter length (REFERENCE §5)
+    lift_off_smoothing: m = 1e-4   # width of the smooth no-tension law
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.stiffness <= 0 or self.radius <= 0:
+            raise ValueError("tyre stiffness and radius must be > 0")
+        if self.damping < 0 or self.contact_length < 0:
+            raise ValueError("tyre damping and contact_length must be >= 0")
+        return self
+
+
+class Axle(Model):
+    position: m                     # behind axle 1 [m]
+    strut: str = "apc"              # built-in strut name or path
+    unsprung_mass: kg               # per wheel station
+    motion_ratio: Number            # strut travel / wheel travel
+    strut_overrides: dict = {}      # e.g. {"charge.pressure": "5 MPa"}
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.unsprung_mass <= 0:
+            raise ValueError(f"unsprung_mass must be > 0 kg, got {self.unsprung_mass}")
+        if not 0.1 <= self.motion_ratio <= 2.0:
+            raise ValueError(f"motion_ratio must be in [0.1, 2.0], got {self.motion_ratio}")
+        return self
+
+
+class Hull(Model):
+    mass: kg | None = None          # sprung mass; None: derived from the charging loads
+    cg_x: m | None = None           # behind axle 1; None: derived from the charging loads
+    cg_y: m = 0.0                   # to the left of the centre line
+    pitch_inertia: Quantity("kg*m**2")
+    roll_inertia: Quantity("kg*m**2")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.mass is not None and self.mass <= 0:
+            raise ValueError(f"mass must be > 0 kg, got {self.mass}")
+        if self.pitch_inertia <= 0 or self.roll_inertia <= 0:
+            raise ValueError("pitch_inertia and roll_inertia must be > 0 kg m^2")
+        return self
+
+
+class Heat(Model):
+    """Lumped thermal node per strut (REFERENCE §8)."""
+
+    capacity: Quantity("J/K")
+    surface_area: Quantity("m**2")
+    diameter: m                                 # outer cylinder diameter (forced convection)
+    natural_convection: Quantity("W/(m**2*K)") = 5.0
+    emissivity: Number = 0.9
+    # forced convection over a cylinder in cross flow (Churchill-Bernstein); the air speed at
+    # the strut is this fraction of the vehicle speed (wheel bay shielding): the calibrated parameter
+    air_speed_ratio: Number = 0.5
+    air_conductivity: Quantity("W/(m*K)") = 0.026
+    air_kinematic_viscosity: Quantity("m**2/s") = 1.6e-5
+    air_prandtl: Number = 0.71
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.capacity <= 0 or self.surface_area <= 0 or self.diameter <= 0:
+            raise ValueError("capacity, surface_area and diameter must be > 0")
+        if not 0.0 <= self.air_speed_ratio <= 2.0:
+            raise ValueError(f"air_speed_ratio must be in [0, 2], got {self.air_speed_ratio}")
+        return self
+
+
+class Compensation(Model):
+    """Pressure compensation (levelling) per strut (REFERENCE §9)."""
+
+    enabled: bool = False
+    time_constant: s = 15.0          # closed-loop time constant of the mean deflection
+    filter_time_constant: s = 10.0   # low-pass of the measured deflection
+    dead_band: m = 0.015             # half width of the dead band on the filtered deflection error
+    flow_limit: Quantity("m**3/s") = 2e-5
+    smoothing: m = 1e-3
+
+
+class Charging(Model):
+    """How the gas charges were set while stationary (seed 000 §3; REFERENCE §3)."""
+
+    wheel_loads: QuantityList("N")   # per axle, per wheel (left = right)
+    heights: QuantityList("m")                # hull height at each axle
+    temperature: K
+    strut_deflection: m              # strut deflection at the charged state (same at every station)
+
+
+class VehicleParams(Model):
+    name: str
+    description: str = ""
+    track: m
+    axles: list[Axle] = Field(min_length=2)
+    hull: Hull
+    tyre: Tyre
+    heat: Heat
+    compensation: Compensation = Compensation()
+    charging: Charging
+
+    @model_validator(mode="after")
+    def _check(self):
+        n = len(self.axles)
+        pos = [a.position for a in self.axles]
+        if any(b <= a for a, b in zip(pos, pos[1:])):
+            raise ValueError(f"axles: positions must increase from front to rear, got {pos}")
+        if len(self.charging.wheel_loads) != n or len(self.charging.heights) != n:
+            raise ValueError(f"charging: wheel_loads and heights need one value per axle ({n})")
+        if any(w <= 0 for w in self.charging.wheel_loads):
+            raise ValueError("charging.wheel_loads must be > 0 N")
+        if self.track <= 0:
+            raise ValueError(f"track must be > 0 m, got {self.track}")
+        return self
+
+    # --- derived ------------------------------------------------------------------------------
+    @property
+    def n_axles(self) -> int:
+        return len(self.axles)
+
+    @property
+    def n_stations(self) -> int:
+        return 2 * len(self.axles)
+
+    def station_axle(self, i: int) -> int:
+        """Stations are axle-major, left first: 0 = axle 1 left, 1 = axle 1 right, ..."""
+        return i // 2
+
+    def station_y(self, i: int) -> float:
+        """Lateral position [m], + left."""
+        return 0.5 * self.track if i % 2 == 0 else -0.5 * self.track
+
+    def station_names(self) -> list[str]:
+        return [f"axle{self.station_axle(i) + 1}_{'left' if i % 2 == 0 else 'right'}"
+                for i in range(self.n_stations)]
+
+    def unsprung_mass_total(self) -> float:
+        return sum(2 * a.unsprung_mass for a in self.axles)
+
+    def sprung_mass(self) -> float:
+        if self.hull.mass is not None:
+            return self.hull.mass
+        return sum(2 * w for w in self.charging.wheel_loads) / GRAVITY - self.unsprung_mass_total()
+
+    def sprung_cg_x(self) -> float:
+        if self.hull.cg_x is not None:
+            return self.hull.cg_x
+        num = sum(2 * (w - a.unsprung_mass * GRAVITY) * a.position
+                  for w, a in zip(self.charging.wheel_loads, self.axles))
+        den = sum(2 * (w - a.unsprung_mass * GRAVITY) for w, a in zip(self.charging.wheel_loads, self.axles))
+        return num / den
+
+    def total_weight(self) -> float:
+        return (self.sprung_mass() + self.unsprung_mass_total()) * GRAVITY
+
+
+def builtin_vehicles() -> list[str]:
+    folder = resources.files("vehicle") / "data"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def vehicle_file(name_or_path: str | Path) -> Path:
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml"):
+        if not p.exists():
+            raise UserInputError(f"vehicle file {p}: not found")
+        return p
+    if str(name_or_path) in builtin_vehicles():
+        return Path(str(resources.files("vehicle") / "data" / f"{name_or_path}.yaml"))
+    raise UserInputError(f"vehicle: unknown vehicle {str(name_or_path)!r}; built-in: {', '.join(builtin_vehicles())} "
+                         "(or a path to a .yaml file)")
+
+
+def load_vehicle(name_or_path: str | Path, overrides: dict | None = None, source: str | None = None) -> VehicleParams:
+    path = vehicle_file(name_or_path)
+    data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise UserInputError(f"{path}: expected a mapping of vehicle parameters")
+    if overrides:
+        data = deep_update(data, overrides)
+    return validate(VehicleParams, data, source or str(path))
