@@ -175,7 +175,9 @@ def fit(params: StrutParams, data: RigData, names: list[str], cycles: int = 3, m
     try:
         cov_log = s2 * np.linalg.inv(sol.jac.T @ sol.jac)
         half = student_t.ppf(0.975, dof) * np.sqrt(np.clip(np.diag(cov_log), 0, None))
-        ci = {n: [float(v * math.exp(-h)), float(v * math.exp(h))] for n, v, h in zip(names, theta, half)}
+        # a half width beyond e^20 means the data do not identify that parameter
+        ci = {n: ([float(v * math.exp(-h)), float(v * math.exp(h))] if h < 20 else [0.0, float("inf")])
+              for n, v, h in zip(names, theta, half)}
     except np.linalg.LinAlgError:
         ci = {n: [float("nan"), float("nan")] for n in names}
     fitted = with_values(params, names, theta)

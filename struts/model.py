@@ -59,6 +59,8 @@ class SeparatedStrut:
     @property
     def state_names(self) -> tuple[str, ...]:
         names = ()
+        if self.p.valve.oil_model == "compressible":
+            names += ("dp_valve",)
         if self.p.gas.process == "energy":
             names += ("T_gas",)
         if self.p.friction.model == "lugre":
@@ -66,8 +68,17 @@ class SeparatedStrut:
         return names
 
     @property
+    def stiff_state_names(self) -> tuple[str, ...]:
+        """Internal states with fast dynamics (time constants far below a millisecond step)."""
+        return tuple(n for n in self.state_names if n in ("dp_valve", "z_bristle"))
+
+    @property
     def algebraic_names(self) -> tuple[str, ...]:
-        return ("dp_valve",)
+        return () if self.compressible else ("dp_valve",)
+
+    @property
+    def compressible(self) -> bool:
+        return self.p.valve.oil_model == "compressible"
 
     # --- charge and gas volume ---------------------------------------------------------------
     @cached_property
@@ -160,7 +171,7 @@ class SeparatedStrut:
         """Oil flow [m^3/s] forced through the damping valve (incompressible oil, seed 000 eq. 2)."""
         return self.p.geometry.valve_area * v
 
-    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 4):
+    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40):
         """Eliminates the algebraic dp_valve: solves valve_flow(dp) = A_v v."""
         return valves.valve_pressure_drop(self.valve_flow_demand(v), newton_iterations=newton_iterations,
                                           dp_guess=dp_guess, **self.valve_arguments(T_wall))
@@ -197,7 +208,7 @@ class SeparatedStrut:
         return e.stiffness * (pen_c - pen_r) + damping, damping
 
     # --- the equations ----------------------------------------------------------------------------
-    def equations(self, u: StrutInputs, states: dict, dp_valve) -> dict:
+    def equations(self, u: StrutInputs, states: dict, dp_valve=None) -> dict:
         """All strut equations at one instant.
 
         Returns a dict with: rates (dict state -> d/dt), residual (valve flow balance, m^3/s
@@ -230,7 +241,15 @@ class SeparatedStrut:
         F_stop, F_stop_damping = self.end_stop_force(u.x, u.v)
         q = self.valve_flow_demand(u.v)
         vargs = self.valve_arguments(u.T_wall)
-        residual = valves.valve_flow(dp_valve, **vargs) - q
+        if self.compressible:
+            dp_valve = states["dp_valve"]
+        q_valve = valves.valve_flow(dp_valve, **vargs)
+        if self.compressible:
+            rates["dp_valve"] = chamber_pressure_rate(q, q_valve, self.oil_bulk_modulus(u.T_wall),
+                                                      P.valve.compliant_oil_volume)
+            residual = None
+        else:
+            residual = q_valve - q
         F_valve = dp_valve * P.geometry.valve_area
         F_gas = p_gas * A
         return dict(
@@ -244,20 +263,32 @@ class SeparatedStrut:
             valve_force=F_valve,
             friction_force=F_fric,
             end_stop_force=F_stop,
-            power_valve=dp_valve * q,
+            # the valve dissipates dp q_valve; dp (q - q_valve) goes into compressing the oil
+            power_valve=dp_valve * q_valve,
             power_friction=F_fric * u.v,
             power_end_stop=F_stop_damping * u.v,
             heat_gas=heat_gas,
             gas_work_rate=-p_gas * dVdt,     # mechanical power into the gas [W]
         )
 
+    def oil_bulk_modulus(self, T_wall):
+        o = self.p.oil
+        return oillaw.oil_bulk_modulus(T_wall, o.bulk_modulus, o.reference_temperature, o.bulk_modulus_slope)
+
     def initial_states(self, T_wall) -> dict:
         out = {}
+        if "dp_valve" in self.state_names:
+            out["dp_valve"] = 0.0
         if "T_gas" in self.state_names:
             out["T_gas"] = T_wall
         if "z_bristle" in self.state_names:
             out["z_bristle"] = 0.0
         return out
+
+
+def chamber_pressure_rate(q_in_m3_s, q_out_m3_s, bulk_modulus_Pa, volume_m3):
+    """d(dp)/dt [Pa/s] of an oil volume with net inflow: beta/V (q_in - q_out) (seed 001 eq. 5-6)."""
+    return bulk_modulus_Pa / volume_m3 * (q_in_m3_s - q_out_m3_s)
 
 
 def make_strut(params: StrutParams, gas_properties=None):

@@ -142,35 +142,46 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     v_t = amplitude_m * omega * ca.cos(omega * t)
     names = strut.state_names
     xs = ca.SX.sym("xs", len(names))
-    energies = ca.SX.sym("E", len(MECHANISMS) + 1)  # valve, friction, gas, end_stop, work in
+    # quadratures: valve, friction, gas loop work, end stop, work in, heat from gas to wall
+    energies = ca.SX.sym("E", len(MECHANISMS) + 2)
     dp_scale = 1e6
-    z = ca.SX.sym("z")  # dp_valve / 1 MPa
+    algebraic = not strut.compressible
+    z = ca.SX.sym("z", 1 if algebraic else 0)  # dp_valve / 1 MPa when the oil is incompressible
     inputs = StrutInputs(x=x_t, v=v_t, T_wall=T, m_gas=m_gas, x_mid=mean_m)
-    eq = strut.equations(inputs, {n: xs[i] for i, n in enumerate(names)}, z * dp_scale)
+    eq = strut.equations(inputs, {n: xs[i] for i, n in enumerate(names)}, z * dp_scale if algebraic else None)
     rates = [eq["rates"][n] for n in names]
-    powers = [eq["power_valve"], eq["power_friction"], eq["heat_gas"], eq["power_end_stop"], eq["force"] * v_t]
-    q_scale = params.geometry.valve_area * max(amplitude_m * omega, 1e-3)
-    dae = {"t": t, "x": ca.vertcat(xs, energies), "z": z,
-           "ode": ca.vertcat(*rates, *powers), "alg": eq["residual"] / q_scale}
+    # the gas's share of the loop is its own loop work -closed integral p dV (= heat to the wall
+    # once the cycle is periodic); the end stops' share is their whole force times velocity
+    powers = [eq["power_valve"], eq["power_friction"], eq["gas_work_rate"], eq["end_stop_force"] * v_t,
+              eq["force"] * v_t, eq["heat_gas"]]
+    dae = {"t": t, "x": ca.vertcat(xs, energies), "ode": ca.vertcat(*rates, *powers)}
+    if algebraic:
+        q_scale = params.geometry.valve_area * max(amplitude_m * omega, 1e-3)
+        dae.update(z=z, alg=eq["residual"] / q_scale)
     n_out = int(cycles) * samples_per_cycle + 1
     grid = np.linspace(0.0, cycles * period, n_out)
-    integ = ca.integrator("rig", "idas", dae, 0.0, grid[1:],
-                          {"reltol": rtol, "abstol": 1e-10, "max_num_steps": 200000,
-                           "calc_ic": True})
-    x0 = [float(v) for v in strut.initial_states(T).values()] + [0.0] * (len(MECHANISMS) + 1)
-    z0 = float(strut.valve_pressure_drop(amplitude_m * omega, T)) / dp_scale  # v(0) = A omega
+    opts = {"reltol": rtol, "abstol": 1e-10, "max_num_steps": 500000}
+    if algebraic:
+        opts["calc_ic"] = True
+    integ = ca.integrator("rig", "idas" if algebraic else "cvodes", dae, 0.0, grid[1:], opts)
+    x0 = [float(v) for v in strut.initial_states(T).values()] + [0.0] * (len(MECHANISMS) + 2)
+    args = {"x0": x0}
+    z0 = np.zeros((0, 1))
+    if algebraic:
+        z0 = np.array([[float(strut.valve_pressure_drop(amplitude_m * omega, T, newton_iterations=40)) / dp_scale]])
+        args["z0"] = z0
     try:
-        sol = integ(x0=x0, z0=z0)
+        sol = integ(**args)
     except RuntimeError as exc:
         raise RuntimeError(f"rig integration failed at A={amplitude_m} m, f={frequency_Hz} Hz: {exc}") from None
     X = np.hstack([np.asarray(x0, float).reshape(-1, 1), np.asarray(sol["xf"])])
-    Z = np.hstack([[[z0]], np.asarray(sol["zf"])])
+    Z = np.hstack([z0, np.asarray(sol["zf"]).reshape(z0.shape[0], -1)]) if algebraic else np.zeros((0, n_out))
     outs = ca.Function("outs", [t, xs, z], [eq["force"], eq["gas_force"], eq["valve_force"],
                                             eq["friction_force"], eq["end_stop_force"],
                                             eq["gas_pressure"], eq["gas_temperature"]])
     nx = len(names)
-    vals = np.asarray(outs.map(n_out)(grid, X[:nx, :] if nx else np.zeros((0, n_out)), Z))
-    F, Fg, Fv, Ff, Fs, pg, Tg = vals
+    vals = outs.map(n_out)(grid, X[:nx, :] if nx else np.zeros((0, n_out)), Z)
+    F, Fg, Fv, Ff, Fs, pg, Tg = (np.asarray(v, float).ravel() for v in vals)
     E = X[nx:, :]
     last = slice(n_out - samples_per_cycle - 1, n_out)
     dE = E[:, -1] - E[:, n_out - samples_per_cycle - 1]
@@ -182,10 +193,11 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
         t_s=grid[last], x_m=x_arr[last], v_m_per_s=v_arr[last], force_N=F[last],
         components_N={"gas": Fg[last], "valve": Fv[last], "friction": Ff[last], "end_stop": Fs[last]},
         gas_pressure_Pa=pg[last], gas_temperature_K=Tg[last],
-        energy_per_cycle_J=float(dE[-1]),
+        energy_per_cycle_J=float(dE[len(MECHANISMS)]),
         energy_by_mechanism_J=by_mech,
-        work_in_J=float(dE[-1]),
-        heat_out_J=float(sum(dE[:-1])),
+        work_in_J=float(dE[len(MECHANISMS)]),
+        # heat leaving the strut's fluids in the last cycle: valve + friction + gas to wall
+        heat_out_J=float(dE[0] + dE[1] + dE[len(MECHANISMS) + 1] + dE[3]),
         # peaks per stroke direction: the largest force while compressing (v > 0) and the
         # smallest while extending (v < 0), where the resisting forces subtract from the gas force
         peak_force_compression_N=float(np.max(F[last][v_arr[last] > 0])),
