@@ -85,3 +85,12 @@ def smooth_step(x, x0, x1):
     s = (x - x0) / (x1 - x0)
     s = fmin(fmax(s, 0.0), 1.0)
     return s * s * (3.0 - 2.0 * s)
+
+
+def ramp(x, eps):
+    """max(x, 0) with a C1 quadratic blend on [-eps, eps]; exactly 0 below -eps and x above eps.
+
+    Unlike `smooth_pos` it leaves no tail, so a contact law built on it is exactly inactive
+    away from contact (end stops, tyre lift-off, dead bands).
+    """
+    return if_else(x <= -eps, 0.0 * x, if_else(x >= eps, x, (x + eps) * (x + eps) / (4.0 * eps)))

@@ -171,8 +171,14 @@ class SeparatedStrut:
         """Oil flow [m^3/s] forced through the damping valve (incompressible oil, seed 000 eq. 2)."""
         return self.p.geometry.valve_area * v
 
-    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40):
-        """Eliminates the algebraic dp_valve: solves valve_flow(dp) = A_v v."""
+    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40, warm: bool = False):
+        """Eliminates the algebraic dp_valve: solves valve_flow(dp) = A_v v.
+
+        warm=True: a few plain Newton steps from dp_guess (the previous time step's value).
+        """
+        if warm:
+            return valves.valve_pressure_drop_warm(self.valve_flow_demand(v), dp_guess, newton_iterations,
+                                                   **self.valve_arguments(T_wall))
         return valves.valve_pressure_drop(self.valve_flow_demand(v), newton_iterations=newton_iterations,
                                           dp_guess=dp_guess, **self.valve_arguments(T_wall))
 
@@ -194,16 +200,18 @@ class SeparatedStrut:
         F = fr.seal_friction(
             v, x_rel, p_gas, F0_comp=f.F0_compression, F0_reb=f.F0_rebound, f_p=f.pressure_coefficient,
             K_brk=f.breakaway_ratio, v_s=f.stribeck_velocity, f_v=f_v, eps=f.smoothing_velocity,
-            v_h_comp=f.hysteresis_velocity_compression, v_h_reb=f.hysteresis_velocity_rebound)
+            v_h_comp=f.hysteresis_velocity_compression, v_h_reb=f.hysteresis_velocity_rebound,
+            eps_x=f.hysteresis_smoothing_displacement
+            if (f.hysteresis_velocity_compression or f.hysteresis_velocity_rebound) else None)
         return F, None
 
     # --- end stops ------------------------------------------------------------------------------
     def end_stop_force(self, x, v):
         """Elastic stops beyond full extension (x < 0) and full compression (x > stroke): (force, damping part)."""
         e, stroke = self.p.end_stops, self.p.geometry.stroke
-        pen_c = sym.smooth_pos(x - stroke, e.smoothing)
-        pen_r = sym.smooth_pos(-x, e.smoothing)
-        engaged = pen_c / (pen_c + e.smoothing) + pen_r / (pen_r + e.smoothing)
+        pen_c = sym.ramp(x - stroke, e.smoothing)
+        pen_r = sym.ramp(-x, e.smoothing)
+        engaged = sym.smooth_step(x - stroke, -e.smoothing, e.smoothing) + sym.smooth_step(-x, -e.smoothing, e.smoothing)
         damping = e.damping * engaged * v
         return e.stiffness * (pen_c - pen_r) + damping, damping
 
@@ -275,7 +283,9 @@ class SeparatedStrut:
         o = self.p.oil
         return oillaw.oil_bulk_modulus(T_wall, o.bulk_modulus, o.reference_temperature, o.bulk_modulus_slope)
 
-    def initial_states(self, T_wall) -> dict:
+    def initial_states(self, T_wall, x=None, m_gas=None, dV_oil=0.0) -> dict:
+        """States at rest at body temperature T_wall (x, m_gas, dV_oil: not needed here; the
+        integrated strut's chamber states depend on them)."""
         out = {}
         if "dp_valve" in self.state_names:
             out["dp_valve"] = 0.0

@@ -218,3 +218,28 @@ def valve_pressure_drop(q_m3_s, newton_iterations: int = 40, dp_guess=None, **va
     if r_best is not None:
         w = sym.if_else(sym.fabs(r) < sym.fabs(r_best), w, w_best)
     return _flow_function_inverse(w, p_crit)
+
+
+def valve_pressure_drop_warm(q_m3_s, dp_guess_Pa, iterations: int = 2, **valve_kwargs):
+    """dp [Pa] with valve_flow(dp) = q by a few plain Newton steps from a warm start.
+
+    For time stepping: the previous step's dp is within a few per cent of the answer, so two
+    Newton steps in the orifice variable w (in which a fixed-area orifice is linear) reach the
+    solver's tolerance; the iterate is kept in the bleed-only bracket [0, w_bound], which
+    always contains the root. Much cheaper than `valve_pressure_drop`, which must work from a
+    cold start. Symbolic-friendly.
+    """
+    kw = dict(valve_kwargs)
+    cd, rho, p_crit, k_leak = kw.pop("cd"), kw.pop("rho"), kw.pop("p_crit"), kw.pop("k_leak")
+    c = sym.sqrt(2.0 / rho) * cd
+    w_bound = q_m3_s / (c * kw["bleed_area"])
+    lo, hi = sym.fmin(w_bound, 0.0), sym.fmax(w_bound, 0.0)
+    w = sym.fmin(sym.fmax(_flow_function(dp_guess_Pa, p_crit), lo), hi)
+    for _ in range(int(iterations)):
+        dp = _flow_function_inverse(w, p_crit)
+        area = valve_opening_area(dp, **kw)
+        r = c * area * w + k_leak * dp - q_m3_s
+        dr = c * area + (c * w * _valve_opening_area_derivative(dp, **kw) + k_leak) \
+            * _flow_function_inverse_derivative(w, p_crit)
+        w = sym.fmin(sym.fmax(w - r / dr, lo), hi)
+    return _flow_function_inverse(w, p_crit)

@@ -17,7 +17,7 @@ def filtered_deflection_rate(x_filtered_m, x_m, filter_time_constant_s):
 
 def dead_band(error_m, half_width_m, smoothing_m):
     """Smooth dead band: 0 inside +-half_width, error -+ half_width outside."""
-    return sym.smooth_pos(error_m - half_width_m, smoothing_m) - sym.smooth_pos(-error_m - half_width_m, smoothing_m)
+    return sym.ramp(error_m - half_width_m, smoothing_m) - sym.ramp(-error_m - half_width_m, smoothing_m)
 
 
 def oil_flow(x_filtered_m, x_nominal_m, gas_area_m2, time_constant_s, half_width_m, flow_limit_m3_s, smoothing_m):

@@ -38,6 +38,7 @@ from .tyre import tyre_force
 
 ENERGY_TERMS = ("valve", "friction", "gas", "end_stop", "strut_work", "tyre_work", "road_work")
 DISSIPATION_TERMS = ("valve", "friction", "gas", "end_stop")
+HULL_ACCELERATIONS = ("heave_acc", "pitch_acc", "roll_acc")
 
 
 @dataclass
@@ -107,10 +108,21 @@ class VehicleModel:
             L.add(f"T_strut[{i}]")
             L.add(f"xf[{i}]")
             L.add(f"V_oil[{i}]")
+        # last valve pressure drop of each incompressible strut: not a state of the physics but the
+        # warm start of the Newton elimination in the fixed-step solver (rate 0; the solver
+        # overwrites it after every step)
+        for i in range(self.n):
+            if not self.struts[i].compressible:
+                L.add(f"dp_memory[{i}]")
         self.n_dynamic = len(L)
         for i in range(self.n):
             for e in ENERGY_TERMS:
                 L.add(f"E_{e}[{i}]")
+        # integrals of squares for RMS statistics: strut velocity per station, hull accelerations
+        for i in range(self.n):
+            L.add(f"I_v2[{i}]")
+        for nm in HULL_ACCELERATIONS:
+            L.add(f"I_{nm}2")
         self.layout = L
         self.nx = len(L)
         self.nz = sum(len(st.algebraic_names) for st in self.struts)
@@ -208,6 +220,8 @@ class VehicleModel:
             for nm in strut.state_names:
                 rates[f"{nm}[{i}]"] = eq["rates"][nm]
             rates[f"T_strut[{i}]"] = dTs
+            if not strut.compressible:
+                rates[f"dp_memory[{i}]"] = 0.0 * dTs
             rates[f"xf[{i}]"] = comp.filtered_deflection_rate(xf, xs, P.compensation.filter_time_constant)
             rates[f"V_oil[{i}]"] = q_oil
             rates[f"E_valve[{i}]"] = eq["power_valve"]
@@ -217,6 +231,7 @@ class VehicleModel:
             rates[f"E_strut_work[{i}]"] = Fs * vs
             rates[f"E_tyre_work[{i}]"] = Ft * ddefl
             rates[f"E_road_work[{i}]"] = Ft * droad[i]
+            rates[f"I_v2[{i}]"] = vs * vs
             if eq["residual"] is not None:
                 residuals.append(eq["residual"])
             hull_forces.append(self.r[i] * Fs)
@@ -236,6 +251,9 @@ class VehicleModel:
         ddz, ddt, ddp = hull_eq.hull_accelerations(Qz, Qt, Qp, self.M, P.hull.pitch_inertia, P.hull.roll_inertia,
                                                    GRAVITY)
         rates.update({"z": dzc, "theta": dth, "phi": dph, "dz": ddz, "dtheta": ddt, "dphi": ddp})
+        # hull accelerations about equilibrium: gravity is balanced by the static strut forces
+        for nm, acc in zip(HULL_ACCELERATIONS, (ddz, ddt, ddp)):
+            rates[f"I_{nm}2"] = acc * acc
         out["hull_acc"] = [ddz, ddt, ddp]
         out["axle_height"] = [hull_eq.axle_height_change(zc, th, ax.position, self.a_cg) for ax in P.axles]
         ode = [rates[nm] for nm in self.layout.names]
@@ -260,32 +278,38 @@ class VehicleModel:
                                            ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
         return f, g, y
 
-    def eliminate_valves(self, x, u, T_index=None, dp_guess=None, newton_iterations=4):
-        """Valve pressure drops from the flow balance (Newton, unrolled), for explicit ODE form."""
+    def eliminate_valves(self, x, iterations: int = 2):
+        """Valve pressure drops of incompressible struts by warm-started Newton (explicit-ODE form)."""
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
         dps = []
         for i in range(self.n):
-            if self.struts[i].compressible:
+            strut = self.struts[i]
+            if strut.compressible:
                 dps.append(None)
                 continue
             zs = hull_eq.station_displacement(X["dz"], X["dtheta"], X["dphi"], self.a[i], self.y[i], self.a_cg, self.y_cg)
             vs = self.r[i] * (X[f"dw[{i}]"] - zs)
-            guess = None if dp_guess is None else dp_guess[i]
-            dps.append(self.struts[i].valve_pressure_drop(vs, X[f"T_strut[{i}]"], dp_guess=guess,
-                                                          newton_iterations=newton_iterations))
+            dps.append(strut.valve_pressure_drop(vs, X[f"T_strut[{i}]"], dp_guess=X[f"dp_memory[{i}]"],
+                                                 newton_iterations=iterations, warm=True))
         return dps
 
     @cached_property
+    def memory_index(self) -> np.ndarray:
+        return np.array([self.idx(f"dp_memory[{i}]") for i in range(self.n) if not self.struts[i].compressible],
+                        dtype=int)
+
+    @cached_property
     def ode_function(self):
-        """f(x, u, p) with the valve algebraic variables eliminated: the explicit-ODE form."""
+        """f(x, u, p) -> (dx/dt, valve dp of the incompressible struts): the explicit-ODE form."""
         x, _, u, p = self.symbols
-        dps = self.eliminate_valves(x, u)
+        dps = self.eliminate_valves(x)
         ode, _, out = self.equations(x, None, u, p, dp_override=dps)
-        return ca.Function("f_ode", [x, u, p], [ca.vertcat(*ode)]), dps
+        mem = ca.vertcat(*[d for d in dps if d is not None]) if len(self.memory_index) else ca.SX(0, 1)
+        return ca.Function("f_ode", [x, u, p], [ca.vertcat(*ode), mem]), dps
 
     def output_function_ode(self):
         x, _, u, p = self.symbols
-        dps = self.eliminate_valves(x, u)
+        dps = self.eliminate_valves(x, iterations=4)
         _, _, out = self.equations(x, None, u, p, dp_override=dps)
         return ca.Function("y_ode", [x, u, p], [ca.vertcat(*[ca.vertcat(*out[k]) for k in self.OUTPUT_NAMES]),
                                                 ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])

@@ -35,7 +35,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
+GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
 
 
 def sparse_lu(A: ca.SX):
@@ -139,7 +139,8 @@ class Ros2Stepper:
     """
 
     def __init__(self, f: ca.Function, nx: int, nu: int, np_: int, n_stiff: int, dt: float,
-                 steps_per_sample: int, samples_per_call: int, compile: bool = True):
+                 steps_per_sample: int, samples_per_call: int, compile: bool = True,
+                 memory_index=()):
         self.dt, self.K, self.M = float(dt), int(steps_per_sample), int(samples_per_call)
         self.nx, self.nu = nx, nu
         x = ca.SX.sym("x", nx)
@@ -147,7 +148,7 @@ class Ros2Stepper:
         u1 = ca.SX.sym("u1", nu)
         p = ca.SX.sym("p", np_)
         h = self.dt
-        f0 = f(x, u0, p)
+        f0, mem0 = f(x, u0, p)
         ns = n_stiff
         J = ca.jacobian(f0[:ns], x[:ns])
         W = ca.SX.eye(ns) - GAMMA * h * J
@@ -157,8 +158,12 @@ class Ros2Stepper:
             return ca.vertcat(lu_solve(b[:ns]), b[ns:])
 
         k1 = solve(f0)
-        k2 = solve(f(x + h * k1, u1, p) - 2.0 * k1)
+        f1, mem1 = f(x + h * k1, u1, p)
+        k2 = solve(f1 - 2.0 * k1)
         x_next = x + 1.5 * h * k1 + 0.5 * h * k2
+        # warm starts of the eliminated algebraic variables: the last stage's solution
+        for j, k in enumerate(memory_index):
+            x_next[int(k)] = mem1[j]
         step = ca.Function("ros2_step", [x, u0, u1, p], [x_next])
         # K steps -> one sample (inputs per step as columns), then M samples per call
         sample = step.fold(self.K)

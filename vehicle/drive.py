@@ -1,0 +1,296 @@
+"""A drive: the vehicle DAE over a road with a speed profile, fast, in bounded memory.
+
+`Drive` ties a `VehicleModel` to a road (terrain.Road, enveloped by the tyre contact length),
+a speed profile (constant or distance -> speed table), ambient and initial temperatures and
+levelling on/off. It integrates with the compiled ROS2 stepper in blocks; each block's inputs
+(road under each tyre at its own distance behind axle 1, speed, ambient) are sampled just in
+time, so memory does not grow with distance. After every block it hands decimated time series,
+finished per-km statistics and a checkpoint to a sink (an HDF5 writer, or nothing), so a long
+run that fails or is interrupted keeps what it did and can resume.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from hpsim.errors import SimulationError, UserInputError
+
+from .equilibrium import EquilibriumSolver, charge_gas_masses
+from .model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
+from .solvers import Ros2Stepper
+
+
+@dataclass
+class SpeedProfile:
+    """Vehicle speed [m/s] as a function of distance [m]: constant or piecewise linear table."""
+
+    distances_m: np.ndarray
+    speeds_m_per_s: np.ndarray
+
+    @classmethod
+    def constant(cls, speed_m_per_s: float) -> "SpeedProfile":
+        return cls(np.array([0.0]), np.array([float(speed_m_per_s)]))
+
+    def __post_init__(self):
+        self.distances_m = np.atleast_1d(np.asarray(self.distances_m, float))
+        self.speeds_m_per_s = np.atleast_1d(np.asarray(self.speeds_m_per_s, float))
+        if np.any(self.speeds_m_per_s <= 0):
+            raise UserInputError("speed: every speed must be > 0 m/s (the drive is parametrised by distance)")
+        if np.any(np.diff(self.distances_m) <= 0):
+            raise UserInputError("speed: the profile's distances must increase")
+
+    def speed(self, s_m):
+        return np.interp(s_m, self.distances_m, self.speeds_m_per_s)
+
+    def time_grid(self, distance_m: float, ds: float = 1.0):
+        """(s, t) table: t(s) = integral ds / v(s), fine enough for interpolation both ways."""
+        n = max(int(math.ceil(distance_m / ds)), 2)
+        s = np.linspace(0.0, distance_m, n + 1)
+        v = self.speed(s)
+        t = np.concatenate([[0.0], np.cumsum(np.diff(s) * 0.5 * (1.0 / v[1:] + 1.0 / v[:-1]))])
+        return s, t
+
+
+@dataclass
+class DriveSettings:
+    distance_m: float
+    speed: SpeedProfile
+    ambient_K: float = 298.15
+    initial_temperatures_K: np.ndarray | float = 298.15
+    compensation: bool = False
+    dt_s: float = 0.004
+    output_interval_s: float = 1.0
+    samples_per_block: int = 10
+    stats_interval_m: float = 1000.0
+
+    def validate(self):
+        if not self.distance_m > 0:
+            raise UserInputError(f"distance: must be > 0 m, got {self.distance_m}")
+        if not 1e-4 <= self.dt_s <= 0.02:
+            raise UserInputError(f"solver.dt: must be in [0.1, 20] ms, got {self.dt_s * 1e3:.4g} ms")
+        k = self.output_interval_s / self.dt_s
+        if abs(k - round(k)) > 1e-6 or round(k) < 1:
+            raise UserInputError(f"output.interval: must be a whole number of steps of {self.dt_s * 1e3:.4g} ms, "
+                                 f"got {self.output_interval_s} s")
+
+
+class DriveSink(Protocol):
+    def start(self, info: dict) -> None: ...
+    def samples(self, block: dict) -> None: ...
+    def stats(self, rows: list[dict]) -> None: ...
+    def checkpoint(self, state: dict) -> None: ...
+
+
+@dataclass
+class DriveState:
+    """Everything needed to continue a drive: the resume checkpoint."""
+
+    t_s: float
+    s_m: float
+    x: np.ndarray
+    next_stats_m: float
+    last_stats: dict               # quadratures and time at the last km boundary
+    sample_index: int = 0
+
+    def as_dict(self) -> dict:
+        return {"t_s": self.t_s, "s_m": self.s_m, "x": self.x.copy(), "next_stats_m": self.next_stats_m,
+                "last_stats_t_s": self.last_stats["t_s"], "last_stats_q": self.last_stats["q"].copy(),
+                "sample_index": self.sample_index}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "DriveState":
+        return cls(t_s=float(d["t_s"]), s_m=float(d["s_m"]), x=np.asarray(d["x"], float),
+                   next_stats_m=float(d["next_stats_m"]),
+                   last_stats={"t_s": float(d["last_stats_t_s"]), "q": np.asarray(d["last_stats_q"], float)},
+                   sample_index=int(d["sample_index"]))
+
+
+class Drive:
+    def __init__(self, model: VehicleModel, road, settings: DriveSettings, *, gas_masses=None):
+        settings.validate()
+        self.model = model
+        self.settings = settings
+        self.road = road.enveloped(model.params.tyre.contact_length) if model.params.tyre.contact_length > 0 else road
+        t0 = time.perf_counter()
+        self.gas_masses = charge_gas_masses(model) if gas_masses is None else np.asarray(gas_masses, float)
+        self.equilibrium_solver = EquilibriumSolver(model)
+        self.p = model.run_parameters(self.gas_masses, settings.compensation)
+        self.K = int(round(settings.output_interval_s / settings.dt_s))
+        self.M = int(settings.samples_per_block)
+        f, _ = model.ode_function
+        self.stepper = Ros2Stepper(f, model.nx, model.nu, model.np, model.n_stiff, settings.dt_s, self.K, self.M,
+                                   memory_index=model.memory_index)
+        self.outputs = model.output_function_ode()
+        self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
+        self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
+        self.build_s = time.perf_counter() - t0
+        n = model.n
+        self.quad_index = np.array([model.idx(f"E_{e}[{i}]") for e in ENERGY_TERMS for i in range(n)]
+                                   + [model.idx(f"I_v2[{i}]") for i in range(n)]
+                                   + [model.idx(f"I_{a}2") for a in HULL_ACCELERATIONS])
+        self.T_index = np.array([model.idx(f"T_strut[{i}]") for i in range(n)])
+
+    # --- initial state --------------------------------------------------------------------------
+    def initial_equilibrium(self):
+        T0 = np.broadcast_to(np.asarray(self.settings.initial_temperatures_K, float), (self.model.n,))
+        return self.equilibrium_solver.solve(T0, self.gas_masses)
+
+    def initial_state(self) -> DriveState:
+        m = self.model
+        eq = self.initial_equilibrium()
+        x = np.zeros(m.nx)
+        x[m.idx("z")], x[m.idx("theta")], x[m.idx("phi")] = eq.heave_m, eq.pitch_rad, eq.roll_rad
+        for i in range(m.n):
+            x[m.idx(f"w[{i}]")] = eq.wheel_displacement_m[i]
+            x[m.idx(f"T_strut[{i}]")] = eq.temperatures_K[i]
+            x[m.idx(f"xf[{i}]")] = eq.strut_deflections_m[i]
+            for nm, v in m.struts[i].initial_states(eq.temperatures_K[i]).items():
+                x[m.idx(f"{nm}[{i}]")] = v
+        return DriveState(t_s=0.0, s_m=0.0, x=x, next_stats_m=self.settings.stats_interval_m,
+                          last_stats={"t_s": 0.0, "q": x[self.quad_index].copy()})
+
+    # --- inputs -----------------------------------------------------------------------------------
+    def distance_at(self, t):
+        return np.interp(t, self.t_grid, self.s_grid)
+
+    def inputs(self, t: np.ndarray) -> np.ndarray:
+        """Input matrix (nu, len(t)): road height and rate under each tyre, speed, ambient."""
+        m = self.model
+        s = self.distance_at(t)
+        v = self.settings.speed.speed(s)
+        U = np.empty((m.nu, len(t)))
+        for i in range(m.n):
+            track = "left" if i % 2 == 0 else "right"
+            h, slope = self.road.evaluate(s - m.a[i], track)
+            U[i] = h
+            U[m.n + i] = slope * v
+        U[2 * m.n] = v
+        U[2 * m.n + 1] = self.settings.ambient_K
+        return U
+
+    # --- run --------------------------------------------------------------------------------------
+    def run(self, sink: DriveSink | None = None, state: DriveState | None = None,
+            progress: Callable[[float, float, float], None] | None = None,
+            checkpoint_every_blocks: int = 6) -> "DriveResult":
+        m, S = self.model, self.settings
+        st = self.initial_state() if state is None else state
+        dt = S.dt_s
+        wall0 = time.perf_counter()
+        integ_s = 0.0
+        blocks = 0
+        while st.t_s < self.total_time_s - 1e-9:
+            t_cols = st.t_s + dt * np.arange(self.K * self.M + 1)
+            U = self.inputs(t_cols)
+            ti = time.perf_counter()
+            X = self.stepper.advance(st.x, U, self.p)
+            integ_s += time.perf_counter() - ti
+            t_samples = st.t_s + dt * self.K * np.arange(1, self.M + 1)
+            s_samples = self.distance_at(t_samples)
+            self._check(X, t_samples, s_samples)
+            # keep only samples within the drive
+            keep = t_samples <= self.total_time_s + 1e-9
+            if not np.all(keep):
+                X, t_samples, s_samples = X[:, keep], t_samples[keep], s_samples[keep]
+            U_samples = U[:, self.K * np.arange(1, X.shape[1] + 1)]
+            block = self._block_outputs(X, U_samples, t_samples, s_samples)
+            rows = self._stats(st, X, t_samples, s_samples)
+            st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=X[:, -1].copy(),
+                            next_stats_m=st.next_stats_m, last_stats=st.last_stats,
+                            sample_index=st.sample_index + X.shape[1])
+            if not np.all(keep):
+                break
+            if sink is not None:
+                sink.samples(block)
+                if rows:
+                    sink.stats(rows)
+            blocks += 1
+            if sink is not None and (blocks % checkpoint_every_blocks == 0 or st.t_s >= self.total_time_s - 1e-9):
+                sink.checkpoint(st.as_dict())
+            if progress is not None:
+                progress(st.s_m, float(S.speed.speed(st.s_m)), st.t_s)
+        wall = time.perf_counter() - wall0
+        final_T = st.x[self.T_index]
+        V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
+        after = self.equilibrium_solver.solve(final_T, self.gas_masses, V_oil)
+        return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s)
+
+    def _check(self, X, t, s):
+        m = self.model
+        if not np.all(np.isfinite(X)):
+            col = int(np.argmax(~np.all(np.isfinite(X), axis=0)))
+            raise SimulationError(f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s)")
+        for i in range(m.n):
+            stroke = m.struts[i].p.geometry.stroke
+            z_st = X[m.idx("z")] - X[m.idx("theta")] * (m.a[i] - m.a_cg) + X[m.idx("phi")] * (m.y[i] - m.y_cg)
+            xs = m.x_charged + m.r[i] * (X[m.idx(f"w[{i}]")] - z_st)
+            bad = (xs < -0.02) | (xs > stroke + 0.02)
+            if np.any(bad):
+                col = int(np.argmax(bad))
+                where = "bottomed out (beyond the bump stop)" if xs[col] > stroke else "over-extended (beyond the rebound stop)"
+                raise SimulationError(
+                    f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
+                    f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
+                    f"{X[m.idx(f'T_strut[{i}]'), col] - 273.15:.1f} degC")
+
+    def _block_outputs(self, X, U, t, s) -> dict:
+        m = self.model
+        Y, acc, heights = self.outputs.map(X.shape[1])(X, U, np.repeat(self.p[:, None], X.shape[1], axis=1))
+        outs = m.split_outputs(np.asarray(Y))
+        block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[2 * m.n],
+                 "strut_temperature_K": X[self.T_index],
+                 "axle_height_change_m": np.asarray(heights),
+                 "hull_acceleration": np.asarray(acc),
+                 "heave_m": X[m.idx("z")], "pitch_rad": X[m.idx("theta")], "roll_rad": X[m.idx("phi")],
+                 "oil_added_m3": np.array([X[m.idx(f"V_oil[{i}]")] for i in range(m.n)])}
+        for k in ("strut_force", "strut_deflection", "gas_pressure", "gas_temperature", "wheel_load"):
+            block[k] = outs[k]
+        for e in ENERGY_TERMS:
+            block[f"energy_{e}_J"] = X[m.energy_index[e]]
+        return block
+
+    def _stats(self, st: DriveState, X, t, s) -> list[dict]:
+        """Statistics for every interval boundary crossed in this block (and the last partial one)."""
+        rows = []
+        q = X[self.quad_index]
+        T = X[self.T_index]
+        t_last, q_last = st.last_stats["t_s"], st.last_stats["q"]
+        s0, t0, q0, T0 = st.s_m, st.t_s, st.x[self.quad_index], st.x[self.T_index]
+        for j in range(len(t)):
+            while s[j] >= st.next_stats_m - 1e-9:
+                # the quadratures are smooth and monotone: interpolate them to the boundary
+                a = (st.next_stats_m - s0) / (s[j] - s0) if s[j] > s0 else 1.0
+                tb, qb, Tb = t0 + a * (t[j] - t0), q0 + a * (q[:, j] - q0), T0 + a * (T[:, j] - T0)
+                rows.append(self._stats_row(st.next_stats_m, tb - t_last, qb - q_last, Tb))
+                t_last, q_last = tb, qb
+                st.next_stats_m += self.settings.stats_interval_m
+            s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
+        if t[-1] >= self.total_time_s - 1e-9 and t[-1] > t_last + 1e-9:
+            rows.append(self._stats_row(s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1]))
+            t_last, q_last = t[-1], q[:, -1]
+        st.last_stats = {"t_s": t_last, "q": q_last}
+        return rows
+
+    def _stats_row(self, s_end, duration, dq, T_end) -> dict:
+        n = self.model.n
+        nE = len(ENERGY_TERMS)
+        E = dq[: nE * n].reshape(nE, n)
+        row = {"distance_end_m": float(s_end), "duration_s": float(duration),
+               "strut_temperature_K": T_end.copy()}
+        for k, e in enumerate(ENERGY_TERMS):
+            if e in DISSIPATION_TERMS:
+                row[f"power_{e}_W"] = E[k] / max(duration, 1e-12)
+        row["rms_strut_velocity_m_per_s"] = np.sqrt(np.maximum(dq[nE * n: nE * n + n], 0) / max(duration, 1e-12))
+        row["rms_hull_acceleration"] = np.sqrt(np.maximum(dq[nE * n + n:], 0) / max(duration, 1e-12))
+        return row
+
+
+@dataclass
+class DriveResult:
+    state: DriveState
+    after: object
+    wall_s: float
+    integration_s: float

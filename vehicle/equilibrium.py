@@ -1,0 +1,173 @@
+"""Static equilibrium of the hull on its struts and tyres, and charging of the gas springs.
+
+Standing still, each strut carries its gas force at the body temperature (the gas has had time
+to reach it: isothermal at T_strut, or the seed-000 polytropic law if the strut file says so);
+valves carry nothing and seal friction is taken at the middle of its band (zero). The hull
+(3 DOF) on 8 supports is statically indeterminate: the strut and tyre compliances decide the
+load split, so the unknowns are heave, pitch, roll and the 8 wheel displacements, solved by
+Newton on the 11 force/moment balances.
+
+Charging (seed 000 §3, REFERENCE §3): the gas mass of each strut is set so that the requested
+wheel loads are carried at the requested heights at the charging temperature. By construction
+the charged pose is the reference of all displacements (z = theta = phi = 0, w = 0).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.optimize import brentq
+
+from hpsim.errors import UserInputError
+
+from . import hull as hull_eq
+from .model import VehicleModel
+from .params import GRAVITY
+from .tyre import tyre_force
+
+
+@dataclass
+class Equilibrium:
+    heave_m: float
+    pitch_rad: float
+    roll_rad: float
+    wheel_displacement_m: np.ndarray
+    wheel_loads_N: np.ndarray
+    strut_forces_N: np.ndarray
+    strut_deflections_m: np.ndarray
+    gas_pressures_Pa: np.ndarray
+    axle_height_change_m: np.ndarray
+    temperatures_K: np.ndarray
+
+    def as_dict(self) -> dict:
+        return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
+
+
+def charge_gas_masses(model: VehicleModel) -> np.ndarray:
+    """Gas mass [kg] per strut so that the charging loads are carried at the charging heights."""
+    P = model.params
+    T = P.charging.temperature
+    masses = np.zeros(model.n)
+    for i in range(model.n):
+        strut = model.struts[i]
+        name = model.station_names[i]
+        stroke = strut.p.geometry.stroke
+        if not 0.0 < model.x_charged < stroke:
+            raise UserInputError(
+                f"{P.name}: charging.strut_deflection = {model.x_charged * 1e3:.4g} mm is outside the stroke "
+                f"(0, {stroke * 1e3:.4g}) mm of strut {strut.p.name} at {name}")
+        F_needed = (model.charged_wheel_loads[i] - model.m_u[i] * GRAVITY) / model.r[i]
+        if F_needed <= 0:
+            raise UserInputError(
+                f"{P.name}: charging.wheel_loads: {model.charged_wheel_loads[i]:.6g} N at {name} does not even carry "
+                f"the unsprung weight {model.m_u[i] * GRAVITY:.6g} N")
+
+        def residual(m):
+            return float(strut.static_gas_force(model.x_charged, T, m)) - F_needed
+
+        m_lo, m_hi = 1e-4, 5.0
+        if residual(m_hi) < 0:
+            raise UserInputError(
+                f"{P.name}: strut {strut.p.name} at {name} cannot carry {F_needed / 1e3:.4g} kN at "
+                f"{model.x_charged * 1e3:.4g} mm deflection (gas pressure would exceed the gas law's range)")
+        masses[i] = brentq(residual, m_lo, m_hi, xtol=1e-14, rtol=1e-14)
+        p_gas = F_needed / strut.p.geometry.gas_area
+        if p_gas > 60e6:
+            raise UserInputError(
+                f"{P.name}: strut {strut.p.name} at {name} would need {p_gas / 1e6:.4g} MPa to carry its load "
+                "(allowed up to 60 MPa)")
+    # the hull must be in equilibrium at the charged pose with these loads
+    Fs = (model.charged_wheel_loads - model.m_u * GRAVITY) / model.r
+    Qz, Qt, Qp = hull_eq.generalised_forces(model.r * Fs, model.a, model.y, model.a_cg, model.y_cg)
+    W = model.M * GRAVITY
+    if abs(Qz - W) > 5e-3 * W or abs(Qt) > 5e-3 * W * 1.0 or abs(Qp) > 5e-3 * W * 1.0:
+        raise UserInputError(
+            f"{P.name}: charging.wheel_loads are not in equilibrium with the hull (sprung weight {W:.6g} N, "
+            f"loads carry {Qz:.6g} N, pitch moment {Qt:.4g} N m, roll moment {Qp:.4g} N m); "
+            "omit hull.mass / hull.cg_x to derive them from the loads")
+    return masses
+
+
+class EquilibriumSolver:
+    """Newton solve of the static balances for given temperatures, gas masses and oil volumes."""
+
+    def __init__(self, model: VehicleModel):
+        self.model = model
+        n = model.n
+        q = ca.SX.sym("q", 3 + n)           # z, theta, phi, w_i
+        T = ca.SX.sym("T", n)
+        m = ca.SX.sym("m", n)
+        dV = ca.SX.sym("dV", n)
+        res, Fs_list, Ft_list, xs_list = [], [], [], []
+        P = model.params
+        for i in range(n):
+            zs = hull_eq.station_displacement(q[0], q[1], q[2], model.a[i], model.y[i], model.a_cg, model.y_cg)
+            xs = hull_eq.strut_deflection(model.x_charged, model.r[i], q[3 + i], zs)
+            strut = model.struts[i]
+            Fs = strut.static_gas_force(xs, T[i], m[i], dV[i]) + strut.end_stop_force(xs, 0.0)[0]
+            Ft = tyre_force(model.tyre_static_deflection[i] - q[3 + i], 0.0, P.tyre.stiffness, P.tyre.damping,
+                            P.tyre.lift_off_smoothing)
+            res.append((Ft - model.r[i] * Fs - model.m_u[i] * GRAVITY) / 1e4)
+            Fs_list.append(Fs)
+            Ft_list.append(Ft)
+            xs_list.append(xs)
+        Qz, Qt, Qp = hull_eq.generalised_forces([model.r[i] * Fs_list[i] for i in range(n)], model.a, model.y,
+                                                model.a_cg, model.y_cg)
+        res = [(Qz - model.M * GRAVITY) / 1e4, Qt / 1e4, Qp / 1e4] + res
+        self.F = ca.Function("eq_res", [q, T, m, dV], [ca.vertcat(*res)])
+        self.Jf = ca.Function("eq_jac", [q, T, m, dV], [ca.jacobian(ca.vertcat(*res), q)])
+        self.out = ca.Function("eq_out", [q, T, m, dV], [ca.vertcat(*Ft_list), ca.vertcat(*Fs_list),
+                                                         ca.vertcat(*xs_list)])
+
+    def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None) -> Equilibrium:
+        model = self.model
+        n = model.n
+        T = np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
+        m = np.asarray(gas_masses_kg, float)
+        dV = np.zeros(n) if oil_volumes_m3 is None else np.asarray(oil_volumes_m3, float)
+        q = np.zeros(3 + n) if q0 is None else np.asarray(q0, float).copy()
+        for it in range(100):
+            r = np.asarray(self.F(q, T, m, dV)).ravel()
+            if not np.all(np.isfinite(r)):
+                raise UserInputError("static equilibrium: the struts cannot carry the vehicle at these "
+                                     "temperatures and charges (gas volume exhausted)")
+            if np.max(np.abs(r)) < 1e-10:
+                break
+            J = np.asarray(self.Jf(q, T, m, dV))
+            dq = np.linalg.solve(J, -r)
+            # damped Newton: limit wheel/hull moves to 20 mm per iteration
+            scale = min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30))
+            q = q + scale * dq
+        else:
+            raise UserInputError("static equilibrium did not converge (check temperatures and charges)")
+        Ft, Fs, xs = (np.asarray(v).ravel() for v in self.out(q, T, m, dV))
+        for i in range(n):
+            stroke = model.struts[i].p.geometry.stroke
+            if not -1e-3 <= xs[i] <= stroke + 1e-3:
+                where = "full extension" if xs[i] < 0 else "the bump stop"
+                raise UserInputError(
+                    f"static equilibrium: strut at {model.station_names[i]} sits on {where} "
+                    f"(deflection {xs[i] * 1e3:.4g} mm, stroke 0-{stroke * 1e3:.4g} mm): it cannot carry its load "
+                    "at these temperatures and charges")
+        dh = np.array([hull_eq.axle_height_change(q[0], q[1], ax.position, model.a_cg) for ax in model.params.axles])
+        p_gas = Fs / np.array([s.p.geometry.gas_area for s in model.struts])
+        return Equilibrium(heave_m=float(q[0]), pitch_rad=float(q[1]), roll_rad=float(q[2]),
+                           wheel_displacement_m=q[3:].copy(), wheel_loads_N=Ft, strut_forces_N=Fs,
+                           strut_deflections_m=xs, gas_pressures_Pa=p_gas, axle_height_change_m=dh,
+                           temperatures_K=T)
+
+
+def equilibrium_table(model: VehicleModel, eq: Equilibrium) -> dict:
+    """The per-axle table of `hpsim vehicle equilibrium` (changes against the charged state)."""
+    axles = []
+    N0 = model.charged_wheel_loads
+    for k in range(model.params.n_axles):
+        l, r = 2 * k, 2 * k + 1
+        mean = 0.5 * (eq.wheel_loads_N[l] + eq.wheel_loads_N[r])
+        mean0 = 0.5 * (N0[l] + N0[r])
+        axles.append({"axle": k + 1, "dh_mm": eq.axle_height_change_m[k] * 1e3,
+                      "N_left_daN": eq.wheel_loads_N[l] / 10.0, "N_right_daN": eq.wheel_loads_N[r] / 10.0,
+                      "N_mean_daN": mean / 10.0, "dN_pct": 100.0 * (mean - mean0) / mean0})
+    return {"axles": axles, "pitch_mrad": eq.pitch_rad * 1e3, "roll_mrad": eq.roll_rad * 1e3,
+            "total_load_N": float(np.sum(eq.wheel_loads_N))}
