@@ -123,7 +123,8 @@ class Drive:
         self.M = int(settings.samples_per_block)
         f, _ = model.ode_function
         self.stepper = Ros2Stepper(f, model.nx, model.nu, model.np, model.n_stiff, settings.dt_s, self.K, self.M,
-                                   memory_index=model.memory_index)
+                                   memory_index=model.memory_index,
+                                   jacobian=model.jacobian_function)
         self.outputs = model.output_function_ode()
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))

@@ -278,7 +278,7 @@ class VehicleModel:
                                            ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
         return f, g, y
 
-    def eliminate_valves(self, x, iterations: int = 2):
+    def eliminate_valves(self, x, iterations: int = 1):
         """Valve pressure drops of incompressible struts by warm-started Newton (explicit-ODE form)."""
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
         dps = []
@@ -306,6 +306,93 @@ class VehicleModel:
         ode, _, out = self.equations(x, None, u, p, dp_override=dps)
         mem = ca.vertcat(*[d for d in dps if d is not None]) if len(self.memory_index) else ca.SX(0, 1)
         return ca.Function("f_ode", [x, u, p], [ca.vertcat(*ode), mem]), dps
+
+    @cached_property
+    def _strut_derivative_functions(self) -> list:
+        """Per distinct strut: (x, v, T_wall, m_gas, dV_oil, internal..., dp) -> (dF/dx, dF/dv [N/m, N s/m]).
+
+        The valve part of dF/dv goes through the implicit-function theorem of the flow balance,
+        A_v^2 / (d q_valve / d dp), instead of differentiating the Newton iterations.
+        """
+        out = {}
+        for strut in self.struts:
+            if id(strut) in out:
+                continue
+            xs, vs, T, m, dV, dp = (ca.SX.sym(n) for n in ("x", "v", "T", "m", "dV", "dp"))
+            internal = {nm: ca.SX.sym(nm) for nm in strut.state_names}
+            eq = strut.equations(StrutInputs(x=xs, v=vs, T_wall=T, m_gas=m, dV_oil=dV), internal,
+                                 None if strut.compressible else dp)
+            F = eq["force"]
+            k = ca.jacobian(F, xs)
+            c = ca.jacobian(F, vs)
+            if not strut.compressible:
+                from struts import valves
+
+                q = valves.valve_flow(dp, **strut.valve_arguments(T))
+                Av = strut.p.geometry.valve_area
+                c = c + ca.jacobian(F, dp) * Av / ca.jacobian(q, dp)
+            args = [xs, vs, T, m, dV, dp] + [internal[nm] for nm in strut.state_names]
+            out[id(strut)] = ca.Function("strut_kc", args, [k, c])
+        return [out[id(s)] for s in self.struts]
+
+    def stiff_jacobian(self, x, p, dps):
+        """Approximate Jacobian of the stiff block (stations' w, dw, stiff strut states; hull).
+
+        Built from each station's local strut stiffness/damping and the tyre's, through the
+        constant kinematics (hull.py): the structural-dynamics form of d f / d x. Exact for the
+        mechanics with frozen slow states, which is all a W-method needs.
+        """
+        P = self.params
+        n = self.n
+        X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
+        ns = self.n_stiff
+        J = ca.SX(ns, ns)
+        hull = [self.idx(nm) for nm in ("z", "theta", "phi")]
+        dhull = [self.idx(nm) for nm in ("dz", "dtheta", "dphi")]
+        for a, b in zip(hull, dhull):
+            J[a, b] = 1.0
+        inertia = [self.M, P.hull.pitch_inertia, P.hull.roll_inertia]
+        kt, ct = P.tyre.stiffness, P.tyre.damping
+        KK = [[0.0] * 3 for _ in range(3)]
+        CC = [[0.0] * 3 for _ in range(3)]
+        fns = self._strut_derivative_functions
+        for i in range(n):
+            strut = self.struts[i]
+            w, dw = self.idx(f"w[{i}]"), self.idx(f"dw[{i}]")
+            B = [1.0, -(self.a[i] - self.a_cg), self.y[i] - self.y_cg]   # d z_station / d (z, theta, phi)
+            zs = sum(B[j] * X[nm] for j, nm in enumerate(("z", "theta", "phi")))
+            dzs = sum(B[j] * X[nm] for j, nm in enumerate(("dz", "dtheta", "dphi")))
+            xs = self.x_charged + self.r[i] * (X[f"w[{i}]"] - zs)
+            vs = self.r[i] * (X[f"dw[{i}]"] - dzs)
+            dp = 0.0 if dps[i] is None else dps[i]
+            args = [xs, vs, X[f"T_strut[{i}]"], p[i], X[f"V_oil[{i}]"], dp] + \
+                [X[f"{nm}[{i}]"] for nm in strut.state_names]
+            ks, cs = fns[i](*args)
+            r2 = self.r[i] ** 2
+            mu = self.m_u[i]
+            J[w, dw] = 1.0
+            J[dw, w] = (-kt - r2 * ks) / mu
+            J[dw, dw] = (-ct - r2 * cs) / mu
+            for j in range(3):
+                J[dw, hull[j]] = r2 * ks * B[j] / mu
+                J[dw, dhull[j]] = r2 * cs * B[j] / mu
+                J[dhull[j], w] = r2 * ks * B[j] / inertia[j]
+                J[dhull[j], dw] = r2 * cs * B[j] / inertia[j]
+                for l in range(3):
+                    KK[j][l] = KK[j][l] + r2 * ks * B[j] * B[l]
+                    CC[j][l] = CC[j][l] + r2 * cs * B[j] * B[l]
+        for j in range(3):
+            for l in range(3):
+                J[dhull[j], hull[l]] = -KK[j][l] / inertia[j]
+                J[dhull[j], dhull[l]] = -CC[j][l] / inertia[j]
+        return J
+
+    @cached_property
+    def jacobian_function(self):
+        """J(x, u, p): the stiff-block Jacobian for the Rosenbrock-W solver."""
+        x, _, u, p = self.symbols
+        dps = self.eliminate_valves(x)
+        return ca.Function("J_stiff", [x, u, p], [self.stiff_jacobian(x, p, dps)])
 
     def output_function_ode(self):
         x, _, u, p = self.symbols

@@ -92,6 +92,12 @@ def cache_dir() -> Path:
     return d
 
 
+# -freciprocal-math turns the model's many divisions by constants into multiplications and
+# -fno-math-errno lets sqrt compile to one instruction; both change results at the last-bit level
+# only. (No -ffast-math: NaN and infinity must survive, the drive checks for them.)
+COMPILER_FLAGS = ("-O2", "-fno-math-errno", "-freciprocal-math", "-fno-trapping-math")
+
+
 def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
     """Generate C for `fn`, compile it to a shared library (cached) and load it.
 
@@ -112,14 +118,15 @@ def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool =
         finally:
             os.chdir(cwd)
         code = (Path(tmp) / src_name).read_bytes()
-    key = hashlib.sha256(code + opt_level.encode() + cc.encode()).hexdigest()[:20]
+    key = hashlib.sha256(code + opt_level.encode() + " ".join(COMPILER_FLAGS).encode() + cc.encode()).hexdigest()[:20]
     lib = cache_dir() / f"{fn.name()}_{key}.so"
     if not lib.exists():
         src = cache_dir() / f"{fn.name()}_{key}.c"
         src.write_bytes(code)
         tmp_lib = lib.with_suffix(f".{os.getpid()}.tmp")
         t0 = time.perf_counter()
-        res = subprocess.run([cc, opt_level, "-fPIC", "-shared", str(src), "-o", str(tmp_lib), "-lm"],
+        flags = [opt_level, *COMPILER_FLAGS[1:]]
+        res = subprocess.run([cc, *flags, "-fPIC", "-shared", str(src), "-o", str(tmp_lib), "-lm"],
                              capture_output=True, text=True)
         if res.returncode != 0:
             warnings.warn(f"C compilation failed ({res.stderr.strip()[:300]}); using CasADi's virtual machine")
@@ -140,7 +147,7 @@ class Ros2Stepper:
 
     def __init__(self, f: ca.Function, nx: int, nu: int, np_: int, n_stiff: int, dt: float,
                  steps_per_sample: int, samples_per_call: int, compile: bool = True,
-                 memory_index=()):
+                 memory_index=(), jacobian: ca.Function | None = None):
         self.dt, self.K, self.M = float(dt), int(steps_per_sample), int(samples_per_call)
         self.nx, self.nu = nx, nu
         x = ca.SX.sym("x", nx)
@@ -150,7 +157,8 @@ class Ros2Stepper:
         h = self.dt
         f0, mem0 = f(x, u0, p)
         ns = n_stiff
-        J = ca.jacobian(f0[:ns], x[:ns])
+        # W only needs the stiff physics (any W keeps order 2): a structural Jacobian if given
+        J = jacobian(x, u0, p) if jacobian is not None else ca.jacobian(f0[:ns], x[:ns])
         W = ca.SX.eye(ns) - GAMMA * h * J
         lu_solve = sparse_lu(W)
 

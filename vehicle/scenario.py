@@ -1,0 +1,540 @@
+"""Scenario files: what to drive, where, how fast, and what to keep (docs/scenarios.md).
+
+A scenario is a YAML mapping validated in two steps *before any work starts*:
+
+1. `Scenario` (pydantic, unknown keys rejected at every level): types, units and ranges of the
+   scenario's own keys. Every error names the file, the key path, the value and what is allowed.
+2. `prepare()`: the parts that need other packages — the vehicle file with its overrides
+   (`vehicle.params.VehicleParams`), the strut files with their overrides, the road
+   (`terrain.RoadSpec`) and the count of initial temperatures (1, one per axle or one per
+   station) — are validated the same way, then `Prepared.drive()` builds the
+   `vehicle.drive.Drive`.
+
+Key paths in overrides may be dotted and may index lists: `axles.0.unsprung_mass` or
+`{axles: {0: {unsprung_mass: ...}}}` (see `apply_overrides`).
+"""
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import Field, StrictBool, StrictInt, field_validator, model_validator
+
+from hpsim.config import Model, Quantity, format_validation_error, load_yaml
+from hpsim.errors import UserInputError
+from hpsim.units import parse_quantity
+
+K_ = Quantity("K")
+
+# ranges (allowed values) of the scenario's own keys
+DISTANCE_RANGE_M = (1.0, 20_000e3)            # 1 m .. 20 000 km
+SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
+AMBIENT_RANGE_K = (273.15 - 60, 273.15 + 60)  # -60 .. 60 degC
+STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
+DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.drive.DriveSettings.validate
+
+# time series a drive produces (vehicle.drive.Drive._block_outputs); `output.store` picks from these
+SERIES = ("speed_m_per_s", "strut_temperature_K", "axle_height_change_m", "hull_acceleration", "heave_m",
+          "pitch_rad", "roll_rad", "oil_added_m3", "strut_force", "strut_deflection", "gas_pressure",
+          "gas_temperature", "wheel_load", "energy_valve_J", "energy_friction_J", "energy_gas_J",
+          "energy_end_stop_J", "energy_strut_work_J", "energy_tyre_work_J", "energy_road_work_J")
+ALWAYS_STORED = ("t_s", "distance_m")
+
+
+def _in_range(value: float, lo: float, hi: float, unit: str, scale: float = 1.0, offset: float = 0.0) -> float:
+    if not lo <= value <= hi:
+        raise ValueError(f"must be in [{lo * scale + offset:.6g}, {hi * scale + offset:.6g}] {unit}, "
+                         f"got {value * scale + offset:.6g} {unit}")
+    return value
+
+
+def _quantity(unit: str, value: Any) -> float:
+    # parse_quantity raises UserInputError (a ValueError): pydantic reports it at the key's path
+    return parse_quantity(value, unit, where=f"expected a quantity in {unit}")
+
+
+# --- the schema ------------------------------------------------------------------------------------
+class VehicleChoice(Model):
+    """Which vehicle: a built-in name or a file, and overrides of its parameters."""
+
+    name: str | None = None
+    file: str | None = None
+    overrides: dict[str, Any] = {}
+
+    @model_validator(mode="after")
+    def _one(self):
+        if (self.name is None) == (self.file is None):
+            raise ValueError("give exactly one of vehicle.name (a built-in vehicle) or vehicle.file (a path)")
+        return self
+
+
+class StrutChoice(Model):
+    """Strut type and fill of the struts of one axle (both wheels) or of all axles."""
+
+    type: str | None = None                  # built-in strut name ("apc") or a path to a strut file
+    overrides: dict[str, Any] = {}           # strut parameters, e.g. {"charge.pressure": "5 MPa"}
+
+
+class SpeedProfileSpec(Model):
+    """Piecewise-linear speed over distance: [[distance, speed], ...] (SI after validation)."""
+
+    profile: list[tuple[float, float]] = Field(min_length=1)
+
+
+def _speed_profile(value: dict) -> SpeedProfileSpec:
+    """{profile: [[distance, speed], ...]} -> SpeedProfileSpec; messages name the point."""
+    extra = sorted(set(value) - {"profile"})
+    if extra:
+        raise ValueError(f"unknown key {extra[0]!r} (check the spelling), allowed: a speed such as '20 km/h' "
+                         "or {profile: [[distance, speed], ...]}")
+    points = value.get("profile")
+    if not isinstance(points, list) or not points:
+        raise ValueError("profile: expected a list of [distance, speed] pairs, e.g. [[0 km, 20 km/h], [50 km, 15 km/h]]")
+    out = []
+    for k, point in enumerate(points):
+        if not isinstance(point, (list, tuple)) or len(point) != 2:
+            raise ValueError(f"profile item {k}: expected a pair [distance, speed], got {point!r}")
+        try:
+            s_m = parse_quantity(point[0], "m", where=f"profile item {k}: distance")
+            v_ms = parse_quantity(point[1], "m/s", where=f"profile item {k}: speed")
+        except UserInputError as exc:
+            raise ValueError(str(exc)) from None
+        lo, hi = SPEED_RANGE_M_PER_S
+        if not lo <= v_ms <= hi:
+            raise ValueError(f"profile item {k}: speed must be in [{lo * 3.6:.6g}, {hi * 3.6:.6g}] km/h, "
+                             f"got {v_ms * 3.6:.6g} km/h")
+        if s_m < 0:
+            raise ValueError(f"profile item {k}: distance must be >= 0 m, got {s_m:.6g} m")
+        out.append((s_m, v_ms))
+    d = [p[0] for p in out]
+    if any(b <= a for a, b in zip(d, d[1:])):
+        raise ValueError(f"profile: the distances must increase, got {[x / 1e3 for x in d]} km")
+    if d[0] > 0:
+        raise ValueError("profile: the first point must be at 0 km")
+    return SpeedProfileSpec(profile=out)
+
+
+class CompensationSpec(Model):
+    """Pressure compensation (levelling), mapped onto the vehicle's `compensation` parameters."""
+
+    enabled: StrictBool = False
+    time_constant: float | None = None
+    filter_time_constant: float | None = None
+    dead_band: float | None = None
+    flow_limit: float | None = None
+    smoothing: float | None = None
+
+    @field_validator("time_constant", "filter_time_constant", mode="before")
+    @classmethod
+    def _seconds(cls, v):
+        return None if v is None else _in_range(_quantity("s", v), 0.1, 3600.0, "s")
+
+    @field_validator("dead_band", "smoothing", mode="before")
+    @classmethod
+    def _metres(cls, v):
+        return None if v is None else _in_range(_quantity("m", v), 0.0, 0.1, "mm", 1e3)
+
+    @field_validator("flow_limit", mode="before")
+    @classmethod
+    def _flow(cls, v):
+        return None if v is None else _in_range(_quantity("m**3/s", v), 1e-9, 1e-2, "m^3/s")
+
+
+class SolverSpec(Model):
+    dt: float = 0.004                        # fixed step of the ROS2 solver
+    samples_per_block: StrictInt = Field(10, ge=1, le=1000)   # output samples per compiled call
+
+    @field_validator("dt", mode="before")
+    @classmethod
+    def _dt(cls, v):
+        return _in_range(_quantity("s", v), *DT_RANGE_S, "ms", 1e3)
+
+
+class OutputSpec(Model):
+    interval: float = 1.0                    # time between stored samples
+    stats_interval: float = 1000.0           # distance per statistics row
+    store: Literal["all"] | list[str] = "all"
+    compression: StrictInt = Field(4, ge=0, le=9)   # gzip level of the HDF5 datasets (0: none)
+
+    @field_validator("interval", mode="before")
+    @classmethod
+    def _interval(cls, v):
+        return _in_range(_quantity("s", v), 1e-4, 3600.0, "s")
+
+    @field_validator("stats_interval", mode="before")
+    @classmethod
+    def _stats(cls, v):
+        return _in_range(_quantity("m", v), 1.0, 1e6, "m")
+
+    @field_validator("store")
+    @classmethod
+    def _store(cls, v):
+        if isinstance(v, list):
+            bad = [s for s in v if s not in SERIES and s not in ALWAYS_STORED]
+            if bad:
+                raise ValueError(f"unknown series {bad}, allowed: 'all' or a list of {', '.join(SERIES)}")
+        return v
+
+    def stored(self) -> set[str]:
+        return set(SERIES if self.store == "all" else self.store) | set(ALWAYS_STORED)
+
+
+class Scenario(Model):
+    description: str = ""
+    vehicle: VehicleChoice
+    struts: dict[str, StrutChoice] = {}      # keys: "all" or "axle1", "axle2", ...
+    road: dict[str, Any]                     # terrain.RoadSpec fields (validated in prepare())
+    speed: float | SpeedProfileSpec          # "20 km/h" or {profile: [[0 km, 20 km/h], ...]}
+    distance: float
+    ambient_temperature: float
+    initial_temperatures: float | list[float] | None = None   # default: ambient
+    compensation: CompensationSpec = CompensationSpec()
+    solver: SolverSpec = SolverSpec()
+    output: OutputSpec = OutputSpec()
+
+    @field_validator("speed", mode="before")
+    @classmethod
+    def _speed(cls, v):
+        if isinstance(v, SpeedProfileSpec):
+            return v
+        if isinstance(v, dict):
+            return _speed_profile(v)
+        return _in_range(_quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
+
+    @field_validator("distance", mode="before")
+    @classmethod
+    def _distance(cls, v):
+        return _in_range(_quantity("m", v), *DISTANCE_RANGE_M, "km", 1e-3)
+
+    @field_validator("ambient_temperature", mode="before")
+    @classmethod
+    def _ambient(cls, v):
+        return _in_range(_quantity("K", v), *AMBIENT_RANGE_K, "degC", 1.0, -273.15)
+
+    @field_validator("initial_temperatures", mode="before")
+    @classmethod
+    def _initial(cls, v):
+        if v is None:
+            return None
+        if isinstance(v, (list, tuple)):
+            if not v:
+                raise ValueError("expected one temperature, one per axle or one per station")
+            out = []
+            for k, t in enumerate(v):
+                try:
+                    out.append(_in_range(_quantity("K", t), *STRUT_T_RANGE_K, "degC", 1.0, -273.15))
+                except ValueError as exc:
+                    raise ValueError(f"item {k}: {exc}") from None
+            return out
+        return _in_range(_quantity("K", v), *STRUT_T_RANGE_K, "degC", 1.0, -273.15)
+
+    @field_validator("struts")
+    @classmethod
+    def _strut_keys(cls, v):
+        for key in v:
+            if key != "all" and not (key.startswith("axle") and key[4:].isdigit() and int(key[4:]) >= 1):
+                raise ValueError(f"unknown key {key!r}: allowed 'all' or 'axle1', 'axle2', ...")
+        return v
+
+    @field_validator("road")
+    @classmethod
+    def _road(cls, v):
+        if not isinstance(v, dict):
+            raise ValueError("expected a mapping of road settings (see docs/scenarios.md)")
+        return v
+
+    @model_validator(mode="after")
+    def _profile_covers(self):
+        if self.output.interval < self.solver.dt - 1e-12:
+            raise ValueError(f"output.interval ({self.output.interval:g} s) must be at least solver.dt "
+                             f"({self.solver.dt * 1e3:g} ms)")
+        k = self.output.interval / self.solver.dt
+        if abs(k - round(k)) > 1e-6:
+            raise ValueError(f"output.interval ({self.output.interval:g} s) must be a whole number of solver "
+                             f"steps of {self.solver.dt * 1e3:g} ms")
+        return self
+
+
+# --- overrides with list indices -----------------------------------------------------------------
+def _key_parts(key: str) -> list[str]:
+    return [p for p in str(key).split(".")]
+
+
+def set_path(data: Any, path: str | list, value: Any, where: str = "") -> Any:
+    """Return a copy of `data` with `value` at the dotted `path` (dict keys or list indices)."""
+    parts = _key_parts(path) if isinstance(path, str) else list(path)
+    if not parts:
+        return value
+    head, rest = parts[0], parts[1:]
+    here = f"{where}.{head}" if where else head
+    if isinstance(data, list):
+        try:
+            i = int(head)
+        except ValueError:
+            raise UserInputError(f"{here}: {where or 'value'} is a list: expected an index 0..{len(data) - 1}") from None
+        if not -len(data) <= i < len(data):
+            raise UserInputError(f"{here}: index {i} out of range (the list has {len(data)} items)")
+        out = list(data)
+        out[i] = set_path(out[i], rest, value, here) if rest else _merge(out[i], value, here)
+        return out
+    out = dict(data) if isinstance(data, dict) else {}
+    out[head] = set_path(out.get(head), rest, value, here) if rest else _merge(out.get(head), value, here)
+    return out
+
+
+def _merge(old: Any, new: Any, where: str) -> Any:
+    if isinstance(new, dict) and isinstance(old, (dict, list)):
+        return apply_overrides(old, new, where)
+    return copy.deepcopy(new)
+
+
+def apply_overrides(data: Any, overrides: dict, where: str = "") -> Any:
+    """Apply nested/dotted overrides; list items are addressed by index (`axles.0.position`)."""
+    out = copy.deepcopy(data)
+    for key, value in (overrides or {}).items():
+        out = set_path(out, str(key), value, where)
+    return out
+
+
+# --- loading ---------------------------------------------------------------------------------------
+@dataclass
+class ScenarioSource:
+    """The scenario text as given, where it came from and the folder its relative paths refer to."""
+
+    text: str
+    name: str
+    base_dir: Path
+    data: dict = field(default_factory=dict)
+
+
+def read_scenario_text(text: str, name: str, base_dir: str | Path) -> ScenarioSource:
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{name}:{mark.line + 1}:{mark.column + 1}" if mark else name
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise UserInputError(f"{where}: YAML syntax error: {problem}") from None
+    if not isinstance(data, dict):
+        raise UserInputError(f"{name}: expected a mapping of scenario keys (vehicle, road, speed, distance, ...), "
+                             f"got {type(data).__name__}")
+    return ScenarioSource(text=text, name=name, base_dir=Path(base_dir).resolve(), data=data)
+
+
+def read_scenario(path: str | Path) -> ScenarioSource:
+    path = Path(path)
+    load_yaml(path)   # file errors and YAML syntax errors with file:line
+    return read_scenario_text(path.read_text(), str(path), path.resolve().parent)
+
+
+def validate_scenario(src: ScenarioSource) -> Scenario:
+    from pydantic import ValidationError
+
+    try:
+        return Scenario.model_validate(src.data)
+    except ValidationError as exc:
+        raise UserInputError(format_validation_error(exc, src.name)) from None
+
+
+# --- preparation: everything validated, nothing built yet ------------------------------------------
+@dataclass
+class Prepared:
+    source: ScenarioSource
+    scenario: Scenario
+    vehicle: Any                 # vehicle.params.VehicleParams
+    road_spec: Any               # terrain.RoadSpec
+    initial_temperatures_K: np.ndarray
+
+    def settings(self):
+        from .drive import DriveSettings, SpeedProfile
+
+        S = self.scenario
+        if isinstance(S.speed, SpeedProfileSpec):
+            d, v = zip(*S.speed.profile)
+            speed = SpeedProfile(np.array(d), np.array(v))
+        else:
+            speed = SpeedProfile.constant(S.speed)
+        return DriveSettings(distance_m=S.distance, speed=speed, ambient_K=S.ambient_temperature,
+                             initial_temperatures_K=self.initial_temperatures_K.copy(),
+                             compensation=S.compensation.enabled, dt_s=S.solver.dt,
+                             output_interval_s=S.output.interval, samples_per_block=S.solver.samples_per_block,
+                             stats_interval_m=S.output.stats_interval)
+
+    def model(self):
+        from .model import VehicleModel
+
+        try:
+            return VehicleModel(self.vehicle)
+        except UserInputError as exc:
+            raise UserInputError(f"{self.source.name}: vehicle/struts: {exc}") from None
+
+    def road(self):
+        import terrain
+
+        try:
+            return terrain.build_road(self.road_spec, self.source.base_dir)
+        except UserInputError as exc:
+            raise UserInputError(f"{self.source.name}: road: {exc}") from None
+
+    def drive(self, drive_class=None):
+        """(model, Drive) ready to run."""
+        from .drive import Drive
+
+        model = self.model()
+        cls = drive_class or Drive
+        return model, cls(model, self.road(), self.settings())
+
+    def resolved(self) -> dict:
+        """Every parameter in SI after defaults and overrides: stored with the results."""
+        from struts.params import load_strut
+
+        struts = {}
+        for k, axle in enumerate(self.vehicle.axles):
+            struts[f"axle{k + 1}"] = load_strut(axle.strut, axle.strut_overrides or None).model_dump(mode="json")
+        return {"scenario": self.scenario.model_dump(mode="json"),
+                "vehicle": self.vehicle.model_dump(mode="json"),
+                "vehicle_derived": {"sprung_mass_kg": self.vehicle.sprung_mass(),
+                                    "sprung_cg_x_m": self.vehicle.sprung_cg_x(),
+                                    "total_weight_N": self.vehicle.total_weight(),
+                                    "station_names": self.vehicle.station_names()},
+                "struts": struts,
+                "road": _dump(self.road_spec),
+                "initial_temperatures_K": self.initial_temperatures_K.tolist(),
+                "base_dir": str(self.source.base_dir)}
+
+
+def _dump(obj) -> Any:
+    if hasattr(obj, "model_dump"):
+        return obj.model_dump(mode="json")
+    return json.loads(json.dumps(obj, default=str))
+
+
+def _resolve_path(p: str, base_dir: Path) -> str:
+    q = Path(p).expanduser()
+    return str(q if q.is_absolute() else (base_dir / q))
+
+
+def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
+    """The vehicle's parameter mapping with the scenario's overrides, struts and compensation applied."""
+    from .params import vehicle_file
+
+    if S.vehicle.file is not None:
+        path = vehicle_file(_resolve_path(S.vehicle.file, src.base_dir))
+    else:
+        try:
+            path = vehicle_file(S.vehicle.name)
+        except UserInputError as exc:
+            raise UserInputError(f"{src.name}: vehicle.name: {exc}") from None
+    data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise UserInputError(f"{path}: expected a mapping of vehicle parameters")
+    try:
+        data = apply_overrides(data, S.vehicle.overrides)
+    except UserInputError as exc:
+        raise UserInputError(f"{src.name}: vehicle.overrides: {exc}") from None
+    n_axles = len(data.get("axles") or [])
+    # struts: "all" first, then per axle
+    for key in sorted(S.struts, key=lambda k: (k != "all", k)):
+        choice = S.struts[key]
+        axles = range(n_axles) if key == "all" else [int(key[4:]) - 1]
+        for k in axles:
+            if not 0 <= k < n_axles:
+                raise UserInputError(f"{src.name}: struts.{key}: the vehicle has {n_axles} axles (axle1..axle{n_axles})")
+            axle = dict(data["axles"][k])
+            if choice.type is not None:
+                t = choice.type
+                axle["strut"] = _resolve_path(t, src.base_dir) if t.endswith((".yaml", ".yml")) else t
+            if choice.overrides:
+                axle["strut_overrides"] = apply_overrides(axle.get("strut_overrides") or {}, choice.overrides)
+            data["axles"][k] = axle
+    # strut files named in the vehicle file are relative to the vehicle file
+    for k, axle in enumerate(data.get("axles") or []):
+        if isinstance(axle, dict) and str(axle.get("strut", "")).endswith((".yaml", ".yml")):
+            base = src.base_dir if any(S.struts.get(n) and S.struts[n].type for n in ("all", f"axle{k + 1}")) \
+                else Path(path).resolve().parent
+            data["axles"][k] = {**axle, "strut": _resolve_path(axle["strut"], base)}
+    comp = {k: v for k, v in S.compensation.model_dump().items() if v is not None}
+    data["compensation"] = {**(data.get("compensation") or {}), **comp}
+    return data, str(path)
+
+
+def prepare(src: ScenarioSource) -> Prepared:
+    """Validate everything the scenario refers to (vehicle, struts, road, temperatures); build nothing."""
+    from pydantic import ValidationError
+
+    from struts.params import load_strut
+
+    from .params import VehicleParams
+
+    S = validate_scenario(src)
+    data, vpath = vehicle_data(S, src)
+    try:
+        vehicle = VehicleParams.model_validate(data)
+    except ValidationError as exc:
+        raise UserInputError(format_validation_error(exc, f"{src.name}: vehicle ({vpath} with the scenario's "
+                                                          "overrides)")) from None
+    for k, axle in enumerate(vehicle.axles):
+        try:
+            load_strut(axle.strut, axle.strut_overrides or None)
+        except UserInputError as exc:
+            raise UserInputError(f"{src.name}: struts.axle{k + 1} (strut {axle.strut!r}): {exc}") from None
+    # initial temperatures: one, one per axle or one per station (axle-major, left first)
+    n_ax, n_st = vehicle.n_axles, vehicle.n_stations
+    T = S.initial_temperatures if S.initial_temperatures is not None else S.ambient_temperature
+    T = np.atleast_1d(np.asarray(T, float))
+    if len(T) == 1:
+        T = np.full(n_st, T[0])
+    elif len(T) == n_ax:
+        T = np.repeat(T, 2)
+    elif len(T) != n_st:
+        raise UserInputError(
+            f"{src.name}: initial_temperatures: got {len(T)} values; allowed: 1 (all struts), {n_ax} (one per axle) "
+            f"or {n_st} (one per strut, axle-major, left first)")
+    # road
+    road_spec = road_spec_from(S, vehicle, src)
+    return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T)
+
+
+def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
+    from pydantic import ValidationError
+
+    try:
+        import terrain
+        RoadSpec = terrain.RoadSpec
+    except (ImportError, AttributeError):
+        raise UserInputError("road: the terrain package (terrain.RoadSpec, terrain.build_road) is not available") from None
+    data = dict(S.road)
+    fields = getattr(RoadSpec, "model_fields", {})
+    if "length" in fields and data.get("length") is None:
+        # the road must reach the last axle at the end of the drive (plus the tyre's envelope)
+        wheelbase = max(a.position for a in vehicle.axles)
+        data["length"] = S.distance + wheelbase + 2.0 * vehicle.tyre.contact_length + 10.0
+    try:
+        return RoadSpec.model_validate(data)
+    except ValidationError as exc:
+        msg = format_validation_error(exc, src.name)
+        # pydantic's locations are relative to the road mapping: prefix them
+        msg = "; ".join(_prefix_loc(part, src.name, "road") for part in msg.split("; "))
+        raise UserInputError(msg) from None
+    except UserInputError as exc:
+        raise UserInputError(f"{src.name}: road: {exc}") from None
+
+
+def _prefix_loc(part: str, name: str, prefix: str) -> str:
+    head = f"{name}: "
+    if part.startswith(head):
+        rest = part[len(head):]
+        if rest.startswith("(top level)"):
+            rest = rest[len("(top level)"):]
+            return f"{head}{prefix}{rest}"
+        return f"{head}{prefix}.{rest}"
+    return part
+
+
+def load_prepared(path: str | Path) -> Prepared:
+    return prepare(read_scenario(path))
