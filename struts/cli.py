@@ -10,13 +10,52 @@ from __future__ import annotations
 
 import csv
 import itertools
+import re
 from pathlib import Path
 
 from hpsim.cli import format_table, print_json
 from hpsim.errors import UserInputError
-from hpsim.units import parse_quantity, parse_quantity_list
+from hpsim.units import parse_quantity, registry
 
 PROCESSES = ("polytropic", "isothermal")
+
+# allowed ranges, quoted in the error messages
+_P0_RANGE_PA = (0.1e6, 30e6)
+_T_RANGE_K = (200.0, 450.0)
+_N_RANGE = (1.0, 1.7)
+
+
+def _quantity(text, unit: str, where: str, allowed: str) -> float:
+    """A command-line quantity in SI `unit`; errors name the argument and the allowed range.
+
+    Rejects strings whose units cancel ("12 parsecs/furlong" is a pure number to pint, which
+    hpsim.units.parse_quantity would read as 12 in SI) unless `unit` is dimensionless.
+    """
+    try:
+        value = parse_quantity(text, unit, where=where)
+    except UserInputError as exc:
+        raise UserInputError(f"{exc}; allowed: {allowed}") from None
+    if isinstance(text, str) and not registry().Quantity(1, unit).dimensionless:
+        ureg = registry()
+        q = ureg.Quantity(text.strip())
+        if hasattr(q, "units") and q.dimensionless and q.units != ureg.dimensionless:
+            raise UserInputError(f"{where}: {text!r} is not a quantity in {unit} (its units {q.units} cancel); "
+                                 f"allowed: {allowed}")
+    return value
+
+
+def _quantity_list(text, unit: str, where: str, allowed: str) -> list[float]:
+    """Comma-separated quantities ("10mm,50mm"), each through `_quantity`."""
+    items = [t for t in str(text).split(",") if t.strip()]
+    if not items:
+        raise UserInputError(f"{where}: expected one or more quantities in {unit}; allowed: {allowed}")
+    return [_quantity(t, unit, where, allowed) for t in items]
+
+
+def _accept_negative_values(parser):
+    """Let "--amplitude -10mm" reach the range check (argparse would take "-10mm" for an option)."""
+    if hasattr(parser, "_negative_number_matcher"):
+        parser._negative_number_matcher = re.compile(r"^-\.?\d")
 
 
 def register(sub):
@@ -63,6 +102,8 @@ def register(sub):
     f.add_argument("--cycles", type=int, default=3)
     f.add_argument("--write", help="write the strut file with the fitted values to this path")
     f.set_defaults(func=cmd_fit)
+    for sp in (s, c, y, f):
+        _accept_negative_values(sp)
 
 
 def _params(args, process=None, n=None):
@@ -72,21 +113,24 @@ def _params(args, process=None, n=None):
     if process == "polytropic":
         overrides["gas.process"] = "polytropic"
     if n is not None:
-        n_val = parse_quantity(n, "dimensionless", where="--n")
-        if not 1.0 <= n_val <= 1.7:
-            raise UserInputError(f"--n: polytropic exponent must be in [1.0, 1.7], got {n_val}")
+        n_allowed = f"[{_N_RANGE[0]}, {_N_RANGE[1]}]"
+        n_val = _quantity(n, "dimensionless", "--n", n_allowed)
+        if not _N_RANGE[0] <= n_val <= _N_RANGE[1]:
+            raise UserInputError(f"--n: polytropic exponent must be in {n_allowed}, got {n_val}")
         overrides["gas.polytropic_exponent"] = n_val
     params = load_strut(args.strut, overrides)
     p0 = None
     if args.p0 is not None:
-        p0 = parse_quantity(args.p0, "Pa", where="--p0")
-        if not 0.1e6 <= p0 <= 30e6:
-            raise UserInputError(f"--p0: fill pressure must be in [0.1, 30] MPa, got {p0 / 1e6:.4g} MPa")
+        p0_allowed = f"[{_P0_RANGE_PA[0] / 1e6:g}, {_P0_RANGE_PA[1] / 1e6:g}] MPa"
+        p0 = _quantity(args.p0, "Pa", "--p0", p0_allowed)
+        if not _P0_RANGE_PA[0] <= p0 <= _P0_RANGE_PA[1]:
+            raise UserInputError(f"--p0: fill pressure must be in {p0_allowed}, got {p0 / 1e6:.4g} MPa")
     T = None
     if args.temperature is not None:
-        T = parse_quantity(args.temperature, "K", where="--temperature")
-        if not 200.0 <= T <= 450.0:
-            raise UserInputError(f"--temperature: must be in [-73, 177] degC, got {T - 273.15:.4g} degC")
+        T_allowed = f"[{_T_RANGE_K[0] - 273.15:.4g}, {_T_RANGE_K[1] - 273.15:.4g}] degC"
+        T = _quantity(args.temperature, "K", "--temperature", T_allowed)
+        if not _T_RANGE_K[0] <= T <= _T_RANGE_K[1]:
+            raise UserInputError(f"--temperature: must be in {T_allowed}, got {T - 273.15:.4g} degC")
     return params, p0, T
 
 
@@ -94,7 +138,7 @@ def cmd_static(args):
     from struts.rig import static_point
 
     params, p0, T = _params(args, None, args.n)
-    load = parse_quantity(args.load, "N", where="--load")
+    load = _quantity(args.load, "N", "--load", "> 0 N, within the strut's force range")
     if load <= 0:
         raise UserInputError(f"--load: must be > 0 N, got {load} N")
     process = "polytropic" if args.process == "polytropic" else "isothermal"
@@ -140,9 +184,11 @@ def cmd_cycle(args):
     from struts.rig import check_cycle_arguments, cycle_test
 
     params, p0, T = _params(args)
-    amps = parse_quantity_list(args.amplitude, "m", where="--amplitude")
-    freqs = parse_quantity_list(args.frequency, "Hz", where="--frequency")
-    mean = parse_quantity(args.mean, "m", where="--mean")
+    stroke_mm = params.geometry.stroke * 1e3
+    amps = _quantity_list(args.amplitude, "m", "--amplitude",
+                          f"> 0 m with mean ± amplitude inside the stroke [0, {stroke_mm:.4g}] mm")
+    freqs = _quantity_list(args.frequency, "Hz", "--frequency", f"(0, {_max_frequency():g}] Hz")
+    mean = _quantity(args.mean, "m", "--mean", f"inside the stroke [0, {stroke_mm:.4g}] mm")
     for A, f in itertools.product(amps, freqs):  # validate all before any work
         check_cycle_arguments(params, A, f, mean, args.cycles)
     results = [cycle_test(params, A, f, mean, cycles=args.cycles, T_K=T, p0_Pa=p0)
@@ -167,6 +213,12 @@ def cmd_cycle(args):
             [(r.amplitude_m * 1e3, r.frequency_Hz, r.energy_per_cycle_J, r.energy_by_mechanism_J["valve"],
               r.energy_by_mechanism_J["friction"], r.energy_by_mechanism_J["gas"],
               r.peak_force_compression_N / 1e3, r.peak_force_rebound_N / 1e3) for r in results]))
+
+
+def _max_frequency() -> float:
+    from struts.rig import _MAX_FREQUENCY_HZ
+
+    return _MAX_FREQUENCY_HZ
 
 
 def plot_loops(results, path, name):

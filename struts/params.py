@@ -40,7 +40,10 @@ class Geometry(Model):
     stroke: m                    # usable deflection from full extension to the bump stop
     valve_area: m2               # oil displaced through the damping valve per unit deflection
     oil_volume: m3               # total oil volume (thermal expansion, seed 000 eq. 6)
-    # integrated strut (seed 001 eq. 1, 5-7)
+    # integrated strut (seed 001 eq. 1, 5-7): piston area A_c, rod area A_r (= gas_area, the
+    # volume the rod pushes into the strut per unit deflection), rod-side chamber volume at full
+    # extension, emulsion volume in the piston-side chamber at full extension and charge pressure
+    piston_area: m2 = 0.0
     rod_area: m2 = 0.0
     rod_chamber_volume: m3 = 0.0
     piston_chamber_oil_volume: m3 = 0.0
@@ -107,6 +110,8 @@ class Valve(Model):
     compliant_oil_volume: m3 = 1.0e-3
     number_of_orifices: Number = 1.0
     check_number: Number = 1.0
+    # discharge coefficient of the check valves (seed 001 eq. 12: C_v); None: discharge_coefficient
+    check_discharge_coefficient: Number | None = None
 
 
 class Friction(Model):
@@ -122,6 +127,7 @@ class Friction(Model):
     smoothing_velocity: m_per_s = 1e-3               # width of the smooth sign
     hysteresis_velocity_compression: m_per_s = 0.0   # seed 001 eq. 3 band (0: off)
     hysteresis_velocity_rebound: m_per_s = 0.0
+    hysteresis_smoothing_displacement: m = 1e-3      # eps_x: width of sgn(x) in the band (numerical)
     bristle_stiffness: N_per_m = 1e7                 # LuGre sigma0
     bristle_damping: N_s_per_m = 0.0                 # LuGre sigma1
 

@@ -1,0 +1,344 @@
+"""The integrated hydropneumatic strut of seed 001 (Yin et al. 2023): shared gas-oil chamber.
+
+Two chambers coupled by bleed orifices, check valves and leakage past the guide rings:
+  c  piston-side chamber: free nitrogen on top of a gas-oil emulsion, pressure p_c
+  r  annular rod-side chamber: emulsion only, pressure p_r
+Force (seed 001 eq. 1): F = p_c A_c - p_r (A_c - A_r) + f, with f the asymmetric seal friction
+with hysteresis band (seed 001 eq. 2-3, `struts.friction.seal_friction`), plus the end stops.
+
+States (same interface as `struts.model.SeparatedStrut`):
+  V_gas  free-gas volume before the oil's thermal expansion and levelling oil are taken off:
+         V_g = V_gas - alpha V_oil (T_wall - T_charge) - dV_oil (seed 001 eq. 4). Seed 001 eq. 5
+         is written for V_g; p_c follows from it algebraically: polytropic p_c = p_ext (V_ext/V_g)^n
+         (seed 001 eq. 4, p_ext the gas pressure at full extension at T_wall, isochoric from the
+         charge) or the equation of state at the gas temperature state (energy process,
+         REFERENCE §6). With V_g as the state both are explicit (no inversion of the BWR equation)
+         and a change of body temperature acts on the pressure at once, as in the separated strut.
+  p_r    rod-side chamber pressure (seed 001 eq. 6).
+  T_gas  gas temperature (energy process only); z_bristle (LuGre friction only).
+Both V_gas and p_r are stiff (time constants ~ 0.1-1 ms): `stiff_state_names`.
+
+Emulsion (seed 001 eq. 8-10, `struts.oil`): the liquid in each chamber is oil with entrained gas
+of volume fraction gamma(p) (eq. 9) and density rho(p) = rho_h / ((1 - (p - p0)/beta_h)(1 + gamma))
+(eq. 10), i.e. a specific volume nu(p) = rho_h/rho = (1 - (p - p0)/beta_h) + gamma0 (p0/p)^(1/n)
+(the oil and gas volumes of eq. 8 per unit oil volume). The chamber compliance is V (-nu'/nu):
+the exact derivative of the eq. 8 volumes, 1/beta = (1/beta_h + a gamma/(n p)) / (a (1 + gamma)),
+a = 1 - (p - p0)/beta_h. Seed 001 eq. 11 is the same with a -> 1 in the oil term (differs by
+(p - p0)/beta_h < 0.5 %); using the exact derivative makes the continuity equations conserve the
+emulsion mass exactly, so the strut returns to the same static state after any motion and stores
+no energy over a closed cycle (eq. 11 would let the chamber pressures drift slowly over the
+~1e5 cycles of a drive).
+
+Continuity (seed 001 eq. 5-7), mass flow m_dot = rho_mean q from c to r, q the volumetric flow of
+seed 001 eq. 12 at the mean emulsion density (bleed orifices, check valves opening for p_c > p_r,
+leakage; `struts.valves.valve_flow` with the check-valve area weighted by C_v/C_b):
+  chamber c:  V_e = V_c0 + V_gas,0 - A_c x - V_gas (emulsion volume), V_e/beta_c dp_c/dt + dV_e/dt = -m_dot/rho_c
+  chamber r:  V_r = V_r0 + (A_c - A_r) x,                   V_r/beta_r dp_r/dt + dV_r/dt = +m_dot/rho_r
+with dp_c/dt = b dV_g/dt + a_th along the gas process (polytropic: b = -n p_c/V_g, a_th = 0;
+energy: b = ((dp/dv)_T - T (dp/dT)_v^2/c_v)/m, a_th = (dp/dT)_v (T_w - T)/tau).
+
+Energy: power_valve = dp q (bleed + check + leakage), power_friction = f v, power_end_stop = end
+stop damping force times v, heat_gas = heat flow gas -> wall (0 for the polytropic gas),
+gas_work_rate = mechanical power into the compressible contents (free gas and emulsion of both
+chambers) = (p_c A_c - p_r (A_c - A_r)) v + p_c r_ext - power_valve, where r_ext is the oil volume
+pushed into chamber c by thermal expansion and levelling. So force x velocity = power_valve +
+power_friction + gas_work_rate + end stop power at every instant; over a periodic cycle the
+gas_work_rate integrates to the gas heat loss (0 for the polytropic gas, up to the O((dp/beta)^2)
+difference between dp q and the exact flow dissipation).
+
+Static state (rest, p_c = p_r = p): free gas V_g(p) plus the emulsion of both chambers fill the
+strut: V_g = V_ext - A_r x - N (nu(p)/nu(p0) - 1), N = V_c0 + V_r0 the emulsion volume at the
+charge. Solved by Newton on V_g (fixed iteration count, works on CasADi symbols too); the static
+force is p A_r.
+"""
+from __future__ import annotations
+
+from functools import cached_property
+
+from hpsim import symbolic as sym
+from hpsim.errors import UserInputError
+
+from . import gas as gaslaw
+from . import oil as oillaw
+from . import valves
+from .model import SeparatedStrut, StrutInputs
+from .params import StrutParams
+
+_STATIC_NEWTON_ITERATIONS = 8   # quadratic convergence from the incompressible-liquid start
+_PI = 3.141592653589793
+
+
+class IntegratedStrut(SeparatedStrut):
+    """Seed 001 integrated strut: the SeparatedStrut interface with two emulsion chambers."""
+
+    def __init__(self, params: StrutParams, gas_properties=None):
+        super().__init__(params, gas_properties)
+        g = params.geometry
+        src = f"strut {params.name}"
+        if not g.rod_area > 0 or not g.piston_area > g.rod_area:
+            raise UserInputError(
+                f"{src}: geometry.piston_area ({g.piston_area} m^2) must be > geometry.rod_area ({g.rod_area} m^2) > 0 "
+                "for layout: integrated")
+        if abs(g.gas_area - g.rod_area) > 1e-6 * g.rod_area:
+            raise UserInputError(
+                f"{src}: geometry.gas_area ({g.gas_area} m^2) must equal geometry.rod_area ({g.rod_area} m^2) for "
+                "layout: integrated (the rod displaces the gas)")
+        annulus = g.piston_area - g.rod_area
+        if abs(g.valve_area - annulus) > 1e-6 * annulus:
+            raise UserInputError(
+                f"{src}: geometry.valve_area ({g.valve_area} m^2) must equal piston_area - rod_area ({annulus} m^2) "
+                "for layout: integrated (the annulus volume crosses the valves)")
+        if not g.piston_chamber_oil_volume > 0 or not g.rod_chamber_volume > 0:
+            raise UserInputError(
+                f"{src}: geometry.piston_chamber_oil_volume ({g.piston_chamber_oil_volume} m^3) and "
+                f"geometry.rod_chamber_volume ({g.rod_chamber_volume} m^3) must be > 0 for layout: integrated")
+        if g.piston_chamber_oil_volume <= annulus * g.stroke:
+            raise UserInputError(
+                f"{src}: geometry.piston_chamber_oil_volume ({g.piston_chamber_oil_volume} m^3) must exceed the volume "
+                f"moved to the rod side over the stroke, (piston_area - rod_area) stroke = {annulus * g.stroke:.4g} m^3")
+
+    # --- structure ------------------------------------------------------------------------
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        names = ("V_gas", "p_r")
+        if self.p.gas.process == "energy":
+            names += ("T_gas",)
+        if self.p.friction.model == "lugre":
+            names += ("z_bristle",)
+        return names
+
+    @property
+    def stiff_state_names(self) -> tuple[str, ...]:
+        return tuple(n for n in self.state_names if n in ("V_gas", "p_r", "z_bristle"))
+
+    @property
+    def algebraic_names(self) -> tuple[str, ...]:
+        return ()
+
+    @property
+    def compressible(self) -> bool:
+        return True
+
+    @property
+    def piston_area(self) -> float:
+        return self.p.geometry.piston_area
+
+    @property
+    def rod_area(self) -> float:
+        return self.p.geometry.rod_area
+
+    @property
+    def annulus_area(self) -> float:
+        return self.p.geometry.piston_area - self.p.geometry.rod_area
+
+    @property
+    def emulsion_volume_charged(self) -> float:
+        """N [m^3]: emulsion in both chambers at full extension and the charge pressure."""
+        g = self.p.geometry
+        return g.piston_chamber_oil_volume + g.rod_chamber_volume
+
+    # --- gas volume -----------------------------------------------------------------------------
+    def gas_volume(self, x, T_wall, dV_oil=0.0):
+        """Free-gas volume [m^3] at rest at deflection x with the liquid taken as incompressible:
+        V_ext - A_r x (seed 001 eq. 4, 7). `static_state` adds the emulsion compression."""
+        return self.extended_gas_volume(T_wall, dV_oil) - self.rod_area * x
+
+    def _thermal_gas_volume_loss(self, T_wall, dV_oil):
+        """alpha V_oil (T - T_charge) + dV_oil [m^3]: liquid volume added to chamber c (seed 001 eq. 4)."""
+        return self.p.geometry.gas_volume_extended - self.extended_gas_volume(T_wall, dV_oil)
+
+    def _polytropic_reference(self, T_wall, m_gas, dV_oil):
+        """(p_ext [Pa], V_ext [m^3]): gas state at full extension at T_wall (isochoric from the charge)."""
+        V_ext = self.extended_gas_volume(T_wall, dV_oil)
+        return gaslaw.pressure(T_wall, V_ext / m_gas, self.gas, self.p.gas.eos), V_ext
+
+    # --- emulsion (seed 001 eq. 8-10) -------------------------------------------------------------
+    def _oil_state(self, T_wall):
+        o = self.p.oil
+        rho_h = oillaw.oil_density(T_wall, o.density, o.reference_temperature, o.expansion)
+        beta_h = self.oil_bulk_modulus(T_wall)
+        return rho_h, beta_h
+
+    def emulsion(self, p, T_wall) -> dict:
+        """Emulsion properties at pressure p [Pa] and body temperature T_wall [K].
+
+        gamma (eq. 9), rho [kg/m^3] (eq. 10), nu = V/V(p0) [-] (relative volume of a fixed mass),
+        kappa = -d ln nu/dp [1/Pa] (compressibility, the exact derivative of the eq. 8 volumes;
+        1/kappa is seed 001 eq. 11 up to O((p - p0)/beta_h)).
+        """
+        n = self.p.gas.polytropic_exponent
+        p0 = self.p.charge.pressure
+        g0 = self.p.emulsion.initial_gas_fraction
+        rho_h, beta_h = self._oil_state(T_wall)
+        gamma = oillaw.emulsion_gas_fraction(p, p0, g0, n, beta_h)
+        rho = oillaw.emulsion_density(p, p0, rho_h, beta_h, gamma)
+        a = 1.0 - (p - p0) / beta_h
+        kappa = (1.0 / beta_h + a * gamma / (n * p)) / (a * (1.0 + gamma))
+        nu = rho_h / (rho * (1.0 + g0))
+        return {"gamma": gamma, "rho": rho, "nu": nu, "kappa": kappa}
+
+    # --- static state ---------------------------------------------------------------------------
+    def _gas_law(self, V_g, T, m_gas, process, ref):
+        """(p [Pa], dp/dV_g [Pa/m^3]) of the free gas at rest: isothermal at T or polytropic from ref."""
+        if process == "isothermal":
+            v = V_g / m_gas
+            return (gaslaw.pressure(T, v, self.gas, self.p.gas.eos),
+                    gaslaw.dp_dv_at_constant_T(T, v, self.gas, self.p.gas.eos) / m_gas)
+        p_ext, V_ext = ref
+        n = self.p.gas.polytropic_exponent
+        p = gaslaw.polytropic_pressure(p_ext, V_ext, V_g, n)
+        return p, -n * p / V_g
+
+    def static_state(self, x, T, m_gas, dV_oil=0.0, process: str | None = None):
+        """(p [Pa], V_g [m^3]) at rest at deflection x, body and gas at temperature T.
+
+        process=None uses the file's: "energy" -> isothermal at T, "polytropic" -> from full
+        extension (seed 001 eq. 4). Solves V_g + N (nu(p(V_g)) - 1) = V_ext - A_r x by Newton.
+        """
+        if process is None:
+            process = "isothermal" if self.p.gas.process == "energy" else "polytropic"
+        if process not in ("isothermal", "polytropic"):
+            raise ValueError(f"unknown static process {process!r}")
+        ref = self._polytropic_reference(T, m_gas, dV_oil)
+        target = self.gas_volume(x, T, dV_oil)
+        N = self.emulsion_volume_charged
+        V = target
+        for _ in range(_STATIC_NEWTON_ITERATIONS):
+            p, dp_dV = self._gas_law(V, T, m_gas, process, ref)
+            em = self.emulsion(p, T)
+            residual = V - target + N * (em["nu"] - 1.0)
+            slope = 1.0 - N * em["nu"] * em["kappa"] * dp_dV
+            V = V - residual / slope
+        p, _ = self._gas_law(V, T, m_gas, process, ref)
+        return p, V
+
+    def static_gas_force(self, x, T, m_gas, dV_oil=0.0, process: str | None = None):
+        """Force [N] at rest: p A_r (seed 001 eq. 1 with p_c = p_r = p, no friction)."""
+        p, _ = self.static_state(x, T, m_gas, dV_oil, process)
+        return p * self.rod_area
+
+    def initial_states(self, T_wall, x=None, m_gas=None, dV_oil=0.0) -> dict:
+        """States at rest at deflection x [m] (required), gas mass m_gas [kg] (default: the charge),
+        oil added dV_oil [m^3], gas and body at T_wall: the static state (`static_state`)."""
+        if x is None:
+            raise ValueError("IntegratedStrut.initial_states needs the deflection x (its chamber states depend on it)")
+        m = self.charge_gas_mass if m_gas is None else m_gas
+        p, V_g = self.static_state(x, T_wall, m, dV_oil)
+        out = {"V_gas": V_g + self._thermal_gas_volume_loss(T_wall, dV_oil), "p_r": p}
+        if "T_gas" in self.state_names:
+            out["T_gas"] = T_wall
+        if "z_bristle" in self.state_names:
+            out["z_bristle"] = 0.0
+        return {k: out[k] for k in self.state_names}
+
+    # --- valves (seed 001 eq. 12) ------------------------------------------------------------------
+    def _valve_kwargs(self, rho, T_wall) -> dict:
+        """Keyword arguments of struts.valves.valve_flow for the bleed orifices + check valves + leakage.
+
+        One discharge coefficient per call: the check-valve area is weighted by C_v/C_b (the
+        orifice law depends on C_d A only). Laminar/turbulent transition as in the separated strut.
+        """
+        v = self.p.valve
+        cd = v.discharge_coefficient
+        cd_check = cd if v.check_discharge_coefficient is None else v.check_discharge_coefficient
+        rho_oil, _ = self._oil_state(T_wall)
+        nu = self.oil_viscosity(T_wall)
+        d_h = sym.sqrt(4.0 * v.bleed_area / _PI)
+        p_crit = 0.5 * rho_oil * (v.critical_reynolds * nu / (cd * d_h)) ** 2
+        return dict(
+            cd=cd, rho=rho, p_crit=p_crit,
+            bleed_area=v.bleed_area * v.number_of_orifices,
+            check_area_max=v.check_area_max * v.check_number * cd_check / cd,
+            check_dp_crack=v.check_dp_crack, check_dp_full=v.check_dp_full,
+            relief_comp_area=v.relief_comp_area, relief_comp_crack=v.relief_comp_crack,
+            relief_comp_full=v.relief_comp_full,
+            relief_reb_area=v.relief_reb_area, relief_reb_crack=v.relief_reb_crack,
+            relief_reb_full=v.relief_reb_full,
+            k_leak=v.leakage,
+        )
+
+    def valve_arguments(self, T_wall) -> dict:
+        rho_oil, _ = self._oil_state(T_wall)
+        return self._valve_kwargs(rho_oil, T_wall)
+
+    def valve_flow_demand(self, v):
+        """Flow [m^3/s] through the valves with incompressible liquid: (A_c - A_r) v."""
+        return self.annulus_area * v
+
+    # valve_pressure_drop (inherited): quasi-steady p_c - p_r for a velocity, incompressible liquid
+
+    # --- the equations ----------------------------------------------------------------------------
+    def equations(self, u: StrutInputs, states: dict, dp_valve=None) -> dict:
+        """All strut equations at one instant (see the module docstring); dp_valve is ignored."""
+        P = self.p
+        A_c, A_r, A_a = self.piston_area, self.rod_area, self.annulus_area
+        g = P.geometry
+        m_gas = u.m_gas
+        V_gas, p_r = states["V_gas"], states["p_r"]
+        V_g = V_gas - self._thermal_gas_volume_loss(u.T_wall, u.dV_oil)
+        # liquid pushed into chamber c by the oil's thermal expansion and levelling (seed 000 eq. 6)
+        r_ext = g.oil_volume * P.oil.expansion * u.dT_wall_rate + u.dV_oil_rate
+        rates = {}
+        if P.gas.process == "energy":
+            T_gas = states["T_gas"]
+            v_spec = V_g / m_gas
+            p_c = gaslaw.pressure(T_gas, v_spec, self.gas, P.gas.eos)
+            p_T = gaslaw.dp_dT_at_constant_v(T_gas, v_spec, self.gas, P.gas.eos)
+            p_v = gaslaw.dp_dv_at_constant_T(T_gas, v_spec, self.gas, P.gas.eos)
+            cv = gaslaw.cv(T_gas, v_spec, self.gas, P.gas.eos)
+            tau = P.gas.thermal_time_constant
+            b = (p_v - T_gas * p_T * p_T / cv) / m_gas
+            a_th = p_T * (u.T_wall - T_gas) / tau
+            heat_gas = gaslaw.heat_flow_to_wall(T_gas, u.T_wall, tau, m_gas, cv)
+        else:
+            p_ext, V_ext = self._polytropic_reference(u.T_wall, m_gas, u.dV_oil)
+            p_c = gaslaw.polytropic_pressure(p_ext, V_ext, V_g, P.gas.polytropic_exponent)
+            T_gas = u.T_wall
+            b = -P.gas.polytropic_exponent * p_c / V_g
+            a_th = 0.0 * u.v
+            heat_gas = 0.0 * u.v  # a reversible polytrope exchanges no net heat over a cycle
+        em_c = self.emulsion(p_c, u.T_wall)
+        em_r = self.emulsion(p_r, u.T_wall)
+        rho_mean = 0.5 * (em_c["rho"] + em_r["rho"])
+        dp = p_c - p_r
+        q = valves.valve_flow(dp, **self._valve_kwargs(rho_mean, u.T_wall))   # seed 001 eq. 12, c -> r
+        m_dot = rho_mean * q
+        # chamber c (seed 001 eq. 5): emulsion volume and its compliance
+        V_e = g.piston_chamber_oil_volume + g.gas_volume_extended - A_c * u.x - V_gas
+        C_c = V_e * em_c["kappa"]
+        dV_gas = (A_c * u.v - m_dot / em_c["rho"] + C_c * b * r_ext - C_c * a_th) / (C_c * b - 1.0)
+        rates["V_gas"] = dV_gas
+        dV_g = dV_gas - r_ext
+        # chamber r (seed 001 eq. 6-7)
+        V_r = g.rod_chamber_volume + A_a * u.x
+        rates["p_r"] = (m_dot / em_r["rho"] - A_a * u.v) / (V_r * em_r["kappa"])
+        if P.gas.process == "energy":
+            rates["T_gas"] = gaslaw.gas_temperature_rate(T_gas, u.T_wall, P.gas.thermal_time_constant,
+                                                         V_g / m_gas, dV_g / m_gas, self.gas, P.gas.eos)
+        F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_r, u.T_wall, states.get("z_bristle"))
+        if dz is not None:
+            rates["z_bristle"] = dz
+        F_stop, F_stop_damping = self.end_stop_force(u.x, u.v)
+        F_gas = p_c * A_r
+        F_valve = dp * A_a
+        F_fluid = F_gas + F_valve          # = p_c A_c - p_r (A_c - A_r), seed 001 eq. 1
+        power_valve = dp * q
+        return dict(
+            rates={n: rates[n] for n in self.state_names},
+            residual=None,
+            force=F_fluid + F_fric + F_stop,
+            gas_pressure=p_c,
+            rod_chamber_pressure=p_r,
+            gas_temperature=T_gas,
+            gas_volume=V_g,
+            gas_force=F_gas,
+            valve_force=F_valve,
+            friction_force=F_fric,
+            end_stop_force=F_stop,
+            valve_flow=q,
+            power_valve=power_valve,
+            power_friction=F_fric * u.v,
+            power_end_stop=F_stop_damping * u.v,
+            heat_gas=heat_gas,
+            gas_work_rate=F_fluid * u.v + p_c * r_ext - power_valve,
+        )
