@@ -1,1 +1,20 @@
-"""Road profiles: ISO 8608 random roads, discrete events, measured profiles (no vehicle knowledge)."""
+"""Road profiles: ISO 8608 random roads, discrete events, measured profiles (no vehicle knowledge).
+
+    from terrain import RoadSpec, build_road, road_statistics
+    road = build_road(RoadSpec(iso_class="D", length="20 km", seed=7))
+    h, dh = road.evaluate(s, "left")            # NumPy, C1 spline
+    f = road.casadi_functions()["left"]         # CasADi: s -> (height, slope)
+    road_statistics(road)["gd_n0_m3"]
+
+Modules: iso8608 (class table, PSD, generation), coherence, envelope (tyre contact
+filter), events, profile_io (CSV), road (Road), stats (PSD fit, IRI), spec
+(RoadSpec, build_road), plots, cli.
+"""
+from .events import EVENT_TYPES, EventSpec
+from .iso8608 import ISO_CLASS_GD_N0_M3, class_of_gd, displacement_psd
+from .road import Road
+from .spec import RoadSpec, build_road, load_road_spec
+from .stats import road_statistics
+
+__all__ = ["EVENT_TYPES", "EventSpec", "ISO_CLASS_GD_N0_M3", "Road", "RoadSpec", "build_road",
+           "class_of_gd", "displacement_psd", "load_road_spec", "road_statistics"]

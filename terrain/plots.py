@@ -1,0 +1,118 @@
+"""Figures: road profile and its PSD against the ISO 8608 class bands (matplotlib, Agg backend)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hpsim.errors import UserInputError
+
+from . import iso8608
+
+PROFILE_MAX_POINTS = 20000  # profile overview is drawn as a min/max envelope beyond this
+DETAIL_LENGTH_M = 200.0  # length of the zoomed profile panel
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def draw_class_bands(ax, n_range=iso8608.DEFAULT_BAND_CYCLE_PER_M):
+    """Shade the ISO 8608 classes (limits at half/double the geometric mean, w = 2) and label them."""
+    n = np.geomspace(*n_range, 50)
+    for i, name in enumerate(iso8608.ISO_CLASSES):
+        lo, hi = iso8608.class_limits(name)
+        g_lo = iso8608.displacement_psd(n, lo)
+        g_hi = iso8608.displacement_psd(n, hi)
+        ax.fill_between(n, g_lo, g_hi, color="0.85" if i % 2 else "0.93", lw=0, zorder=0)
+        ax.text(n[-1] * 1.05, iso8608.displacement_psd(n[-1], iso8608.ISO_CLASS_GD_N0_M3[name]),
+                name, va="center", fontsize=8, color="0.35")
+
+
+def draw_psd(ax, stats: dict):
+    f = stats["frequency_cycle_per_m"]
+    keep = f > 0
+    draw_class_bands(ax)
+    ax.loglog(f[keep], stats["psd_left_m3"][keep], lw=0.7, label="left (Welch)")
+    ax.loglog(f[keep], stats["psd_right_m3"][keep], lw=0.7, alpha=0.7, label="right (Welch)")
+    bands = stats["bands"]
+    if len(bands["centre_cycle_per_m"]):
+        ax.loglog(bands["centre_cycle_per_m"], bands["psd_m3"], "ko", ms=3, label="1/3-octave mean")
+    if stats["gd_n0_m3"]:
+        lo, hi = stats["fit_band_cycle_per_m"]
+        n = np.geomspace(lo, hi, 20)
+        ax.loglog(n, iso8608.displacement_psd(n, stats["gd_n0_m3"], stats["waviness"]), "r--",
+                  label=f"fit: Gd(n0)={stats['gd_n0_m3'] * 1e6:.4g}e-6 m³, w={stats['waviness']:.3f} "
+                        f"(class {stats['iso_class']})")
+    ax.set_xlim(0.005, 10)
+    lo, hi = iso8608.DEFAULT_BAND_CYCLE_PER_M
+    inband = (f >= lo) & (f <= hi)
+    pos = np.concatenate([stats["psd_left_m3"][inband], stats["psd_right_m3"][inband]])
+    pos = pos[pos > 0]
+    if pos.size:  # the class bands and the in-band PSD decide the scale, not the empty bins beyond the band
+        g_min = iso8608.displacement_psd(hi, iso8608.class_limits(iso8608.ISO_CLASSES[0])[0])
+        ax.set_ylim(min(pos.min(), g_min) / 3.0, pos.max() * 10)
+    ax.set_xlabel("spatial frequency n [cycle/m]")
+    ax.set_ylabel("Gd(n) [m³]")
+    ax.legend(fontsize=7, loc="lower left")
+    ax.grid(True, which="both", lw=0.3)
+
+
+def _envelope(d, z, npts):
+    if d.size <= npts:
+        return d, z, z
+    step = int(np.ceil(d.size / npts))
+    m = d.size // step * step
+    zz = z[:m].reshape(-1, step)
+    return d[:m:step], zz.min(axis=1), zz.max(axis=1)
+
+
+def save_psd_plot(stats: dict, path: str | Path, title: str = "") -> None:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 5))
+    draw_psd(ax, stats)
+    ax.set_title(title or "Road displacement PSD against ISO 8608 classes", fontsize=10)
+    _save(fig, path, plt)
+
+
+def save_road_plot(road, stats: dict, path: str | Path, title: str = "") -> None:
+    plt = _pyplot()
+    fig = plt.figure(figsize=(10, 8))
+    ax1 = fig.add_subplot(3, 1, 1)
+    d = road.distance_m
+    for z, name in ((road.left_m, "left"), (road.right_m, "right")):
+        x, lo, hi = _envelope(d, z, PROFILE_MAX_POINTS)
+        if lo is hi:
+            ax1.plot(x / 1000.0, z, lw=0.5, label=name)
+        else:
+            ax1.fill_between(x / 1000.0, lo, hi, lw=0, alpha=0.6, label=f"{name} (min/max)")
+    ax1.set_xlabel("distance [km]")
+    ax1.set_ylabel("height [m]")
+    ax1.legend(fontsize=7)
+    ax1.set_title(title or f"Road profile ({road.length_m / 1000:.3g} km at {road.spacing_m * 1000:.3g} mm)",
+                  fontsize=10)
+    ax2 = fig.add_subplot(3, 1, 2)
+    n = min(road.n_points, int(DETAIL_LENGTH_M / road.spacing_m) + 1)
+    ax2.plot(d[:n], road.left_m[:n], lw=0.8, label="left")
+    ax2.plot(d[:n], road.right_m[:n], lw=0.8, label="right")
+    ax2.set_xlabel("distance [m]")
+    ax2.set_ylabel("height [m]")
+    ax2.legend(fontsize=7)
+    ax3 = fig.add_subplot(3, 1, 3)
+    draw_psd(ax3, stats)
+    fig.tight_layout()
+    _save(fig, path, plt)
+
+
+def _save(fig, path, plt):
+    try:
+        fig.savefig(path, dpi=110)
+    except (OSError, ValueError) as exc:
+        raise UserInputError(f"{path}: cannot write the figure ({exc})") from None
+    finally:
+        plt.close(fig)

@@ -1,0 +1,217 @@
+"""`Road`: two wheel tracks on a uniform grid, evaluated with NumPy or inside CasADi.
+
+Interpolation: the clamped cubic spline through the samples (end slopes set to
+zero), i.e. a cubic Hermite interpolant whose knot slopes solve the spline
+equations m[i-1] + 4·m[i] + m[i+1] = 3·(z[i+1] - z[i-1])/Δ. It is C2 inside the
+road; outside [0, length] the height is held at the end value with zero slope, so
+the road is C1 everywhere (axles behind axle 1 start at negative distance).
+NumPy (`evaluate`) and CasADi (`casadi_functions`, a B-spline node) evaluate
+the same spline.
+
+Axle k reads the same track at its own distance behind axle 1: s_k = s_1 - a_k
+(`evaluate_axles`).
+"""
+from __future__ import annotations
+
+from functools import cached_property
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+from scipy.linalg import solve_banded
+
+from hpsim.errors import UserInputError
+
+from .envelope import envelope_profile
+from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
+
+TRACKS = ("left", "right")
+
+
+def track_index(track) -> int:
+    """0 for "left"/0, 1 for "right"/1."""
+    if isinstance(track, (int, np.integer)) and not isinstance(track, bool) and int(track) in (0, 1):
+        return int(track)
+    if isinstance(track, str) and track.lower() in TRACKS:
+        return TRACKS.index(track.lower())
+    raise UserInputError(f"track: {track!r} is not a wheel track; allowed 'left', 'right', 0 or 1")
+
+
+def clamped_spline_slopes(z: np.ndarray, spacing_m: float) -> np.ndarray:
+    """Knot slopes dz/ds of the clamped (zero end slope) cubic interpolating spline on a uniform grid."""
+    n = z.size
+    if n < 3:
+        return np.zeros(n)
+    ab = np.empty((3, n))
+    ab[0] = 1.0
+    ab[1] = 4.0
+    ab[2] = 1.0
+    ab[1, 0] = ab[1, -1] = 1.0  # m[0] = m[n-1] = 0
+    ab[0, 1] = 0.0
+    ab[2, -2] = 0.0
+    rhs = np.empty(n)
+    rhs[1:-1] = 3.0 * (z[2:] - z[:-2]) / spacing_m
+    rhs[0] = rhs[-1] = 0.0
+    return solve_banded((1, 1), ab, rhs, overwrite_ab=True, overwrite_b=True, check_finite=False)
+
+
+class Road:
+    """Left/right track heights [m] at distances i·spacing_m, i = 0..n-1 (distance starts at 0)."""
+
+    def __init__(self, spacing_m: float, left_m, right_m, *, info: dict | None = None):
+        left = np.array(left_m, dtype=float)
+        right = np.array(right_m, dtype=float)
+        if left.ndim != 1 or left.shape != right.shape or left.size < 2:
+            raise ValueError("left_m and right_m must be 1-D arrays of the same length >= 2")
+        if not spacing_m > 0:
+            raise ValueError(f"spacing_m must be > 0 (got {spacing_m})")
+        for a in (left, right):
+            a.setflags(write=False)
+        self._spacing = float(spacing_m)
+        self._z = (left, right)
+        self._slopes: list[np.ndarray | None] = [None, None]
+        self.info = dict(info or {})
+
+    # -- grid -----------------------------------------------------------------
+    @property
+    def spacing_m(self) -> float:
+        return self._spacing
+
+    @property
+    def n_points(self) -> int:
+        return self._z[0].size
+
+    @property
+    def length_m(self) -> float:
+        return (self.n_points - 1) * self._spacing
+
+    @cached_property
+    def distance_m(self) -> np.ndarray:
+        d = np.arange(self.n_points) * self._spacing
+        d.setflags(write=False)
+        return d
+
+    @property
+    def left_m(self) -> np.ndarray:
+        return self._z[0]
+
+    @property
+    def right_m(self) -> np.ndarray:
+        return self._z[1]
+
+    def heights(self, track) -> np.ndarray:
+        return self._z[track_index(track)]
+
+    def knot_slopes(self, track) -> np.ndarray:
+        """Spline slopes at the grid points (computed once per track, O(N))."""
+        k = track_index(track)
+        if self._slopes[k] is None:
+            m = clamped_spline_slopes(self._z[k], self._spacing)
+            m.setflags(write=False)
+            self._slopes[k] = m
+        return self._slopes[k]
+
+    # -- evaluation -------------------------------------------------------------
+    def evaluate(self, s_m, track) -> tuple[np.ndarray, np.ndarray]:
+        """(height [m], slope dz/ds [-]) of `track` at distances `s_m` (any shape), clamped to [0, length]."""
+        z = self.heights(track)
+        m = self.knot_slopes(track)
+        s = np.asarray(s_m, dtype=float)
+        x = np.clip(s, 0.0, self.length_m) / self._spacing
+        i = np.minimum(x.astype(np.intp), self.n_points - 2)
+        t = x - i
+        z0, z1, m0, m1 = z[i], z[i + 1], m[i] * self._spacing, m[i + 1] * self._spacing
+        t2 = t * t
+        t3 = t2 * t
+        dz = z1 - z0
+        height = z0 + m0 * t + (3.0 * dz - 2.0 * m0 - m1) * t2 + (m0 + m1 - 2.0 * dz) * t3
+        slope = (m0 + 2.0 * (3.0 * dz - 2.0 * m0 - m1) * t + 3.0 * (m0 + m1 - 2.0 * dz) * t2) / self._spacing
+        return height, slope
+
+    def evaluate_axles(self, s_m, offsets_m: Iterable[float], track):
+        """(height, slope) arrays of shape (n_axles, *shape(s_m)) for axles at s_m - offsets_m[k]."""
+        s = np.asarray(s_m, dtype=float)
+        off = np.asarray(list(offsets_m), dtype=float).reshape((-1,) + (1,) * s.ndim)
+        return self.evaluate(s[None, ...] - off, track)
+
+    def casadi_function(self, track, window_m: tuple[float, float] | None = None):
+        """CasADi Function `s -> (height, slope)` (B-spline node, same spline as `evaluate`).
+
+        With `window_m = (start, end)` only that stretch is put in the function (cheaper to
+        build for long roads); inside the window it equals the full-road spline, outside it the
+        height is held at the window's end values and the slope is zero.
+        """
+        import casadi as ca
+        from scipy.interpolate import make_interp_spline
+
+        k = track_index(track)
+        z = self._z[k]
+        lo, hi = 0, self.n_points - 1
+        if window_m is not None:
+            lo = max(0, int(np.floor(window_m[0] / self._spacing)))
+            hi = min(self.n_points - 1, int(np.ceil(window_m[1] / self._spacing)))
+            if hi - lo < 3:
+                raise UserInputError(f"window {window_m} m: must span at least 3 grid steps inside "
+                                     f"[0, {self.length_m}] m")
+        m = self.knot_slopes(k)
+        x = np.arange(lo, hi + 1) * self._spacing
+        spl = make_interp_spline(x, z[lo:hi + 1], k=3, bc_type=([(1, m[lo])], [(1, m[hi])]))
+        s = ca.MX.sym("s")
+        xs = ca.MX.sym("x")
+        h = ca.bspline(xs, ca.DM(spl.c), [spl.t.tolist()], [3], 1, {})
+        inner = ca.Function("spline", [xs], [h, ca.jacobian(h, xs)])
+        s_lo, s_hi = float(x[0]), float(x[-1])
+        # the B-spline is zero outside its knot range: evaluate strictly inside and hold the end values
+        eps = 1e-12 * max(1.0, s_hi)
+        s_c = ca.fmin(ca.fmax(s, s_lo), s_hi - eps)
+        height, slope = inner(s_c)
+        inside = ca.logic_and(s >= s_lo, s <= s_hi)
+        slope = ca.if_else(inside, slope, 0.0)
+        return ca.Function(f"road_{TRACKS[k]}", [s], [height, slope], ["s"], ["height", "slope"])
+
+    def casadi_functions(self, window_m: tuple[float, float] | None = None) -> dict:
+        """{"left": f, "right": f}, each a CasADi Function `s -> (height, slope)`; see casadi_function."""
+        return {name: self.casadi_function(name, window_m) for name in TRACKS}
+
+    # -- derived roads -----------------------------------------------------------
+    def enveloped(self, contact_length_m: float) -> "Road":
+        """New Road: both tracks averaged over the tyre contact length (see `terrain.envelope`)."""
+        if not contact_length_m > 0:
+            raise UserInputError(f"contact length: must be > 0 m (got {contact_length_m} m)")
+        info = dict(self.info, contact_length_m=float(contact_length_m))
+        return Road(self._spacing,
+                    envelope_profile(self._z[0], contact_length_m, self._spacing),
+                    envelope_profile(self._z[1], contact_length_m, self._spacing), info=info)
+
+    # -- files ---------------------------------------------------------------------
+    def to_csv(self, path: str | Path) -> None:
+        write_profile_csv(path, self.distance_m, self._z[0], self._z[1])
+
+    @classmethod
+    def from_csv(cls, path: str | Path, spacing_m: float | None = None,
+                 length_m: float | None = None) -> "Road":
+        """Read a measured profile; distance shifted to start at 0 and resampled to a uniform grid.
+
+        spacing_m: target spacing (default: the file's own spacing if uniform, else its median step).
+        length_m: keep only the first length_m metres (must not exceed the file's length).
+        """
+        d, left, right = read_profile_csv(path)
+        span = float(d[-1] - d[0])
+        if length_m is not None and length_m > span * (1 + 1e-9):
+            raise UserInputError(f"{path}: length {length_m} m is longer than the profile in the file "
+                                 f"({span} m)")
+        uniform = is_uniform(d)
+        native = span / (d.size - 1) if uniform else float(np.median(np.diff(d)))
+        step = native if spacing_m is None else float(spacing_m)
+        use = span if length_m is None else float(length_m)
+        n = int(np.floor(use / step * (1 + 1e-12))) + 1
+        if n < 2:
+            raise UserInputError(f"{path}: spacing {step} m leaves fewer than 2 points over {use} m")
+        keep_grid = uniform and abs(step - native) <= 1e-9 * native
+        if keep_grid:
+            left_u, right_u = left[:n], right[:n]
+        else:
+            left_u = resample(d, left, step, n)
+            right_u = resample(d, right, step, n)
+        info = {"source": str(path), "distance_offset_m": float(d[0]), "resampled": not keep_grid}
+        return cls(step, left_u, right_u, info=info)

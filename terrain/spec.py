@@ -1,0 +1,201 @@
+"""`RoadSpec` (what road to build, from YAML or the command line) and `build_road`.
+
+Exactly one source of the profile:
+
+- `iso_class: D` — ISO 8608 class A..H, Gd(n0) = the class's geometric mean (iso8608 table);
+- `gd_n0: 1.2e-3` (or "1200e-6 m**3") — a custom Gd(n0), with `waviness` w;
+- `csv: measured.csv` — a measured profile (relative paths resolved against `base_dir`);
+- `flat: true` — a perfectly flat road (events only).
+
+Random roads are generated on a grid of `spacing` over `length` (n = floor(length/spacing) + 1
+points; the road ends at the last grid point). For `csv`, `spacing` resamples the file only if
+given explicitly (else the file's own spacing is kept) and `length` keeps the first metres of it.
+`events` are added on top of any source.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import field_validator, model_validator
+from pydantic_core.core_schema import ValidationInfo
+
+from hpsim.config import Model, Quantity, load_yaml, validate
+from hpsim.errors import UserInputError
+
+from . import iso8608
+from .coherence import coherence_model
+from .events import EventSpec, apply_events
+from .road import Road
+
+MAX_LENGTH_M = 5.0e6  # 5000 km: beyond this the arrays no longer fit comfortably in memory
+MAX_TRACK_WIDTH_M = 10.0
+WAVINESS_RANGE = (0.5, 4.0)  # generous around the ISO 8608 typical 1.5..3.5
+MAX_GD_N0_M3 = 1.0  # ~4x the ISO class H geometric mean
+
+
+class RoadSpec(Model):
+    iso_class: str | None = None
+    gd_n0: Quantity("m**3") | None = None
+    waviness: float = iso8608.WAVINESS_ISO
+    csv: str | None = None
+    flat: bool = False
+    band: tuple[float, float] = iso8608.DEFAULT_BAND_CYCLE_PER_M  # cycle/m
+    length: Quantity("m") | None = None
+    spacing: Quantity("m") = 0.05
+    seed: int = 0
+    track_width: Quantity("m") = 2.5
+    coherence: Literal["isotropic", "independent", "identical"] = "isotropic"
+    events: list[EventSpec] = []
+
+    @field_validator("iso_class", mode="before")
+    @classmethod
+    def _class(cls, v):
+        if v is None:
+            return v
+        name = str(v).strip().upper()
+        if name not in iso8608.ISO_CLASSES:
+            raise ValueError(f"{v!r} is not an ISO 8608 class; allowed "
+                             f"{', '.join(iso8608.ISO_CLASSES)}")
+        return name
+
+    @field_validator("gd_n0")
+    @classmethod
+    def _gd(cls, v):
+        if v is not None and not (0 < v <= MAX_GD_N0_M3):
+            raise ValueError(f"Gd(n0) must be in (0, {MAX_GD_N0_M3}] m³ (class D is 1.024e-3 m³)")
+        return v
+
+    @field_validator("waviness")
+    @classmethod
+    def _w(cls, v):
+        if not (WAVINESS_RANGE[0] <= v <= WAVINESS_RANGE[1]):
+            raise ValueError(f"waviness must be in [{WAVINESS_RANGE[0]}, {WAVINESS_RANGE[1]}] (ISO 8608: 2)")
+        return v
+
+    @field_validator("band")
+    @classmethod
+    def _band(cls, v):
+        lo, hi = v
+        if not (0 < lo < hi):
+            raise ValueError("band must be [n_min, n_max] in cycle/m with 0 < n_min < n_max "
+                             f"(ISO 8608: {list(iso8608.DEFAULT_BAND_CYCLE_PER_M)})")
+        return v
+
+    @field_validator("length")
+    @classmethod
+    def _length(cls, v):
+        if v is not None and not (0 < v <= MAX_LENGTH_M):
+            raise ValueError(f"length must be in (0, {MAX_LENGTH_M / 1000:.0f} km]")
+        return v
+
+    @field_validator("spacing")
+    @classmethod
+    def _spacing(cls, v, info: ValidationInfo):
+        if not v > 0:
+            raise ValueError("spacing must be > 0 m")
+        data = info.data
+        random_road = data.get("csv") is None and not data.get("flat")
+        band = data.get("band")
+        if random_road and band is not None:
+            limit = 0.5 / band[1]
+            if v > limit * (1 + 1e-9):
+                raise ValueError(f"spacing {v:g} m is too coarse for the shortest wavelength "
+                                 f"1/{band[1]:g} = {1 / band[1]:.4g} m; at most {limit:.4g} m "
+                                 f"(two samples per wavelength)")
+        length = data.get("length")
+        if length is not None and v * 2 > length:
+            raise ValueError(f"spacing {v:g} m leaves fewer than 3 points over the length {length:g} m")
+        return v
+
+    @field_validator("seed")
+    @classmethod
+    def _seed(cls, v):
+        if v < 0:
+            raise ValueError("seed must be an integer >= 0")
+        return v
+
+    @field_validator("track_width")
+    @classmethod
+    def _track(cls, v):
+        if not (0 < v <= MAX_TRACK_WIDTH_M):
+            raise ValueError(f"track_width must be in (0, {MAX_TRACK_WIDTH_M}] m")
+        return v
+
+    @field_validator("events")
+    @classmethod
+    def _events(cls, v, info: ValidationInfo):
+        length = info.data.get("length")
+        for i, ev in enumerate(v):
+            if length is not None and ev.position > length:
+                raise ValueError(f"event {i} ({ev.type}) starts at {ev.position:g} m, beyond the road "
+                                 f"length {length:g} m")
+            if length is not None and ev.end > length * (1 + 1e-12):
+                raise ValueError(f"event {i} ({ev.type}) ends at {ev.end:g} m, beyond the road "
+                                 f"length {length:g} m")
+        return v
+
+    @model_validator(mode="after")
+    def _source(self):
+        given = [name for name, on in (("iso_class", self.iso_class is not None),
+                                       ("gd_n0", self.gd_n0 is not None),
+                                       ("csv", self.csv is not None), ("flat", self.flat)) if on]
+        if len(given) != 1:
+            raise ValueError("give exactly one road source: iso_class (A-H), gd_n0 (custom Gd(n0)), "
+                             f"csv (measured profile) or flat: true (got {', '.join(given) or 'none'})")
+        if self.csv is None and self.length is None:
+            raise ValueError("length is required for a random or flat road (e.g. length: 20 km)")
+        return self
+
+    @property
+    def gd_n0_m3(self) -> float | None:
+        """Gd(n0) [m³] used for a random road (custom value or the class's geometric mean)."""
+        if self.gd_n0 is not None:
+            return self.gd_n0
+        if self.iso_class is not None:
+            return iso8608.ISO_CLASS_GD_N0_M3[self.iso_class]
+        return None
+
+
+def load_road_spec(path: str | Path) -> RoadSpec:
+    """Read a RoadSpec from YAML (errors name the file and key)."""
+    return validate(RoadSpec, load_yaml(path), str(path))
+
+
+def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
+    """Build the Road described by `spec` (a relative `csv` path is taken from `base_dir`, default cwd)."""
+    info = {"spec": spec.model_dump(mode="json")}
+    if spec.csv is not None:
+        path = Path(spec.csv)
+        if not path.is_absolute():
+            path = Path(base_dir or Path.cwd()) / path
+        spacing = spec.spacing if "spacing" in spec.model_fields_set else None
+        road = Road.from_csv(path, spacing_m=spacing, length_m=spec.length)
+        distance = road.distance_m
+        left, right = road.left_m.copy(), road.right_m.copy()
+        info.update(road.info)
+        step = road.spacing_m
+    else:
+        step = spec.spacing
+        n = int(np.floor(spec.length / step + 1e-9)) + 1
+        distance = np.arange(n) * step
+        if spec.flat:
+            left, right = np.zeros(n), np.zeros(n)
+        else:
+            gd = spec.gd_n0_m3
+            band = tuple(spec.band)
+            if spec.coherence == "isotropic":
+                mode, fn = "model", (lambda nn: coherence_model("isotropic", nn, spec.track_width,
+                                                                  spec.waviness))
+            else:
+                mode, fn = spec.coherence, None
+            left, right = iso8608.generate_tracks(gd, spec.waviness, step, n, spec.seed, band, mode, fn)
+            info["gd_n0_m3"] = gd
+    road_length = (distance.size - 1) * step
+    for i, ev in enumerate(spec.events):
+        if ev.position > road_length:
+            raise UserInputError(f"events.{i}: {ev.type} at {ev.position:g} m is beyond the road "
+                                 f"length {road_length:g} m")
+    apply_events(distance, left, right, spec.events)
+    return Road(step, left, right, info=info)
