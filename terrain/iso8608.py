@@ -43,8 +43,9 @@ CLASS_LIMIT_FACTOR = 2.0  # lower limit = mean / 2, upper limit = mean * 2 (ISO 
 ISO_CLASSES = tuple(ISO_CLASS_GD_N0_M3)
 
 # Generation filter: its length in metres is FILTER_CYCLES_AT_NMIN longest wavelengths, so the
-# (Hann-windowed) response is smoothed by only ~2/FILTER_CYCLES_AT_NMIN of n_min near the band's low edge.
-FILTER_CYCLES_AT_NMIN = 64
+# (Hann-windowed) response is smoothed over only ~2/FILTER_CYCLES_AT_NMIN of n_min at the band's low
+# edge (for w = 2 the profile variance comes out 0.5 % below ∫Gd dn, 1.1 % with 64 cycles).
+FILTER_CYCLES_AT_NMIN = 128
 FFT_BLOCK_FACTOR = 4  # overlap-save FFT size = FFT_BLOCK_FACTOR x filter length
 
 

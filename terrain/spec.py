@@ -123,19 +123,6 @@ class RoadSpec(Model):
             raise ValueError(f"track_width must be in (0, {MAX_TRACK_WIDTH_M}] m")
         return v
 
-    @field_validator("events")
-    @classmethod
-    def _events(cls, v, info: ValidationInfo):
-        length = info.data.get("length")
-        for i, ev in enumerate(v):
-            if length is not None and ev.position > length:
-                raise ValueError(f"event {i} ({ev.type}) starts at {ev.position:g} m, beyond the road "
-                                 f"length {length:g} m")
-            if length is not None and ev.end > length * (1 + 1e-12):
-                raise ValueError(f"event {i} ({ev.type}) ends at {ev.end:g} m, beyond the road "
-                                 f"length {length:g} m")
-        return v
-
     @model_validator(mode="after")
     def _source(self):
         given = [name for name, on in (("iso_class", self.iso_class is not None),
@@ -146,6 +133,11 @@ class RoadSpec(Model):
                              f"csv (measured profile) or flat: true (got {', '.join(given) or 'none'})")
         if self.csv is None and self.length is None:
             raise ValueError("length is required for a random or flat road (e.g. length: 20 km)")
+        if self.length is not None:
+            for i, ev in enumerate(self.events):
+                if ev.end > self.length * (1 + 1e-12):
+                    raise ValueError(f"events.{i} ({ev.type}) ends at {ev.end:g} m, beyond the road "
+                                     f"length {self.length:g} m")
         return self
 
     @property

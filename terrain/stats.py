@@ -100,6 +100,17 @@ def band_average(f, p, edges, k_eff, r):
     return idx, np.array(mean), np.array(relvar)
 
 
+def coherence_se(gamma, relvar_track):
+    """Standard error of a band-averaged coherence estimate: (1 - γ²)/sqrt(2·n_eff).
+
+    n_eff = 1/relvar of one track's band mean is the number of independent complex spectral
+    samples in the band; the normalised co-spectrum behaves like a correlation coefficient
+    estimated from 2·n_eff real pairs (Fisher: se ≈ (1 - ρ²)/sqrt(n)).
+    """
+    g = np.nan_to_num(np.asarray(gamma, dtype=float))
+    return (1.0 - g * g) * np.sqrt(np.asarray(relvar_track) / 2.0)
+
+
 def fit_power_law(f, idx, band_mean, band_relvar):
     """Weighted Gauss-Newton fit of ln(band mean) -> (Gd(n0), w, se of ln Gd(n0), se of w)."""
     if len(idx) < 2:
@@ -181,8 +192,10 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
     gd, w, se_gd, se_w = fit_power_law(f, idx, pmean, relvar)
 
     tracks = {}
+    track_relvar = {}
     for name, p, z in (("left", pll, left), ("right", prr, right)):
         j, pm, rv = band_average(f, p, edges, k_eff, r)
+        track_relvar[name] = rv
         g1, w1, sg1, sw1 = fit_power_law(f, j, pm, rv)
         tracks[name] = {"gd_n0_m3": g1, "gd_n0_rel_se": sg1, "waviness": w1, "waviness_se": sw1,
                         "iso_class": iso8608.class_of_gd(g1), "rms_m": float(np.std(z)),
@@ -217,6 +230,8 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
             "psd_m3": pmean,
             "rel_se": np.sqrt(relvar),
             "coherence": gamma_band,
+            "coherence_se": coherence_se(gamma_band, track_relvar["left"]) if len(idx) == len(
+                track_relvar["left"]) else np.full(len(idx), np.nan),
         },
         "frequency_cycle_per_m": f,
         "psd_left_m3": pll,
