@@ -1,19 +1,30 @@
 """Results of a drive in HDF5 (layout: docs/hdf5.md), written as the drive goes, and resumable.
 
-`run_scenario()` is what `hpsim run` and every sweep case do: validate the scenario, build the
-drive, write /scenario and /equilibrium/before, then hand `H5Results` to `Drive.run` as its sink.
-Every block of samples is appended to chunked, compressed, resizable datasets; every checkpoint
-(the drive's resume state plus the number of samples and statistics rows it covers) is written
-*after* the data it covers, then the file is flushed. A run that is killed, crashes or is
-interrupted keeps a readable file; `--resume` truncates the datasets to the checkpoint's counts,
-rebuilds the drive from the scenario text stored in the file and continues from the checkpoint,
-ending with the same result as an uninterrupted run.
+`run_scenario()` is what `hpsim run` and every sweep case do:
+
+1. validate the scenario and build the drive (nothing is written before the scenario is valid);
+2. create the file (HDF5 1.10 format, written under a temporary name and renamed): /scenario,
+   /equilibrium/charged and /before, and *every* dataset the drive will fill (time series,
+   statistics, checkpoint slots), so that nothing needs creating later;
+3. switch to SWMR (single-writer/multiple-reader) mode and drive: each block of samples is
+   appended to chunked, compressed, resizable datasets and flushed; then the checkpoint (the
+   drive's resume state plus the counts of samples and statistics rows it covers) is written to
+   the inactive one of two slots, flushed, and only then the pointer to it is switched and
+   flushed. SWMR's ordered metadata flushes keep the file valid whatever moment the process
+   dies, and the double-buffered checkpoint is never half written;
+4. close, reopen normally and write /equilibrium/after and /summary (status, complete=True).
+
+Ctrl-C closes the file cleanly (status "interrupted"). A file whose writer was killed is still
+readable (open it with `h5py.File(path, "r", swmr=True)`; `open_read` does that). `--resume`
+copies what the checkpoint covers into a fresh file, rebuilds the drive from the scenario text
+stored in the file and continues from the checkpoint: the result equals an uninterrupted run.
 """
 from __future__ import annotations
 
 import datetime as _dt
 import functools
 import json
+import os
 import subprocess
 import time
 from pathlib import Path
@@ -28,7 +39,9 @@ from .scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
 
 FORMAT = "hpsim-drive"
 FORMAT_VERSION = 1
+LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
 CHUNK_ROWS = 512            # samples per HDF5 chunk of the time series
+STATS_CHUNK_ROWS = 64
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 
 
@@ -72,6 +85,16 @@ def completing_drive_class():
             self._last_rows = super()._stats(st, X, t, s)
             return self._last_rows
 
+        def describe(self):
+            """(one block of samples, one statistics row, one state dict) with the right keys and
+            shapes: the file's datasets are created from them before the drive starts."""
+            st = self.initial_state()
+            t = np.array([0.0])
+            block = Drive._block_outputs(self, st.x[:, None], self.inputs(t), t, t)
+            row = Drive._stats_row(self, self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)),
+                                   st.x[self.T_index])
+            return block, row, st.as_dict()
+
         def run(self, sink=None, state=None, progress=None, checkpoint_every_blocks: int = 1):
             tracker = _TrackingSink(sink, 0 if state is None else state.sample_index)
             res = super().run(tracker if sink is not None else None, state, progress,
@@ -111,55 +134,137 @@ class _TrackingSink:
 
 
 # --- the writer ------------------------------------------------------------------------------------
-def _append(group: h5py.Group, name: str, rows: np.ndarray, compression: int, columns=None, chunk_rows=CHUNK_ROWS):
-    """Append rows (first axis) to a resizable dataset, creating it on first use."""
-    if name not in group:
-        kw = {}
-        if compression:
-            kw = {"compression": "gzip", "compression_opts": int(compression), "shuffle": True}
-        shape = rows.shape[1:]
-        ds = group.create_dataset(name, shape=(0,) + shape, maxshape=(None,) + shape, dtype="f8",
-                                  chunks=(chunk_rows,) + shape, **kw)
-        if columns is not None:
-            ds.attrs["columns"] = list(columns)
-    ds = group[name]
-    n = ds.shape[0]
-    ds.resize(n + rows.shape[0], axis=0)
-    ds[n:] = rows
-
-
 UNITS = {"t_s": "s", "distance_m": "m", "speed_m_per_s": "m/s", "strut_temperature_K": "K",
-         "axle_height_change_m": "m", "hull_acceleration": "m/s^2, rad/s^2, rad/s^2", "heave_m": "m",
+         "axle_height_change_m": "m", "hull_acceleration": "m/s^2 (heave), rad/s^2 (pitch, roll)", "heave_m": "m",
          "pitch_rad": "rad", "roll_rad": "rad", "oil_added_m3": "m^3", "strut_force": "N", "strut_deflection": "m",
-         "gas_pressure": "Pa", "gas_temperature": "K", "wheel_load": "N"}
+         "gas_pressure": "Pa", "gas_temperature": "K", "wheel_load": "N", "distance_end_m": "m", "duration_s": "s",
+         "rms_strut_velocity_m_per_s": "m/s", "rms_hull_acceleration": "m/s^2 (heave), rad/s^2 (pitch, roll)"}
+
+
+def _unit(key: str) -> str:
+    if key in UNITS:
+        return UNITS[key]
+    for suffix, unit in (("_J", "J"), ("_W", "W"), ("_K", "K"), ("_m", "m"), ("_s", "s")):
+        if key.endswith(suffix):
+            return unit
+    return ""
+
+
+def _rows(value, n: int | None = None) -> np.ndarray:
+    """Drive arrays are (width, n_samples) or (n_samples,): stored time-major (n_samples, width)."""
+    a = np.asarray(value, float)
+    return a.T if a.ndim == 2 else a.reshape(-1)
+
+
+def open_read(path: str | Path) -> h5py.File:
+    """Open a results file for reading, also one whose writer was killed (SWMR read)."""
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        if "already open for write" in str(exc):
+            return h5py.File(path, "r", swmr=True)
+        raise
+
+
+class Checkpoint:
+    """Double-buffered resume state in /checkpoint: slots (2, L) float64 and pointer [slot, seq].
+
+    A slot packs the DriveState dict plus n_samples, n_stats and wall_s; attrs["fields"] (JSON)
+    gives each field's [offset, length] and shape. pointer = [-1, 0] until the first checkpoint.
+    """
+
+    META = ("n_samples", "n_stats", "wall_s")
+
+    def __init__(self, group: h5py.Group):
+        self.g = group
+        self.fields = json.loads(group.attrs["fields"])
+
+    @classmethod
+    def create(cls, f: h5py.File, state: dict) -> "Checkpoint":
+        g = f.create_group("checkpoint")
+        fields, off = {}, 0
+        for k, v in list(state.items()) + [(m, 0.0) for m in cls.META]:
+            a = np.asarray(v, float)
+            fields[k] = [off, int(a.size), list(a.shape)]
+            off += int(a.size)
+        g.create_dataset("slots", shape=(2, off), dtype="f8")
+        g.create_dataset("pointer", data=np.array([-1, 0], dtype="i8"))
+        g.attrs["fields"] = json.dumps(fields)
+        g.attrs["description"] = ("resume state of the drive: pointer = [active slot, sequence number] (slot -1: "
+                                  "none yet); slots[slot] packs the fields listed in attrs['fields'] as "
+                                  "name: [offset, length, shape]")
+        return cls(g)
+
+    def write(self, state: dict, meta: dict) -> None:
+        slot, seq = (int(v) for v in self.g["pointer"][()])
+        new = 1 - slot if slot in (0, 1) else 0
+        vec = np.zeros(self.g["slots"].shape[1])
+        values = {**state, **meta}
+        for k, (off, size, _shape) in self.fields.items():
+            vec[off:off + size] = np.asarray(values[k], float).ravel()
+        self.g["slots"][new] = vec
+        self.g.file.flush()
+        self.g["pointer"][...] = np.array([new, seq + 1], dtype="i8")
+        self.g.file.flush()
+
+    def read(self) -> tuple[dict, dict] | None:
+        slot, seq = (int(v) for v in self.g["pointer"][()])
+        if slot not in (0, 1):
+            return None
+        vec = np.asarray(self.g["slots"][slot], float)
+        out = {}
+        for k, (off, size, shape) in self.fields.items():
+            v = vec[off:off + size]
+            out[k] = v.reshape(shape) if shape else float(v[0])
+        meta = {m: out.pop(m) for m in self.META}
+        meta["n_samples"], meta["n_stats"] = int(meta["n_samples"]), int(meta["n_stats"])
+        return out, meta
 
 
 class H5Results:
     """The drive's sink: appends samples and statistics, writes checkpoints, flushes."""
 
-    def __init__(self, f: h5py.File, stored: set[str], compression: int, station_names, axle_names,
+    def __init__(self, f: h5py.File, stored: set[str], n_samples: int = 0, n_stats: int = 0,
                  wall_before_s: float = 0.0):
         self.f = f
         self.stored = stored
-        self.compression = compression
-        self.station_names = list(station_names)
-        self.axle_names = list(axle_names)
+        self.ts = f["timeseries"]
+        self.st = f["stats"]
+        self.ck = Checkpoint(f["checkpoint"])
+        self.n_samples = n_samples
+        self.n_stats = n_stats
         self.wall_before_s = wall_before_s
         self.session_t0 = time.perf_counter()
-        self.ts = f.require_group("timeseries")
-        self.st = f.require_group("stats")
-        self.n_samples = int(self.ts.attrs.get("n_samples", 0))
-        self.n_stats = int(self.st.attrs.get("n_rows", 0))
         self.last_state: dict | None = None
 
-    def _columns(self, width: int):
-        if width == len(self.station_names):
-            return self.station_names
-        if width == len(self.axle_names):
-            return self.axle_names
-        if width == 3:
-            return ["heave", "pitch", "roll"]
-        return None
+    @staticmethod
+    def create_layout(f: h5py.File, block: dict, row: dict, state: dict, stored: set[str], compression: int,
+                      station_names, axle_names) -> None:
+        """Every dataset the drive fills, empty and resizable (created before SWMR mode)."""
+        kw = {"compression": "gzip", "compression_opts": int(compression), "shuffle": True} if compression else {}
+
+        def columns(width):
+            if width == len(station_names):
+                return list(station_names)
+            if width == len(axle_names):
+                return list(axle_names)
+            if width == 3:
+                return ["heave", "pitch", "roll"]
+            return None
+
+        # a block's arrays are (width, n) or (n,); a statistics row holds scalars or (width,) arrays
+        for gname, shapes, chunk in (("timeseries", {k: _rows(v).shape[1:] for k, v in block.items() if k in stored},
+                                      CHUNK_ROWS),
+                                     ("stats", {k: np.asarray(v, float).shape for k, v in row.items()},
+                                      STATS_CHUNK_ROWS)):
+            g = f.create_group(gname)
+            for key, shape in shapes.items():
+                ds = g.create_dataset(key, shape=(0,) + shape, maxshape=(None,) + shape, dtype="f8",
+                                      chunks=(chunk,) + shape, **kw)
+                ds.attrs["unit"] = _unit(key)
+                if shape and columns(shape[0]) is not None:
+                    ds.attrs["columns"] = columns(shape[0])
+        Checkpoint.create(f, state)
 
     # DriveSink protocol
     def start(self, info: dict) -> None:  # pragma: no cover - not called by the drive
@@ -168,92 +273,57 @@ class H5Results:
     def samples(self, block: dict) -> None:
         n = len(np.atleast_1d(block["t_s"]))
         for key, value in block.items():
-            if key not in self.stored:
-                continue
-            a = np.asarray(value, float)
-            rows = a.T if a.ndim == 2 else a.reshape(n)
-            new = key not in self.ts
-            _append(self.ts, key, rows, self.compression, self._columns(rows.shape[1]) if rows.ndim == 2 else None)
-            if new:
-                unit = UNITS.get(key) or ("J" if key.endswith("_J") else "")
-                self.ts[key].attrs["unit"] = unit
+            if key in self.ts:
+                ds = self.ts[key]
+                ds.resize(self.n_samples + n, axis=0)
+                ds[self.n_samples:] = _rows(value)
         self.n_samples += n
-        self.ts.attrs["n_samples"] = self.n_samples
+        self.f.flush()
 
     def stats(self, rows: list[dict]) -> None:
         if not rows:
             return
         for key in rows[0]:
-            a = np.array([np.asarray(r[key], float) for r in rows])
-            new = key not in self.st
-            _append(self.st, key, a, self.compression,
-                    self._columns(a.shape[1]) if a.ndim == 2 else None, chunk_rows=64)
-            if new:
-                self.st[key].attrs["unit"] = (key.rsplit("_", 1)[-1] if "_" in key else "")
+            if key in self.st:
+                ds = self.st[key]
+                ds.resize(self.n_stats + len(rows), axis=0)
+                ds[self.n_stats:] = np.array([np.asarray(r[key], float) for r in rows])
         self.n_stats += len(rows)
-        self.st.attrs["n_rows"] = self.n_stats
-
-    def checkpoint(self, state: dict) -> None:
-        """Write the resume state after the data it covers, then flush."""
-        g = self.f.require_group("checkpoint")
-        for k, v in state.items():
-            a = np.asarray(v)
-            if a.ndim == 0:
-                g.attrs[k] = a.item()
-            elif k in g and g[k].shape == a.shape:
-                g[k][...] = a
-            else:
-                if k in g:
-                    del g[k]
-                g.create_dataset(k, data=a)
-        g.attrs["n_samples"] = self.n_samples
-        g.attrs["n_stats"] = self.n_stats
-        g.attrs["wall_s"] = self.wall_s()
-        g.attrs["written_at"] = _now()
-        self.last_state = state
         self.f.flush()
 
-    # --- other groups ---
+    def checkpoint(self, state: dict) -> None:
+        """Written after (and flushed after) the data it covers."""
+        self.ck.write(state, {"n_samples": self.n_samples, "n_stats": self.n_stats, "wall_s": self.wall_s()})
+        self.last_state = state
+
     def wall_s(self) -> float:
         return self.wall_before_s + (time.perf_counter() - self.session_t0)
 
-    def equilibrium(self, name: str, eq) -> None:
-        g = self.f.require_group("equilibrium")
-        if name in g:
-            del g[name]
-        e = g.create_group(name)
-        for k, v in eq.__dict__.items():
-            if isinstance(v, np.ndarray):
-                e.create_dataset(k, data=np.asarray(v, float))
-            else:
-                e.attrs[k] = float(v)
-        e.attrs["stations"] = self.station_names
-        self.f.flush()
 
-    def status(self, status: str, **attrs) -> None:
-        g = self.f.require_group("summary")
-        g.attrs["status"] = status
-        g.attrs["complete"] = status == "complete"
-        for k, v in attrs.items():
-            g.attrs[k] = v
-        self.f.flush()
+def write_equilibrium(g: h5py.Group, name: str, eq, station_names) -> None:
+    if name in g:
+        del g[name]
+    e = g.create_group(name)
+    for k, v in eq.__dict__.items():
+        if isinstance(v, np.ndarray):
+            e.create_dataset(k, data=np.asarray(v, float))
+        else:
+            e.attrs[k] = float(v)
+    e.attrs["stations"] = list(station_names)
 
 
 def _write_json_attr(obj, name: str, value) -> None:
     obj.attrs[name] = json.dumps(value, indent=1, default=float)
 
 
-def truncate(f: h5py.File, n_samples: int, n_stats: int) -> None:
-    """Cut the time series and statistics back to what the checkpoint covers."""
-    for gname, n, attr in (("timeseries", n_samples, "n_samples"), ("stats", n_stats, "n_rows")):
-        g = f.require_group(gname)
-        for ds in g.values():
-            if ds.shape[0] > n:
-                ds.resize(n, axis=0)
-            elif ds.shape[0] < n:
-                raise UserInputError(f"{f.filename}: /{gname}/{ds.name.rsplit('/', 1)[-1]} has {ds.shape[0]} rows, "
-                                     f"fewer than the checkpoint's {n}: the file is damaged, start again without --resume")
-        g.attrs[attr] = n
+def set_status(path: Path, status: str, **attrs) -> None:
+    """Reopen normally (after the SWMR writer closed) and record the run's status in /summary."""
+    with h5py.File(path, "r+", libver=LIBVER) as f:
+        g = f.require_group("summary")
+        g.attrs["status"] = status
+        g.attrs["complete"] = status == "complete"
+        for k, v in attrs.items():
+            g.attrs[k] = v
 
 
 # --- running a scenario --------------------------------------------------------------------------
@@ -275,23 +345,21 @@ def _stored_source(f: h5py.File, path: Path) -> ScenarioSource:
 
 
 def results_status(path: str | Path) -> str | None:
-    """'complete', 'running', 'interrupted', 'failed', or None if there is no readable results file."""
+    """'complete', 'running' (or killed), 'interrupted', 'failed'; None if no readable results file."""
     path = Path(path)
     if not path.exists():
         return None
     try:
-        with h5py.File(path, "r") as f:
+        with open_read(path) as f:
             if f.attrs.get("format") != FORMAT:
                 return None
             g = f.get("summary")
-            if g is None:
-                return "running"
-            return str(g.attrs.get("status", "running"))
+            return "running" if g is None else str(g.attrs.get("status", "running"))
     except OSError:
         return None
 
 
-def run_scenario(scenario: str | Path | ScenarioSource, out: str | Path, *, resume: bool = False,
+def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, *, resume: bool = False,
                  overwrite: bool = False, progress: bool = True, log: Callable[[str], None] | None = None,
                  checkpoint_every_blocks: int = 1) -> dict:
     """Run a scenario into an HDF5 file; returns the summary attributes.
@@ -303,9 +371,9 @@ def run_scenario(scenario: str | Path | ScenarioSource, out: str | Path, *, resu
     out = Path(out)
     src = scenario if isinstance(scenario, ScenarioSource) else (
         read_scenario(scenario) if scenario is not None else None)
-    status = results_status(out) if out.exists() else None
+    status = results_status(out)
     if out.exists() and status is None and not overwrite:
-        raise UserInputError(f"{out}: exists and is not an hpsim results file (remove it or use --overwrite)")
+        raise UserInputError(f"{out}: exists and is not a readable hpsim results file (remove it or use --overwrite)")
     if resume and status is not None:
         return _resume(out, src, progress, log, checkpoint_every_blocks)
     if out.exists() and not overwrite:
@@ -320,9 +388,13 @@ def run_scenario(scenario: str | Path | ScenarioSource, out: str | Path, *, resu
     resolved = prep.resolved()
     resolved["vehicle_derived"]["gas_masses_kg"] = drive.gas_masses.tolist()
     resolved["vehicle_derived"]["charged_wheel_loads_N"] = model.charged_wheel_loads.tolist()
+    stations = list(model.station_names)
+    axles = [f"axle{k + 1}" for k in range(model.params.n_axles)]
+    before = drive.initial_equilibrium()
+    block, row, state = drive.describe()
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".partial")
-    with h5py.File(tmp, "w") as f:
+    with h5py.File(tmp, "w", libver=LIBVER) as f:
         f.attrs["format"] = FORMAT
         f.attrs["format_version"] = FORMAT_VERSION
         g = f.create_group("scenario")
@@ -332,118 +404,153 @@ def run_scenario(scenario: str | Path | ScenarioSource, out: str | Path, *, resu
         _write_json_attr(g, "resolved_json", resolved)
         g.attrs["hpsim_version"] = code_version()
         g.attrs["created"] = _now()
-        g.attrs["stations"] = model.station_names
-        g.attrs["axles"] = [f"axle{k + 1}" for k in range(model.params.n_axles)]
+        g.attrs["stations"] = stations
+        g.attrs["axles"] = axles
         g.attrs["distance_m"] = prep.scenario.distance
         g.attrs["total_time_s"] = drive.total_time_s
-        c = f.create_group("equilibrium").create_group("charged")
+        e = f.create_group("equilibrium")
+        c = e.create_group("charged")
         c.create_dataset("wheel_loads_N", data=model.charged_wheel_loads)
         c.create_dataset("axle_height_change_m", data=np.zeros(model.params.n_axles))
         c.attrs["temperature_K"] = model.params.charging.temperature
-        f.create_group("timeseries").attrs["n_samples"] = 0
-        f.create_group("stats").attrs["n_rows"] = 0
+        write_equilibrium(e, "before", before, stations)
+        H5Results.create_layout(f, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
+                                stations, axles)
+        s = f.create_group("summary")
+        s.attrs["status"] = "running"
+        s.attrs["complete"] = False
+        s.attrs["build_s"] = drive.build_s
     tmp.replace(out)
-    f = h5py.File(out, "r+")
-    try:
-        sink = H5Results(f, prep.scenario.output.stored(), prep.scenario.output.compression,
-                         model.station_names, [f"axle{k + 1}" for k in range(model.params.n_axles)])
-        sink.status("running", build_s=drive.build_s)
-        before = drive.initial_equilibrium()
-        sink.equilibrium("before", before)
-        return _drive(drive, sink, None, prep, out, progress, log, checkpoint_every_blocks)
-    finally:
-        f.close()
+    return _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+
+
+def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
+    """Copy what the checkpoint covers into a fresh file (clears a killed writer's state) and replace."""
+    tmp = path.with_name(path.name + ".resume")
+    with open_read(path) as src, h5py.File(tmp, "w", libver=LIBVER) as dst:
+        for k, v in src.attrs.items():
+            dst.attrs[k] = v
+        for name in ("scenario", "timeseries", "stats", "checkpoint"):
+            src.copy(src[name], dst, name=name)
+        e = dst.create_group("equilibrium")
+        for name in ("charged", "before"):
+            src.copy(src["equilibrium"][name], e, name=name)
+        for gname, n in (("timeseries", n_samples), ("stats", n_stats)):
+            for ds in dst[gname].values():
+                if ds.shape[0] < n:
+                    raise UserInputError(f"{path}: /{gname}/{ds.name.rsplit('/', 1)[-1]} has {ds.shape[0]} rows, "
+                                         f"fewer than the checkpoint's {n}: the file is damaged, start again with "
+                                         "--overwrite")
+                ds.resize(n, axis=0)
+        s = dst.create_group("summary")
+        for k, v in src["summary"].attrs.items() if "summary" in src else ():
+            s.attrs[k] = v
+        s.attrs["status"] = "running"
+        s.attrs["complete"] = False
+    os.replace(tmp, path)
 
 
 def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_every_blocks) -> dict:
     from .drive import DriveState
 
-    with h5py.File(out, "r") as f:
+    with open_read(out) as f:
         stored = _stored_source(f, out)
         status = str(f["summary"].attrs.get("status", "running")) if "summary" in f else "running"
         if status == "complete":
             log(f"{out}: already complete, nothing to do")
-            return dict(f["summary"].attrs)
-        if "checkpoint" not in f:
-            ck = None
-        else:
-            ck = f["checkpoint"]
-            state = {k: (ck[k][()] if k in ck else ck.attrs[k])
-                     for k in ("t_s", "s_m", "x", "next_stats_m", "last_stats_t_s", "last_stats_q", "sample_index")}
-            counts = (int(ck.attrs["n_samples"]), int(ck.attrs["n_stats"]), float(ck.attrs.get("wall_s", 0.0)))
+            return {k: (v.item() if hasattr(v, "item") else v) for k, v in f["summary"].attrs.items()}
+        ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
     if src is not None and src.text != stored.text:
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
     prep = prepare(stored)
     model, drive = prep.drive(completing_drive_class())
-    f = h5py.File(out, "r+")
-    try:
-        if ck is None:
-            n_samples, n_stats, wall0, st = 0, 0, 0.0, None
-        else:
-            n_samples, n_stats, wall0 = counts
-            st = DriveState.from_dict(state)
-        truncate(f, n_samples, n_stats)
-        sink = H5Results(f, prep.scenario.output.stored(), prep.scenario.output.compression,
-                         model.station_names, [f"axle{k + 1}" for k in range(model.params.n_axles)],
-                         wall_before_s=wall0)
-        sink.status("running", build_s=drive.build_s, resumed_at_km=0.0 if st is None else st.s_m / 1e3)
-        if "equilibrium" not in f or "before" not in f["equilibrium"]:
-            sink.equilibrium("before", drive.initial_equilibrium())
-        if st is not None:
-            log(f"{out}: resuming at {st.s_m / 1e3:.3f} km of {prep.scenario.distance / 1e3:.6g} km")
-        return _drive(drive, sink, st, prep, out, progress, log, checkpoint_every_blocks)
-    finally:
-        f.close()
+    if ck is None:
+        state, counts = None, (0, 0, 0.0)
+    else:
+        d, meta = ck
+        state = DriveState.from_dict(d)
+        counts = (meta["n_samples"], meta["n_stats"], meta["wall_s"])
+    _copy_truncated(out, counts[0], counts[1])
+    if state is not None:
+        log(f"{out}: resuming at {state.s_m / 1e3:.3f} km of {prep.scenario.distance / 1e3:.6g} km")
+    return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)
 
 
-def _drive(drive, sink: H5Results, state, prep, out: Path, progress: bool, log, checkpoint_every_blocks) -> dict:
+def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
     total_km = prep.scenario.distance / 1e3
-    bar = None
-    cb = None
+    bar = cb = None
     if progress:
         from tqdm import tqdm
 
         start_km = 0.0 if state is None else state.s_m / 1e3
         bar = tqdm(total=round(total_km, 3), initial=round(start_km, 3), unit="km", desc=out.name,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} km [{elapsed}<{remaining}{postfix}]",
-                   dynamic_ncols=True, leave=True)
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} km "
+                              "[{elapsed}<{remaining}{postfix}]",
+                   dynamic_ncols=True, mininterval=0.5)
 
         def cb(s_m, v, t_s):
-            bar.n = round(min(s_m / 1e3, total_km), 3)
-            bar.set_postfix_str(f"{v * 3.6:.1f} km/h, t={t_s / 3600:.2f} h", refresh=False)
-            bar.refresh()
+            bar.update(round(min(s_m / 1e3, total_km), 3) - bar.n)
+            bar.set_postfix_str(f"{v * 3.6:.1f} km/h, simulated {t_s / 3600:.2f} h", refresh=False)
+
+    f = h5py.File(out, "r+", libver=LIBVER)
+    sink = None
     try:
+        sink = H5Results(f, prep.scenario.output.stored(), counts[0], counts[1], counts[2])
+        f.swmr_mode = True
         res = drive.run(sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
     except SimulationError as exc:
+        f.close()
         if bar is not None:
             bar.close()
-        where = sink.last_state["s_m"] / 1e3 if sink.last_state else 0.0
-        sink.status("failed", error=str(exc), wall_s=sink.wall_s(), stopped_at_km=float(where))
+        where = sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
+        set_status(out, "failed", error=str(exc), wall_s=sink.wall_s() if sink else 0.0, stopped_at_km=float(where))
         raise SimulationError(f"{exc} (results up to {where:.3f} km kept in {out})") from None
     except KeyboardInterrupt:
+        f.close()
         if bar is not None:
             bar.close()
-        where = sink.last_state["s_m"] / 1e3 if sink.last_state else 0.0
-        sink.status("interrupted", wall_s=sink.wall_s(), stopped_at_km=float(where))
+        where = sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
+        set_status(out, "interrupted", wall_s=sink.wall_s() if sink else 0.0, stopped_at_km=float(where))
         raise RunInterrupted(f"interrupted at {where:.3f} km of {total_km:.6g} km; {out} holds what was done. "
                              f"Continue with: hpsim run {prep.source.name} -o {out} --resume", out) from None
+    except BaseException:
+        f.close()
+        if bar is not None:
+            bar.close()
+        raise
+    f.close()
     if bar is not None:
         bar.close()
-    sink.equilibrium("after", res.after)
     m = drive.model
-    g = sink.f.require_group("summary")
     x = res.state.x
-    for e, idx in m.energy_index.items():
-        if f"energy_{e}_J" in g:
-            del g[f"energy_{e}_J"]
-        g.create_dataset(f"energy_{e}_J", data=np.asarray(x[idx], float))
-    if "strut_temperature_end_K" in g:
-        del g["strut_temperature_end_K"]
-    g.create_dataset("strut_temperature_end_K", data=np.asarray(x[drive.T_index], float))
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(sink.wall_s()), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": sink.n_samples, "n_stats": sink.n_stats,
                "finished_at": _now()}
-    sink.status("complete", **summary)
+    with h5py.File(out, "r+", libver=LIBVER) as f:
+        write_equilibrium(f["equilibrium"], "after", res.after, m.station_names)
+        g = f["summary"]
+        for e, idx in m.energy_index.items():
+            g.create_dataset(f"energy_{e}_J", data=np.asarray(x[idx], float))
+        g.create_dataset("strut_temperature_end_K", data=np.asarray(x[drive.T_index], float))
+        for k, v in summary.items():
+            g.attrs[k] = v
+        g.attrs["status"] = "complete"
+        g.attrs["complete"] = True
     return {"status": "complete", **summary}
+
+
+def valid_counts(f: h5py.File) -> tuple[int, int]:
+    """(samples, statistics rows) covered by the last checkpoint: the rows to trust in a file
+    whose writer may have been stopped between appending data and checkpointing."""
+    ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
+    if ck is not None:
+        return ck[1]["n_samples"], ck[1]["n_stats"]
+    return 0, 0
+
+
+def read_state(f: h5py.File) -> dict | None:
+    """The last checkpointed DriveState dict (t_s, s_m, x, ...) or None."""
+    ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
+    return None if ck is None else ck[0]

@@ -510,10 +510,12 @@ def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
         raise UserInputError("road: the terrain package (terrain.RoadSpec, terrain.build_road) is not available") from None
     data = dict(S.road)
     fields = getattr(RoadSpec, "model_fields", {})
-    if "length" in fields and data.get("length") is None:
+    if "length" in fields and data.get("length") is None and data.get("csv") is None:
         # the road must reach the last axle at the end of the drive (plus the tyre's envelope)
         wheelbase = max(a.position for a in vehicle.axles)
         data["length"] = S.distance + wheelbase + 2.0 * vehicle.tyre.contact_length + 10.0
+    if "track_width" in fields and data.get("track_width") is None:
+        data["track_width"] = vehicle.track      # left/right coherence at the vehicle's track
     try:
         return RoadSpec.model_validate(data)
     except ValidationError as exc:

@@ -1,0 +1,183 @@
+"""`hpsim vehicle ...`, `hpsim run`, `report`, `compare`, `sweep`, `plot` (registered by vehicle.cli).
+
+Exit codes: 0 done, 2 user error (bad argument/file; one line, no traceback), 3 simulation
+stopped (solver failure; what was written is kept), 130 interrupted (Ctrl-C; resumable).
+"""
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+from hpsim.errors import UserInputError
+
+
+def register(sub):
+    # hpsim vehicle equilibrium
+    pv = sub.add_parser("vehicle", help="vehicle tools (static equilibrium)")
+    vsub = pv.add_subparsers(dest="vehicle_command", required=True, parser_class=type(pv))
+    pe = vsub.add_parser("equilibrium", help="static equilibrium of the charged vehicle at given strut temperatures")
+    pe.add_argument("--vehicle", default="apc_8x8", help="built-in vehicle name or path to a vehicle file (default apc_8x8)")
+    pe.add_argument("--temperatures", default=None,
+                    help="strut temperatures, comma separated: one for all struts, one per axle or one per strut "
+                         "(axle-major, left first), e.g. 25degC or 40degC,35degC,30degC,25degC "
+                         "(default: the charging temperature)")
+    pe.add_argument("--json", action="store_true", help="print JSON only")
+    pe.set_defaults(func=cmd_equilibrium)
+    pe._negative_number_matcher = re.compile(r"^-\.?\d")   # "--temperatures -20degC" is a value
+
+    pr = sub.add_parser("run", help="run a scenario file, writing HDF5 results as it goes")
+    pr.add_argument("scenario", help="scenario YAML file (see docs/scenarios.md)")
+    pr.add_argument("-o", "--output", default=None, help="HDF5 output file (default: <scenario name>.h5 here)")
+    pr.add_argument("--resume", action="store_true", help="continue an interrupted or crashed run in --output")
+    pr.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    pr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    pr.set_defaults(func=cmd_run)
+
+    pp = sub.add_parser("report", help="per-axle summary of a results file")
+    pp.add_argument("results", help="HDF5 file written by `hpsim run`")
+    pp.add_argument("--json", action="store_true", help="print JSON only")
+    pp.set_defaults(func=cmd_report)
+
+    pc = sub.add_parser("compare", help="compare results files side by side (load redistribution, heights, temperatures)")
+    pc.add_argument("results", nargs="+", help="HDF5 files written by `hpsim run`")
+    pc.add_argument("--json", action="store_true", help="print JSON only")
+    pc.add_argument("--plot", default=None, metavar="PNG", help="grouped bar chart to this file")
+    pc.set_defaults(func=cmd_compare)
+
+    ps = sub.add_parser("sweep", help="run a base scenario over a grid or list of overrides (parallel)")
+    ps.add_argument("sweep", help="sweep YAML file (see docs/scenarios.md)")
+    ps.add_argument("-o", "--output-dir", default=None, help="folder for the case files, summary.csv and plots "
+                                                             "(default: the sweep file's output_dir)")
+    ps.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
+    ps.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="run the cases on an existing Dask distributed cluster (needs the 'dask' extra)")
+    ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
+    ps.set_defaults(func=cmd_sweep)
+
+    pl = sub.add_parser("plot", help="dashboard figure of a results file")
+    pl.add_argument("results", help="HDF5 file written by `hpsim run`")
+    pl.add_argument("-o", "--output", default=None, help="PNG file (default: <results>.png)")
+    pl.set_defaults(func=cmd_plot)
+
+
+# --- vehicle equilibrium ---------------------------------------------------------------------------
+def cmd_equilibrium(args):
+    import numpy as np
+
+    from hpsim.cli import format_table, print_json
+    from hpsim.units import parse_quantity_list
+
+    from .equilibrium import EquilibriumSolver, charge_gas_masses, equilibrium_table
+    from .model import VehicleModel
+    from .params import load_vehicle
+
+    P = load_vehicle(args.vehicle)
+    n_ax, n_st = P.n_axles, P.n_stations
+    if args.temperatures is None:
+        T = np.full(n_st, P.charging.temperature)
+    else:
+        T = np.asarray(parse_quantity_list(args.temperatures, "K", where="--temperatures"), float)
+        if len(T) == 1:
+            T = np.full(n_st, T[0])
+        elif len(T) == n_ax:
+            T = np.repeat(T, 2)
+        elif len(T) != n_st:
+            raise UserInputError(
+                f"--temperatures: got {len(T)} values ({args.temperatures!r}); allowed: 1 (all struts), {n_ax} (one per "
+                f"axle) or {n_st} (one per strut, axle-major, left first)")
+        if np.any(T <= 0) or np.any(T > 273.15 + 250):
+            raise UserInputError(f"--temperatures: {args.temperatures!r} must be in (-273.15, 250] degC")
+    model = VehicleModel(P)
+    eq = EquilibriumSolver(model).solve(T, charge_gas_masses(model))
+    table = equilibrium_table(model, eq)
+    if args.json:
+        print_json(table)
+        return 0
+    print(f"{P.name}: static equilibrium at strut temperatures "
+          f"{', '.join(f'{t - 273.15:.1f}' for t in T)} degC (changes against the charged state)")
+    rows = [[a["axle"], f"{a['dh_mm']:+.2f}", f"{a['N_left_daN']:.0f}", f"{a['N_right_daN']:.0f}",
+             f"{a['N_mean_daN']:.0f}", f"{a['dN_pct']:+.2f}"] for a in table["axles"]]
+    print(format_table(["axle", "dh [mm]", "N left [daN]", "N right [daN]", "N mean [daN]", "dN [%]"], rows))
+    print(f"pitch {table['pitch_mrad']:+.3f} mrad, roll {table['roll_mrad']:+.3f} mrad, "
+          f"total load {table['total_load_N'] / 10:.0f} daN")
+    return 0
+
+
+# --- run -------------------------------------------------------------------------------------------
+def cmd_run(args):
+    from .report import format_report, report
+    from .results import RunInterrupted, run_scenario
+
+    scen = Path(args.scenario)
+    out = Path(args.output) if args.output else Path(scen.stem + ".h5")
+    if args.resume and not scen.exists() and out.exists():
+        scen_arg = None        # resume from the scenario stored in the file
+    else:
+        scen_arg = scen
+    try:
+        summary = run_scenario(scen_arg, out, resume=args.resume, overwrite=args.overwrite,
+                               progress=not args.no_progress, log=lambda m: print(m, file=sys.stderr))
+    except RunInterrupted as exc:
+        sys.stderr.write(f"hpsim run: {exc}\n")
+        return 130
+    print(format_report(report(out)))
+    print(f"wrote {out} ({summary.get('wall_s', 0.0):.1f} s wall)")
+    return 0
+
+
+def cmd_report(args):
+    from hpsim.cli import print_json
+
+    from .report import format_report, report
+
+    rep = report(args.results)
+    if args.json:
+        print_json(rep)
+    else:
+        print(format_report(rep))
+    return 0
+
+
+def cmd_compare(args):
+    from hpsim.cli import print_json
+
+    from .report import compare, format_compare
+
+    cmp = compare(args.results)
+    if args.plot:
+        from .plots import compare_plot
+
+        compare_plot(args.results, args.plot)
+    if args.json:
+        print_json(cmp)
+    else:
+        print(format_compare(cmp))
+        if args.plot:
+            print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_plot(args):
+    from .plots import dashboard
+
+    out = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
+    dashboard(args.results, out)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_sweep(args):
+    from hpsim.cli import print_json
+
+    from .sweep import format_summary, run_sweep
+
+    if args.workers is not None and args.workers < 1:
+        raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
+    result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
+                       log=(lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True)))
+    if args.json:
+        print_json(result)
+    else:
+        print(format_summary(result))
+    return 3 if result["failed"] else 0

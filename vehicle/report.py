@@ -1,0 +1,205 @@
+"""Per-axle summaries of drive results (`hpsim report`, `hpsim compare`), read with plain h5py.
+
+Per axle, values are the mean of the left and right station:
+  T_start_C / T_end_C    strut temperature before / after the drive
+  dh_mm                  hull height change at the axle, after-drive equilibrium minus
+                         before-drive equilibrium (both standing on flat ground)
+  N_before_daN / N_after_daN, dN_pct   wheel load in those two equilibria and its change
+  energy_dissipated_MJ   valve + friction + gas heat + end-stop energy of the strut
+  N_charged_daN, dN_charged_pct   the charged (set-up) wheel load and the after-drive change
+                         against it
+Whole vehicle: load_shift_pct = 100 * sum_axles |N_after - N_before| / sum_axles N_before
+(the load redistribution in one number), load_shift_vs_charged_pct (the same against the
+charged loads; equal to load_shift_pct when the struts start at the charging temperature),
+mean_temperature_rise_K.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from hpsim.errors import UserInputError
+
+from .results import DISSIPATION, FORMAT, open_read, read_state, valid_counts
+
+
+def open_results(path: str | Path) -> h5py.File:
+    path = Path(path)
+    if not path.exists():
+        raise UserInputError(f"{path}: file not found")
+    try:
+        f = open_read(path)
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot open as HDF5 ({exc})") from None
+    if f.attrs.get("format") != FORMAT:
+        f.close()
+        raise UserInputError(f"{path}: not an hpsim results file (written by `hpsim run`)")
+    return f
+
+
+def _axle_mean(a) -> np.ndarray:
+    a = np.asarray(a, float)
+    return 0.5 * (a[0::2] + a[1::2])
+
+
+def _last_row(f: h5py.File, name: str):
+    ds = f.get(f"timeseries/{name}")
+    n = valid_counts(f)[0]
+    if ds is None or min(n, ds.shape[0]) == 0:
+        return None
+    return np.asarray(ds[min(n, ds.shape[0]) - 1], float)
+
+
+def dissipated_energy_J(f: h5py.File) -> np.ndarray | None:
+    """Per station: valve + friction + gas + end-stop energy at the end (or the last sample)."""
+    total = None
+    for e in DISSIPATION:
+        key = f"energy_{e}_J"
+        if "summary" in f and key in f["summary"]:
+            v = np.asarray(f["summary"][key], float)
+        else:
+            v = _last_row(f, key)
+        if v is None:
+            return None
+        total = v if total is None else total + v
+    return total
+
+
+def report(path: str | Path) -> dict:
+    with open_results(path) as f:
+        return report_from(f, str(path))
+
+
+def report_from(f: h5py.File, name: str) -> dict:
+    sc = f["scenario"]
+    summ = dict(f["summary"].attrs) if "summary" in f else {}
+    status = str(summ.get("status", "running"))
+    axles = [str(a) for a in sc.attrs["axles"]]
+    eq = f.get("equilibrium", {})
+    before = eq.get("before") if eq else None
+    after = eq.get("after") if eq else None
+    if before is None:
+        raise UserInputError(f"{name}: no before-drive equilibrium (the run stopped before it started)")
+    charged = eq.get("charged") if eq else None
+    Nc = _axle_mean(charged["wheel_loads_N"][()]) if charged is not None else np.full(len(axles), np.nan)
+    T0 = _axle_mean(before["temperatures_K"][()]) - 273.15
+    N0 = _axle_mean(before["wheel_loads_N"][()])
+    h0 = np.asarray(before["axle_height_change_m"][()], float)
+    if after is not None:
+        T1 = _axle_mean(after["temperatures_K"][()]) - 273.15
+        N1 = _axle_mean(after["wheel_loads_N"][()])
+        h1 = np.asarray(after["axle_height_change_m"][()], float)
+    else:
+        last_T = _last_row(f, "strut_temperature_K")
+        T1 = _axle_mean(last_T) - 273.15 if last_T is not None else np.full(len(axles), np.nan)
+        N1 = np.full(len(axles), np.nan)
+        h1 = np.full(len(axles), np.nan)
+    E = dissipated_energy_J(f)
+    E_ax = _axle_mean(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
+    n_done = valid_counts(f)[0]
+    if "distance_km" in summ and status == "complete":
+        dist_km, sim_s = float(summ["distance_km"]), float(summ["simulated_s"])
+    else:
+        st = read_state(f)
+        dist_km = st["s_m"] / 1e3 if st is not None else 0.0
+        sim_s = st["t_s"] if st is not None else 0.0
+    wall = float(summ.get("wall_s", 0.0))
+
+    def num(v):
+        v = float(v)
+        return None if not np.isfinite(v) else v
+
+    rows = []
+    for k, a in enumerate(axles):
+        rows.append({"axle": k + 1, "T_start_C": num(T0[k]), "T_end_C": num(T1[k]), "dh_mm": num((h1[k] - h0[k]) * 1e3),
+                     "N_before_daN": num(N0[k] / 10.0), "N_after_daN": num(N1[k] / 10.0),
+                     "dN_pct": num(100.0 * (N1[k] - N0[k]) / N0[k]), "energy_dissipated_MJ": num(E_ax[k]),
+                     "N_charged_daN": num(Nc[k] / 10.0), "dN_charged_pct": num(100.0 * (N1[k] - Nc[k]) / Nc[k])})
+    shift = 100.0 * np.sum(np.abs(N1 - N0)) / np.sum(N0)
+    shift_charged = 100.0 * np.sum(np.abs(N1 - Nc)) / np.sum(Nc)
+    resolved = json.loads(sc.attrs["resolved_json"])
+    S = resolved["scenario"]
+    out = {"file": name, "status": status, "complete": status == "complete",
+           "distance_km": dist_km, "planned_distance_km": float(sc.attrs["distance_m"]) / 1e3,
+           "simulated_s": sim_s, "wall_s": wall, "n_samples": n_done,
+           "axles": rows,
+           "load_shift_pct": num(shift),
+           "max_abs_dN_pct": num(np.max(np.abs(100.0 * (N1 - N0) / N0))),
+           "load_shift_vs_charged_pct": num(shift_charged),
+           "mean_temperature_rise_K": num(np.mean(T1 - T0)),
+           "energy_dissipated_MJ": num(np.sum(E) / 1e6) if E is not None else None,
+           "compensation": bool(S["compensation"]["enabled"]),
+           "ambient_C": S["ambient_temperature"] - 273.15,
+           "hpsim_version": str(sc.attrs.get("hpsim_version", ""))}
+    if "error" in summ:
+        out["error"] = str(summ["error"])
+    return out
+
+
+def format_report(rep: dict) -> str:
+    from hpsim.cli import format_table
+
+    head = (f"{rep['file']}: {rep['status']}, {rep['distance_km']:.3f} of {rep['planned_distance_km']:.6g} km, "
+            f"simulated {rep['simulated_s'] / 3600:.3f} h in {rep['wall_s']:.1f} s wall, "
+            f"compensation {'on' if rep['compensation'] else 'off'}")
+    cols = ["axle", "T_start_C", "T_end_C", "dh_mm", "N_before_daN", "N_after_daN", "dN_pct", "energy_dissipated_MJ"]
+    headers = ["axle", "T start [degC]", "T end [degC]", "dh [mm]", "N before [daN]", "N after [daN]", "dN [%]",
+               "E diss [MJ]"]
+    fmts = {"T_start_C": ".1f", "T_end_C": ".1f", "dh_mm": ".2f", "N_before_daN": ".0f", "N_after_daN": ".0f",
+            "dN_pct": "+.2f", "energy_dissipated_MJ": ".3f"}
+
+    def cell(r, c):
+        v = r[c]
+        if v is None:
+            return "-"
+        return format(v, fmts[c]) if c in fmts else str(v)
+
+    table = format_table(headers, [[cell(r, c) for c in cols] for r in rep["axles"]])
+    tail = []
+    if rep.get("load_shift_pct") is not None:
+        tail.append(f"load shift {rep['load_shift_pct']:.2f} % (sum |dN| / sum N), max |dN| {rep['max_abs_dN_pct']:.2f} %; "
+                    f"against the charged loads {rep['load_shift_vs_charged_pct']:.2f} %")
+    if rep.get("mean_temperature_rise_K") is not None:
+        tail.append(f"mean strut temperature rise {rep['mean_temperature_rise_K']:.1f} K")
+    if rep.get("error"):
+        tail.append(f"stopped: {rep['error']}")
+    return "\n".join([head, table] + tail)
+
+
+# --- compare -------------------------------------------------------------------------------------
+def compare(paths) -> dict:
+    reps = [report(p) for p in paths]
+    n = {len(r["axles"]) for r in reps}
+    if len(n) > 1:
+        raise UserInputError(f"compare: the files have different numbers of axles ({sorted(n)})")
+    return {"runs": [{"file": r["file"], "status": r["status"], "distance_km": r["distance_km"],
+                      "compensation": r["compensation"], "load_shift_pct": r["load_shift_pct"],
+                      "load_shift_vs_charged_pct": r["load_shift_vs_charged_pct"],
+                      "mean_temperature_rise_K": r["mean_temperature_rise_K"], "axles": r["axles"]} for r in reps]}
+
+
+def format_compare(cmp: dict, labels=None) -> str:
+    from hpsim.cli import format_table
+
+    runs = cmp["runs"]
+    labels = labels or [Path(r["file"]).stem for r in runs]
+    blocks = []
+    for key, title, fmt in (("dN_pct", "wheel load change dN [%] (after vs before)", "+.2f"),
+                            ("dh_mm", "height change dh [mm]", "+.2f"),
+                            ("T_end_C", "strut temperature at the end [degC]", ".1f")):
+        rows = []
+        for k in range(len(runs[0]["axles"])):
+            rows.append([k + 1] + ["-" if r["axles"][k][key] is None else format(r["axles"][k][key], fmt) for r in runs])
+        blocks.append(title + "\n" + format_table(["axle"] + labels, rows))
+    rows = [["load shift [%]"] + ["-" if r["load_shift_pct"] is None else f"{r['load_shift_pct']:.2f}" for r in runs],
+            ["vs charged [%]"] + ["-" if r["load_shift_vs_charged_pct"] is None
+                                  else f"{r['load_shift_vs_charged_pct']:.2f}" for r in runs],
+            ["mean T rise [K]"] + ["-" if r["mean_temperature_rise_K"] is None else f"{r['mean_temperature_rise_K']:.1f}"
+                                   for r in runs],
+            ["distance [km]"] + [f"{r['distance_km']:.3f}" for r in runs],
+            ["compensation"] + ["on" if r["compensation"] else "off" for r in runs]]
+    blocks.append(format_table([""] + labels, rows))
+    return "\n\n".join(blocks)

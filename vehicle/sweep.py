@@ -1,0 +1,280 @@
+"""Sweeps: a base scenario run over a grid or list of overrides (`hpsim sweep`, docs/scenarios.md).
+
+    base: mileage_106km.yaml            # scenario file, relative to the sweep file
+    overrides: {distance: 10 km}        # applied to every case (optional)
+    grid:                               # cartesian product of the lists (optional)
+      compensation.enabled: [false, true]
+      road.iso_class: [D, E]
+    cases:                              # and/or explicit cases (optional), each a mapping of overrides
+      - {name: hot_start, initial_temperatures: 45 degC}
+
+Cases = cases (or one empty case) x grid. Every case is validated before any runs. Cases run in
+parallel local processes (ProcessPoolExecutor) or on a Dask distributed cluster (--scheduler);
+each writes <output_dir>/<case>.h5, a failed case is reported and the others go on, a case whose
+file holds a complete summary is skipped on a re-run (an incomplete one is resumed). At the end:
+<output_dir>/summary.csv (one row per case) and <output_dir>/compare.png.
+"""
+from __future__ import annotations
+
+import csv
+import itertools
+import re
+import time
+import traceback
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+from pydantic import ValidationError
+
+from hpsim.config import Model, format_validation_error, load_yaml
+from hpsim.errors import SimulationError, UserInputError
+
+from .scenario import ScenarioSource, apply_overrides, prepare, read_scenario
+
+
+class SweepSpec(Model):
+    description: str = ""
+    base: str
+    overrides: dict[str, Any] = {}
+    grid: dict[str, list] = {}
+    cases: list[dict[str, Any]] = []
+
+
+def _slug(value: Any) -> str:
+    text = str(value).lower() if isinstance(value, bool) else str(value)
+    return re.sub(r"[^A-Za-z0-9.+-]+", "", text.replace(" ", "")) or "x"
+
+
+def _parts(overrides: dict) -> list[str]:
+    return [f"{str(k).rsplit('.', 1)[-1]}-{_slug(v)}" for k, v in overrides.items() if not isinstance(v, (dict, list))]
+
+
+def case_name(i: int, overrides: dict, given: str | None = None, grid: dict | None = None) -> str:
+    """c00_enabled-false_iso_class-D, or the case's own name plus its grid values."""
+    if given:
+        return "_".join([_slug(given)] + _parts(grid or {}))
+    parts = _parts(overrides)
+    return f"c{i:02d}_" + ("_".join(parts) if parts else "base")
+
+
+def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]:
+    """Parse and validate the sweep and every case (nothing runs). Returns (spec, base, cases)."""
+    path = Path(path)
+    data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise UserInputError(f"{path}: expected a mapping with base, grid and/or cases")
+    try:
+        spec = SweepSpec.model_validate(data)
+    except ValidationError as exc:
+        raise UserInputError(format_validation_error(exc, str(path))) from None
+    for k, v in spec.grid.items():
+        if not v:
+            raise UserInputError(f"{path}: grid.{k}: empty list (give at least one value)")
+    base_path = Path(spec.base)
+    if not base_path.is_absolute():
+        base_path = path.resolve().parent / base_path
+    if not base_path.exists():
+        raise UserInputError(f"{path}: base: scenario file {spec.base!r} not found (looked at {base_path})")
+    base = read_scenario(base_path)
+    keys = list(spec.grid)
+    combos = list(itertools.product(*[spec.grid[k] for k in keys])) if keys else [()]
+    explicit = spec.cases or [{}]
+    cases, names = [], set()
+    for ci, case in enumerate(explicit):
+        case = dict(case)
+        given = case.pop("name", None)
+        for combo in combos:
+            ov = {**case, **dict(zip(keys, combo))}
+            i = len(cases)
+            name = case_name(i, ov, given, dict(zip(keys, combo)))
+            if name in names:
+                raise UserInputError(f"{path}: two cases are both named {name!r}")
+            names.add(name)
+            label = f"{path} case {name}"
+            try:
+                merged = apply_overrides(base.data, {**spec.overrides, **ov})
+            except UserInputError as exc:
+                raise UserInputError(f"{label}: {exc}") from None
+            text = f"# case {name} of sweep {path.name}: base {base.name} with {ov}\n" + \
+                yaml.safe_dump(merged, sort_keys=False)
+            src = ScenarioSource(text=text, name=label, base_dir=base.base_dir, data=merged)
+            prepare(src)                     # every case validated before anything runs
+            cases.append({"name": name, "overrides": ov, "source": src})
+    return spec, base, cases
+
+
+def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
+    """One case in a worker process: never raises, returns status and message."""
+    from .results import run_scenario
+
+    t0 = time.perf_counter()
+    try:
+        src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=yaml.safe_load(text))
+        summary = run_scenario(src, out, resume=True, progress=False)
+        return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
+    except (UserInputError, SimulationError) as exc:
+        return {"status": "failed", "error": str(exc), "seconds": time.perf_counter() - t0}
+    except KeyboardInterrupt:
+        return {"status": "failed", "error": "interrupted", "seconds": time.perf_counter() - t0}
+    except Exception as exc:  # a bug: report it with its traceback's last lines, keep the others going
+        tb = traceback.format_exc().strip().splitlines()[-3:]
+        return {"status": "failed", "error": f"{type(exc).__name__}: {exc} ({' | '.join(tb)})",
+                "seconds": time.perf_counter() - t0}
+
+
+def _dask_client(address: str):
+    try:
+        from distributed import Client
+    except ImportError:
+        raise UserInputError("--scheduler: Dask distributed is not installed; install the optional extra: "
+                             "pip install 'hpsim[dask]' (or run without --scheduler for local processes)") from None
+    try:
+        return Client(address, timeout="20s")
+    except Exception as exc:
+        raise UserInputError(f"--scheduler: cannot connect to the Dask scheduler at {address!r} ({exc})") from None
+
+
+def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
+              scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+    import os
+
+    from .results import results_status
+
+    log = log or (lambda m: None)
+    path = Path(path)
+    spec, base, cases = load_sweep(path)
+    out_dir = Path(output_dir) if output_dir else Path(path.stem)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows: dict[str, dict] = {}
+    todo = []
+    for c in cases:
+        f = out_dir / f"{c['name']}.h5"
+        c["file"] = f
+        if results_status(f) == "complete":
+            rows[c["name"]] = {"status": "skipped", "error": ""}
+            log(f"{c['name']}: complete from an earlier run, skipped")
+        else:
+            todo.append(c)
+    n = len(todo)
+    log(f"{path}: {len(cases)} cases, {n} to run, results in {out_dir}/")
+    t0 = time.perf_counter()
+    done = 0
+
+    def finished(c, r):
+        nonlocal done
+        done += 1
+        rows[c["name"]] = r
+        if r["status"] == "done":
+            log(f"[{done}/{n}] {c['name']}: done in {r['seconds']:.1f} s")
+        else:
+            log(f"[{done}/{n}] {c['name']}: FAILED: {r['error']}")
+
+    if n and scheduler:
+        from distributed import as_completed
+
+        client = _dask_client(scheduler)
+        try:
+            futs = {client.submit(run_case, c["source"].text, c["source"].name, str(c["source"].base_dir),
+                                  str(c["file"].resolve()), pure=False, key=f"hpsim-{path.stem}-{c['name']}"): c
+                    for c in todo}
+            for fut in as_completed(futs):
+                try:
+                    r = fut.result()
+                except Exception as exc:
+                    r = {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "seconds": 0.0}
+                finished(futs[fut], r)
+        finally:
+            client.close()
+    elif n:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        workers = workers or min(n, os.cpu_count() or 1)
+        if workers == 1:
+            for c in todo:
+                finished(c, run_case(c["source"].text, c["source"].name, str(c["source"].base_dir), str(c["file"])))
+        else:
+            with ProcessPoolExecutor(max_workers=min(workers, n)) as pool:
+                futs = {pool.submit(run_case, c["source"].text, c["source"].name, str(c["source"].base_dir),
+                                    str(c["file"])): c for c in todo}
+                for fut in as_completed(futs):
+                    try:
+                        r = fut.result()
+                    except Exception as exc:   # e.g. a worker killed by the OS
+                        r = {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "seconds": 0.0}
+                    finished(futs[fut], r)
+    result = summarise(path, out_dir, cases, rows)
+    result["wall_s"] = time.perf_counter() - t0
+    return result
+
+
+def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
+    from .report import report
+
+    keys = []
+    for c in cases:
+        for k in c["overrides"]:
+            if k not in keys:
+                keys.append(k)
+    table, ok_files, ok_labels = [], [], []
+    for c in cases:
+        r = rows.get(c["name"], {"status": "failed", "error": "not run"})
+        row = {"case": c["name"], "status": r["status"], "error": r.get("error", ""), "file": str(c["file"])}
+        for k in keys:
+            v = c["overrides"].get(k, "")
+            row[k] = v if isinstance(v, (str, int, float, bool)) else yaml.safe_dump(v, default_flow_style=True).strip()
+        if r["status"] in ("done", "skipped"):
+            try:
+                rep = report(c["file"])
+            except UserInputError as exc:
+                row["status"], row["error"] = "failed", str(exc)
+            else:
+                row.update({"distance_km": rep["distance_km"], "simulated_s": rep["simulated_s"], "wall_s": rep["wall_s"],
+                            "load_shift_pct": rep["load_shift_pct"], "max_abs_dN_pct": rep["max_abs_dN_pct"],
+                            "load_shift_vs_charged_pct": rep["load_shift_vs_charged_pct"],
+                            "mean_temperature_rise_K": rep["mean_temperature_rise_K"],
+                            "energy_dissipated_MJ": rep["energy_dissipated_MJ"]})
+                for a in rep["axles"]:
+                    for q in ("dN_pct", "dN_charged_pct", "dh_mm", "T_end_C"):
+                        row[f"{q}_axle{a['axle']}"] = a[q]
+                ok_files.append(c["file"])
+                ok_labels.append(c["name"])
+        table.append(row)
+    columns = []
+    for row in table:
+        for k in row:
+            if k not in columns:
+                columns.append(k)
+    csv_path = out_dir / "summary.csv"
+    with open(csv_path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns)
+        w.writeheader()
+        for row in table:
+            w.writerow({k: row.get(k, "") for k in columns})
+    plots = []
+    if ok_files:
+        from .plots import compare_plot
+
+        plots.append(str(compare_plot(ok_files, out_dir / "compare.png", labels=ok_labels)))
+    return {"sweep": str(path), "output_dir": str(out_dir), "summary_csv": str(csv_path), "plots": plots,
+            "cases": table, "failed": [r["case"] for r in table if r["status"] == "failed"]}
+
+
+def format_summary(result: dict) -> str:
+    from hpsim.cli import format_table
+
+    rows = []
+    for r in result["cases"]:
+        ls = r.get("load_shift_pct")
+        lc = r.get("load_shift_vs_charged_pct")
+        rows.append([r["case"], r["status"], "-" if ls in (None, "") else f"{ls:.2f}",
+                     "-" if lc in (None, "") else f"{lc:.2f}",
+                     "-" if r.get("mean_temperature_rise_K") in (None, "") else f"{r['mean_temperature_rise_K']:.1f}",
+                     (r["error"][:100] + "...") if len(r.get("error", "")) > 100 else r.get("error", "")])
+    text = format_table(["case", "status", "load shift [%]", "vs charged [%]", "mean T rise [K]", "error"], rows)
+    text += f"\nsummary: {result['summary_csv']}"
+    if result["plots"]:
+        text += "\nplots: " + ", ".join(result["plots"])
+    if result["failed"]:
+        text += f"\nfailed: {', '.join(result['failed'])}"
+    return text
