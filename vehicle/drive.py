@@ -149,7 +149,8 @@ class Drive:
             x[m.idx(f"w[{i}]")] = eq.wheel_displacement_m[i]
             x[m.idx(f"T_strut[{i}]")] = eq.temperatures_K[i]
             x[m.idx(f"xf[{i}]")] = eq.strut_deflections_m[i]
-            for nm, v in m.struts[i].initial_states(eq.temperatures_K[i]).items():
+            for nm, v in m.struts[i].initial_states(eq.temperatures_K[i], x=eq.strut_deflections_m[i],
+                                                    m_gas=self.gas_masses[i]).items():
                 x[m.idx(f"{nm}[{i}]")] = v
         return DriveState(t_s=0.0, s_m=0.0, x=x, next_stats_m=self.settings.stats_interval_m,
                           last_stats={"t_s": 0.0, "q": x[self.quad_index].copy()})
@@ -183,7 +184,9 @@ class Drive:
         wall0 = time.perf_counter()
         integ_s = 0.0
         blocks = 0
-        while st.t_s < self.total_time_s - 1e-9:
+        sample_dt = self.K * dt
+        # the drive ends at the last output sample within the distance
+        while st.t_s + sample_dt <= self.total_time_s + 1e-9:
             t_cols = st.t_s + dt * np.arange(self.K * self.M + 1)
             U = self.inputs(t_cols)
             ti = time.perf_counter()
@@ -202,17 +205,18 @@ class Drive:
             st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=X[:, -1].copy(),
                             next_stats_m=st.next_stats_m, last_stats=st.last_stats,
                             sample_index=st.sample_index + X.shape[1])
-            if not np.all(keep):
-                break
             if sink is not None:
                 sink.samples(block)
                 if rows:
                     sink.stats(rows)
             blocks += 1
-            if sink is not None and (blocks % checkpoint_every_blocks == 0 or st.t_s >= self.total_time_s - 1e-9):
+            last = st.t_s + sample_dt > self.total_time_s + 1e-9
+            if sink is not None and (blocks % checkpoint_every_blocks == 0 or last):
                 sink.checkpoint(st.as_dict())
             if progress is not None:
                 progress(st.s_m, float(S.speed.speed(st.s_m)), st.t_s)
+            if not np.all(keep):
+                break
         wall = time.perf_counter() - wall0
         final_T = st.x[self.T_index]
         V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
@@ -224,10 +228,10 @@ class Drive:
         if not np.all(np.isfinite(X)):
             col = int(np.argmax(~np.all(np.isfinite(X), axis=0)))
             raise SimulationError(f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s)")
+        deflections = m.strut_deflections(X)
         for i in range(m.n):
             stroke = m.struts[i].p.geometry.stroke
-            z_st = X[m.idx("z")] - X[m.idx("theta")] * (m.a[i] - m.a_cg) + X[m.idx("phi")] * (m.y[i] - m.y_cg)
-            xs = m.x_charged + m.r[i] * (X[m.idx(f"w[{i}]")] - z_st)
+            xs = deflections[i]
             bad = (xs < -0.02) | (xs > stroke + 0.02)
             if np.any(bad):
                 col = int(np.argmax(bad))
@@ -269,7 +273,7 @@ class Drive:
                 t_last, q_last = tb, qb
                 st.next_stats_m += self.settings.stats_interval_m
             s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
-        if t[-1] >= self.total_time_s - 1e-9 and t[-1] > t_last + 1e-9:
+        if t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 and t[-1] > t_last + 1e-9:
             rows.append(self._stats_row(s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1]))
             t_last, q_last = t[-1], q[:, -1]
         st.last_stats = {"t_s": t_last, "q": q_last}

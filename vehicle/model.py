@@ -129,6 +129,16 @@ class VehicleModel:
         self.nu = 2 * self.n + 2
         self.np = 2 * self.n + 1
 
+    def strut_deflections(self, X) -> np.ndarray:
+        """Strut deflections [m] from state vectors X (nx, ...) -> (n_stations, ...)."""
+        X = np.asarray(X)
+        out = []
+        for i in range(self.n):
+            zs = hull_eq.station_displacement(X[self.idx("z")], X[self.idx("theta")], X[self.idx("phi")],
+                                              self.a[i], self.y[i], self.a_cg, self.y_cg)
+            out.append(hull_eq.strut_deflection(self.x_charged, self.r[i], X[self.idx(f"w[{i}]")], zs))
+        return np.array(out)
+
     @cached_property
     def _z_index(self) -> dict:
         out, k = {}, 0

@@ -190,3 +190,38 @@ class Ros2Stepper:
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         return np.asarray(self.fn(x0, U, p))
+
+
+class IdasReference:
+    """Tight-tolerance reference: IDAS on the DAE with the valve pressure drops as algebraic
+    variables (no Newton elimination, no fixed step, no structural Jacobian).
+
+    Inputs (road under each tyre, speed, ambient) are given per chunk on a fine time grid and
+    interpolated linearly inside IDAS (a parametric CasADi interpolant), so one integrator object
+    serves the whole drive. Slow but independent of the production solver's choices.
+    """
+
+    def __init__(self, model, chunk_s: float, input_dt_s: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-9,
+                 outputs_per_chunk: int = 1):
+        self.model = model
+        self.chunk_s = float(chunk_s)
+        self.n_in = int(round(chunk_s / input_dt_s)) + 1
+        self.grid = np.linspace(0.0, chunk_s, self.n_in)
+        x, z, u_unused, p = model.symbols
+        t = ca.SX.sym("t")
+        data = ca.SX.sym("U", model.nu * self.n_in)
+        interp = ca.interpolant("U", "linear", [self.grid], model.nu)
+        u = interp(t, data)
+        ode, alg, _ = model.equations(x, z, u, p)
+        # the warm-start memory of the fixed-step solver has no meaning here: hold it constant
+        dae = {"t": t, "x": x, "z": z, "p": ca.vertcat(p, data), "ode": ca.vertcat(*ode),
+               "alg": ca.vertcat(*alg) / 1e-4}
+        tout = np.linspace(0.0, chunk_s, outputs_per_chunk + 1)[1:]
+        self.integrator = ca.integrator("reference", "idas", dae, 0.0, tout,
+                                        {"reltol": rtol, "abstol": atol, "max_num_steps": 10 ** 7,
+                                         "calc_ic": True, "max_step_size": input_dt_s})
+
+    def advance(self, x0, z0, U, p):
+        """U: (nu, n_in) inputs on the chunk's grid. Returns (X at the outputs, z at the end)."""
+        sol = self.integrator(x0=x0, z0=z0, p=np.concatenate([p, U.ravel(order="F")]))
+        return np.asarray(sol["xf"]), np.asarray(sol["zf"])[:, -1]
