@@ -128,6 +128,8 @@ def _format_errors(exc: ValidationError, from_cli: set, source: str) -> str:
             where = source if source != "command line" else "arguments"
             msg = (msg.replace("iso_class (A-H)", "--class A-H").replace("gd_n0 (custom Gd(n0))", "--gd-n0")
                    .replace("length is required", "--length is required"))
+            for field in from_cli:
+                msg = msg.replace(field, _OPTIONS[field])
         value = err.get("input")
         shown = "" if err["type"] in ("missing", "extra_forbidden") or isinstance(value, dict) or not loc \
             else f" (got {value!r})"

@@ -115,7 +115,8 @@ def resample(distance_m: np.ndarray, height_m: np.ndarray, spacing_m: float, n_p
 
     Finer or equal target spacing: linear interpolation. Coarser target spacing: the
     average of the piecewise-linear profile over [s_i - Δ/2, s_i + Δ/2] (exact, from its
-    cumulative integral), an anti-aliasing box filter before decimation.
+    cumulative integral), an anti-aliasing box filter before decimation; the window is
+    narrowed symmetrically at the two ends of the data.
     """
     d = np.asarray(distance_m, dtype=float)
     z = np.asarray(height_m, dtype=float)
@@ -134,9 +135,13 @@ def resample(distance_m: np.ndarray, height_m: np.ndarray, spacing_m: float, n_p
         slope = (z[i + 1] - z[i]) / (d[i + 1] - d[i])
         return cum[i] + z[i] * h + 0.5 * slope * h * h
 
-    lo = np.maximum(grid - 0.5 * spacing_m, d[0])
-    hi = np.minimum(grid + 0.5 * spacing_m, d[-1])
-    return (integral(hi) - integral(lo)) / (hi - lo)
+    # symmetric window, narrowed at the ends of the data (so a linear profile stays exact)
+    half = np.minimum(0.5 * spacing_m, np.minimum(grid - d[0], d[-1] - grid))
+    out = np.interp(grid, d, z)
+    wide = half > 1e-9 * spacing_m
+    lo, hi = grid[wide] - half[wide], grid[wide] + half[wide]
+    out[wide] = (integral(hi) - integral(lo)) / (hi - lo)
+    return out
 
 
 def write_profile_csv(path: str | Path, distance_m: np.ndarray, left_m: np.ndarray, right_m: np.ndarray) -> None:

@@ -161,9 +161,8 @@ class Road:
         h = ca.bspline(xs, ca.DM(spl.c), [spl.t.tolist()], [3], 1, {})
         inner = ca.Function("spline", [xs], [h, ca.jacobian(h, xs)])
         s_lo, s_hi = float(x[0]), float(x[-1])
-        # the B-spline is zero outside its knot range: evaluate strictly inside and hold the end values
-        eps = 1e-12 * max(1.0, s_hi)
-        s_c = ca.fmin(ca.fmax(s, s_lo), s_hi - eps)
+        # the B-spline is zero outside its knot range [s_lo, s_hi] (ends included): hold the end values
+        s_c = ca.fmin(ca.fmax(s, s_lo), s_hi)
         height, slope = inner(s_c)
         inside = ca.logic_and(s >= s_lo, s <= s_hi)
         slope = ca.if_else(inside, slope, 0.0)

@@ -19,8 +19,8 @@ inverse-Fisher ones of this weighted fit; tests use them as their tolerance.
 
 IRI (Sayers 1995, ASTM E1926): the "golden car" quarter-car at 80 km/h over the
 profile averaged over 250 mm; IRI = mean |ż_s - ż_u| / v [m/m], reported in m/km.
-Simulated as an exact (first-order-hold) discrete filter, starting at rest on
-the first height (the standard 11 m lead-in is not used).
+Simulated as an exact (first-order-hold) discrete filter, initialised on the
+grade of the first 11 m as in the standard.
 """
 from __future__ import annotations
 
@@ -42,6 +42,7 @@ IRI_C_SUSP = 6.0  # cs/ms [1/s]
 IRI_MU = 0.15  # mu/ms [-]
 IRI_SPEED = 80.0 / 3.6  # m/s
 IRI_BASELENGTH = 0.25  # m, moving average of the profile
+IRI_LEADIN = 11.0  # m, the initial state follows the profile's grade over this length
 
 
 def _window_correlations(nperseg: int) -> tuple[float, np.ndarray]:
@@ -146,9 +147,14 @@ def iri_m_per_km(height_m: np.ndarray, spacing_m: float) -> float:
     z = np.asarray(height_m, dtype=float)
     if z.size < 3:
         return float("nan")
+    # Sayers' start: the car already moves along the grade of the first 11 m (state x0 = (z0, g·v,
+    # z0, g·v)). A constant grade gives no relative motion, so by linearity this equals removing
+    # the grade line and starting at rest.
+    k = int(round(IRI_LEADIN / spacing_m))
+    grade = (z[k] - z[0]) / (k * spacing_m) if 0 < k < z.size else 0.0
+    z = z - z[0] - grade * spacing_m * np.arange(z.size)
     if spacing_m < IRI_BASELENGTH:
         z = envelope_profile(z, IRI_BASELENGTH, spacing_m)
-    z = z - z[0]
     # states: z_s, v_s, z_u, v_u; input: profile height y; output v_s - v_u
     a = np.array([[0.0, 1.0, 0.0, 0.0],
                   [-IRI_K_SUSP, -IRI_C_SUSP, IRI_K_SUSP, IRI_C_SUSP],
