@@ -36,6 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
         commands = None
     if commands is not None:
         commands.register(sub)
+    from . import calibration
+
+    calibration.register(sub)
     return parser
 
 
