@@ -25,6 +25,7 @@ import datetime as _dt
 import functools
 import json
 import os
+import signal
 import subprocess
 import time
 from pathlib import Path
@@ -66,71 +67,22 @@ def _now() -> str:
 
 
 # --- the drive adapter ---------------------------------------------------------------------------
-def completing_drive_class():
-    """`Drive` subclass that hands the drive's last (partial) block to the sink.
-
-    vehicle.drive.Drive.run computes the final block (samples beyond the distance trimmed) but
-    leaves the loop before giving it, its statistics rows and a final checkpoint to the sink.
-    This adapter remembers the last block and rows and delivers them after run() when the sink
-    has not seen them; it does nothing when the drive does it itself.
-    """
+def drive_class():
+    """`Drive` plus `describe()`: the keys and shapes of what it will hand to the sink, so the file's
+    datasets can all be created before the drive starts (SWMR mode cannot create objects)."""
     from .drive import Drive
 
-    class CompletingDrive(Drive):
-        def _block_outputs(self, X, U, t, s):
-            self._last_block = super()._block_outputs(X, U, t, s)
-            return self._last_block
-
-        def _stats(self, st, X, t, s):
-            self._last_rows = super()._stats(st, X, t, s)
-            return self._last_rows
-
+    class RunDrive(Drive):
         def describe(self):
-            """(one block of samples, one statistics row, one state dict) with the right keys and
-            shapes: the file's datasets are created from them before the drive starts."""
+            """(one block of samples, one statistics row, one state dict) with the right keys and shapes."""
             st = self.initial_state()
             t = np.array([0.0])
-            block = Drive._block_outputs(self, st.x[:, None], self.inputs(t), t, t)
-            row = Drive._stats_row(self, self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)),
-                                   st.x[self.T_index])
+            block = self._block_outputs(st.x[:, None], self.inputs(t), t, t)
+            row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)),
+                                  st.x[self.T_index])
             return block, row, st.as_dict()
 
-        def run(self, sink=None, state=None, progress=None, checkpoint_every_blocks: int = 1):
-            tracker = _TrackingSink(sink, 0 if state is None else state.sample_index)
-            res = super().run(tracker if sink is not None else None, state, progress,
-                              checkpoint_every_blocks=checkpoint_every_blocks)
-            if sink is not None:
-                if tracker.n_samples < res.state.sample_index:
-                    sink.samples(self._last_block)
-                    if self._last_rows:
-                        sink.stats(self._last_rows)
-                if tracker.checkpointed != res.state.sample_index:
-                    sink.checkpoint(res.state.as_dict())
-                if progress is not None:
-                    progress(res.state.s_m, float(self.settings.speed.speed(res.state.s_m)), res.state.t_s)
-            return res
-
-    return CompletingDrive
-
-
-class _TrackingSink:
-    def __init__(self, sink, n0: int):
-        self.sink, self.n_samples, self.checkpointed = sink, n0, n0
-
-    def start(self, info):
-        if hasattr(self.sink, "start"):
-            self.sink.start(info)
-
-    def samples(self, block):
-        self.n_samples += len(np.atleast_1d(block["t_s"]))
-        self.sink.samples(block)
-
-    def stats(self, rows):
-        self.sink.stats(rows)
-
-    def checkpoint(self, state):
-        self.checkpointed = int(state["sample_index"])
-        self.sink.checkpoint(state)
+    return RunDrive
 
 
 # --- the writer ------------------------------------------------------------------------------------
@@ -236,6 +188,7 @@ class H5Results:
         self.wall_before_s = wall_before_s
         self.session_t0 = time.perf_counter()
         self.last_state: dict | None = None
+        self.stop_requested = False
 
     @staticmethod
     def create_layout(f: h5py.File, block: dict, row: dict, state: dict, stored: set[str], compression: int,
@@ -295,6 +248,9 @@ class H5Results:
         """Written after (and flushed after) the data it covers."""
         self.ck.write(state, {"n_samples": self.n_samples, "n_stats": self.n_stats, "wall_s": self.wall_s()})
         self.last_state = state
+        if self.stop_requested:
+            # Ctrl-C arrived during the last block: stop here, where the file is consistent
+            raise KeyboardInterrupt
 
     def wall_s(self) -> float:
         return self.wall_before_s + (time.perf_counter() - self.session_t0)
@@ -384,7 +340,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     if resume:
         log(f"{out}: nothing to resume, starting")
     prep = prepare(src)                            # every check before any work
-    model, drive = prep.drive(completing_drive_class())
+    model, drive = prep.drive(drive_class())
     resolved = prep.resolved()
     resolved["vehicle_derived"]["gas_masses_kg"] = drive.gas_masses.tolist()
     resolved["vehicle_derived"]["charged_wheel_loads_N"] = model.charged_wheel_loads.tolist()
@@ -464,7 +420,7 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
     prep = prepare(stored)
-    model, drive = prep.drive(completing_drive_class())
+    model, drive = prep.drive(drive_class())
     if ck is None:
         state, counts = None, (0, 0, 0.0)
     else:
@@ -475,6 +431,28 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
     if state is not None:
         log(f"{out}: resuming at {state.s_m / 1e3:.3f} km of {prep.scenario.distance / 1e3:.6g} km")
     return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)
+
+
+def _catch_sigint(sink: H5Results):
+    """First Ctrl-C: finish the current block and checkpoint, then stop (a KeyboardInterrupt raised at
+    an arbitrary point can be swallowed by a weakref callback inside h5py); second: stop at once."""
+    def handler(signum, frame):
+        if sink.stop_requested:
+            raise KeyboardInterrupt
+        sink.stop_requested = True
+
+    try:
+        return signal.signal(signal.SIGINT, handler)
+    except ValueError:          # not the main thread (e.g. a Dask worker): leave signals alone
+        return None
+
+
+def _restore_sigint(old) -> None:
+    if old is not None:
+        try:
+            signal.signal(signal.SIGINT, old)
+        except ValueError:
+            pass
 
 
 def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
@@ -495,9 +473,11 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
 
     f = h5py.File(out, "r+", libver=LIBVER)
     sink = None
+    old_handler = None
     try:
         sink = H5Results(f, prep.scenario.output.stored(), counts[0], counts[1], counts[2])
         f.swmr_mode = True
+        old_handler = _catch_sigint(sink)
         res = drive.run(sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
     except SimulationError as exc:
         f.close()
@@ -519,6 +499,8 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
         if bar is not None:
             bar.close()
         raise
+    finally:
+        _restore_sigint(old_handler)
     f.close()
     if bar is not None:
         bar.close()

@@ -386,8 +386,12 @@ class Prepared:
         from .drive import Drive
 
         model = self.model()
+        road = self.road()
         cls = drive_class or Drive
-        return model, cls(model, self.road(), self.settings())
+        try:
+            return model, cls(model, road, self.settings())
+        except UserInputError as exc:
+            raise UserInputError(f"{self.source.name}: {exc}") from None
 
     def resolved(self) -> dict:
         """Every parameter in SI after defaults and overrides: stored with the results."""

@@ -43,7 +43,7 @@ class SweepSpec(Model):
 
 def _slug(value: Any) -> str:
     text = str(value).lower() if isinstance(value, bool) else str(value)
-    return re.sub(r"[^A-Za-z0-9.+-]+", "", text.replace(" ", "")) or "x"
+    return re.sub(r"[^A-Za-z0-9._+-]+", "", text.replace(" ", "")) or "x"
 
 
 def _parts(overrides: dict) -> list[str]:
@@ -144,6 +144,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
     log = log or (lambda m: None)
     path = Path(path)
     spec, base, cases = load_sweep(path)
+    client = _dask_client(scheduler) if scheduler else None
     out_dir = Path(output_dir) if output_dir else Path(path.stem)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows: dict[str, dict] = {}
@@ -170,10 +171,9 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
         else:
             log(f"[{done}/{n}] {c['name']}: FAILED: {r['error']}")
 
-    if n and scheduler:
+    if n and client is not None:
         from distributed import as_completed
 
-        client = _dask_client(scheduler)
         try:
             futs = {client.submit(run_case, c["source"].text, c["source"].name, str(c["source"].base_dir),
                                   str(c["file"].resolve()), pure=False, key=f"hpsim-{path.stem}-{c['name']}"): c
@@ -203,6 +203,8 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
                     except Exception as exc:   # e.g. a worker killed by the OS
                         r = {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "seconds": 0.0}
                     finished(futs[fut], r)
+    if client is not None and not n:
+        client.close()
     result = summarise(path, out_dir, cases, rows)
     result["wall_s"] = time.perf_counter() - t0
     return result
