@@ -77,6 +77,19 @@ def charge_gas_masses(model: VehicleModel) -> np.ndarray:
             raise UserInputError(
                 f"{P.name}: strut {strut.p.name} at {name} would need {p_gas / 1e6:.4g} MPa to carry its load "
                 "(allowed up to 60 MPa)")
+    dp_fill = P.charging.fill_pressure_offset
+    if dp_fill != 0.0:
+        from struts import gas as gaslaw
+
+        for i in range(model.n):
+            strut = model.struts[i]
+            V_ext = float(strut.extended_gas_volume(T))
+            p_fill = float(gaslaw.pressure(T, V_ext / masses[i], strut.gas, strut.p.gas.eos))
+            if p_fill + dp_fill <= 0.1e6:
+                raise UserInputError(f"{P.name}: charging.fill_pressure_offset {dp_fill / 1e6:.3g} MPa leaves "
+                                     f"{(p_fill + dp_fill) / 1e6:.3g} MPa at {model.station_names[i]} (> 0.1 MPa needed)")
+            masses[i] = strut.gas_mass_for(p_fill + dp_fill, T)
+        return masses
     # the hull must be in equilibrium at the charged pose with these loads
     Fs = (model.charged_wheel_loads - model.m_u * GRAVITY) / model.r
     Qz, Qt, Qp = hull_eq.generalised_forces(model.r * Fs, model.a, model.y, model.a_cg, model.y_cg)

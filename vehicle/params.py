@@ -88,6 +88,7 @@ class Heat(Model):
     air_conductivity: Quantity("W/(m*K)") = 0.026
     air_kinematic_viscosity: Quantity("m**2/s") = 1.6e-5
     air_prandtl: Number = 0.71
+    convection_multiplier: Number = 1.0   # scales the total convective coefficient (sensitivity studies)
 
     @model_validator(mode="after")
     def _check(self):
@@ -116,6 +117,9 @@ class Charging(Model):
     heights: QuantityList("m")                # hull height at each axle
     temperature: K
     strut_deflection: m              # strut deflection at the charged state (same at every station)
+    # charge every strut this much above (or below) the set-up charge: the gas mass follows the
+    # fill pressure at full extension at the charging temperature (sensitivity studies)
+    fill_pressure_offset: Quantity("Pa") = 0.0
 
 
 class VehicleParams(Model):

@@ -39,4 +39,4 @@ def convection_coefficient(heat, vehicle_speed_m_per_s):
     """Total convective h [W/(m^2 K)] at a vehicle speed: natural + forced (wheel-bay air speed)."""
     forced = churchill_bernstein_h(heat.air_speed_ratio * vehicle_speed_m_per_s, heat.diameter,
                                    heat.air_conductivity, heat.air_kinematic_viscosity, heat.air_prandtl)
-    return heat.natural_convection + forced
+    return heat.convection_multiplier * (heat.natural_convection + forced)
