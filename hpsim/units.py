@@ -48,6 +48,9 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
         elif q.dimensionless and ureg.Quantity(1, unit).dimensionless:
             out = float(q.to(unit).magnitude)
         elif q.dimensionless:
+            if q.units != ureg.dimensionless:
+                # "12 parsecs/furlong" is a pure number to pint: units that cancel are no quantity in `unit`
+                raise UserInputError(f"{where}: {value!r} is not a quantity in {unit} (its units {q.units} cancel)")
             # a bare number in a string: SI
             out = float(q.magnitude)
         else:
