@@ -179,19 +179,17 @@ def _trapezoid(s, start: float, length: float, ramp: float, height: float):
     return np.where((u >= 0) & (u <= length), height, 0.0)
 
 
-def apply_events(distance_m: np.ndarray, left_m: np.ndarray, right_m: np.ndarray, events) -> None:
-    """Add each event's shape to the track arrays in place (only the samples it touches)."""
-    s = np.asarray(distance_m)
-    if s.size == 0:
-        return
-    spacing = s[1] - s[0] if s.size > 1 else 1.0
+def apply_events(spacing_m: float, left_m: np.ndarray, right_m: np.ndarray, events) -> None:
+    """Add each event's shape to the track arrays (grid s_i = i·spacing_m) in place, touching only
+    the samples the event covers (a step or ramp keeps its level to the end of the road)."""
+    n = left_m.size
     for ev in events:
-        i0 = max(0, int(np.floor((ev.position - s[0]) / spacing)) - 1)
+        i0 = max(0, int(np.floor(ev.position / spacing_m)) - 1)
         persists = isinstance(ev, (Step, Ramp))
-        i1 = s.size if persists else min(s.size, int(np.ceil((ev.end - s[0]) / spacing)) + 2)
+        i1 = n if persists else min(n, int(np.ceil(ev.end / spacing_m)) + 2)
         if i0 >= i1:
             continue
-        dz = ev.shape(s[i0:i1])
+        dz = ev.shape(np.arange(i0, i1) * spacing_m)
         if ev.track in ("left", "both"):
             left_m[i0:i1] += dz
         if ev.track in ("right", "both"):

@@ -58,9 +58,10 @@ def clamped_spline_slopes(z: np.ndarray, spacing_m: float) -> np.ndarray:
 class Road:
     """Left/right track heights [m] at distances i·spacing_m, i = 0..n-1 (distance starts at 0)."""
 
-    def __init__(self, spacing_m: float, left_m, right_m, *, info: dict | None = None):
-        left = np.array(left_m, dtype=float)
-        right = np.array(right_m, dtype=float)
+    def __init__(self, spacing_m: float, left_m, right_m, *, info: dict | None = None, copy: bool = True):
+        """copy=False takes over float64 arrays without copying (they become read-only)."""
+        left = np.array(left_m, dtype=float, copy=copy or None)
+        right = np.array(right_m, dtype=float, copy=copy or None)
         if left.ndim != 1 or left.shape != right.shape or left.size < 2:
             raise ValueError("left_m and right_m must be 1-D arrays of the same length >= 2")
         if not spacing_m > 0:
@@ -156,10 +157,13 @@ class Road:
         m = self.knot_slopes(k)
         x = np.arange(lo, hi + 1) * self._spacing
         spl = make_interp_spline(x, z[lo:hi + 1], k=3, bc_type=([(1, m[lo])], [(1, m[hi])]))
+        dspl = spl.derivative()  # exact derivative (quadratic B-spline): cheaper than ca.jacobian of the node
         s = ca.MX.sym("s")
         xs = ca.MX.sym("x")
-        h = ca.bspline(xs, ca.DM(spl.c), [spl.t.tolist()], [3], 1, {})
-        inner = ca.Function("spline", [xs], [h, ca.jacobian(h, xs)])
+        h = ca.bspline(xs, ca.DM(spl.c.tolist()), [spl.t.tolist()], [3], 1, {})
+        n_basis = dspl.t.size - dspl.k - 1  # scipy pads c; casadi wants exactly one per basis function
+        dh = ca.bspline(xs, ca.DM(dspl.c[:n_basis].tolist()), [dspl.t.tolist()], [2], 1, {})
+        inner = ca.Function("spline", [xs], [h, dh])
         s_lo, s_hi = float(x[0]), float(x[-1])
         # the B-spline is zero outside its knot range [s_lo, s_hi] (ends included): hold the end values
         s_c = ca.fmin(ca.fmax(s, s_lo), s_hi)
@@ -180,7 +184,7 @@ class Road:
         info = dict(self.info, contact_length_m=float(contact_length_m))
         return Road(self._spacing,
                     envelope_profile(self._z[0], contact_length_m, self._spacing),
-                    envelope_profile(self._z[1], contact_length_m, self._spacing), info=info)
+                    envelope_profile(self._z[1], contact_length_m, self._spacing), info=info, copy=False)
 
     # -- files ---------------------------------------------------------------------
     def to_csv(self, path: str | Path) -> None:
@@ -213,4 +217,4 @@ class Road:
             left_u = resample(d, left, step, n)
             right_u = resample(d, right, step, n)
         info = {"source": str(path), "distance_offset_m": float(d[0]), "resampled": not keep_grid}
-        return cls(step, left_u, right_u, info=info)
+        return cls(step, left_u, right_u, info=info, copy=keep_grid)  # file columns are strided views

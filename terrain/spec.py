@@ -164,14 +164,14 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
             path = Path(base_dir or Path.cwd()) / path
         spacing = spec.spacing if "spacing" in spec.model_fields_set else None
         road = Road.from_csv(path, spacing_m=spacing, length_m=spec.length)
-        distance = road.distance_m
+        if not spec.events:
+            return Road(road.spacing_m, road.left_m, road.right_m, info={**info, **road.info}, copy=False)
         left, right = road.left_m.copy(), road.right_m.copy()
         info.update(road.info)
         step = road.spacing_m
     else:
         step = spec.spacing
         n = int(np.floor(spec.length / step + 1e-9)) + 1
-        distance = np.arange(n) * step
         if spec.flat:
             left, right = np.zeros(n), np.zeros(n)
         else:
@@ -184,10 +184,10 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
                 mode, fn = spec.coherence, None
             left, right = iso8608.generate_tracks(gd, spec.waviness, step, n, spec.seed, band, mode, fn)
             info["gd_n0_m3"] = gd
-    road_length = (distance.size - 1) * step
+    road_length = (left.size - 1) * step
     for i, ev in enumerate(spec.events):
         if ev.position > road_length:
             raise UserInputError(f"events.{i}: {ev.type} at {ev.position:g} m is beyond the road "
                                  f"length {road_length:g} m")
-    apply_events(distance, left, right, spec.events)
-    return Road(step, left, right, info=info)
+    apply_events(step, left, right, spec.events)
+    return Road(step, left, right, info=info, copy=False)
