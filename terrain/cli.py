@@ -12,7 +12,6 @@ its keys). Bad input raises UserInputError naming the argument, file or line (ex
 """
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
@@ -233,7 +232,7 @@ def _title(args, spec) -> str:
 
 def _table(d: dict) -> str:
     rows = [(k, v) for k, v in d.items() if not isinstance(v, (dict, list, np.ndarray))]
-    return format_table(("quantity", "value"), rows)
+    return format_table(("quantity", "value"), rows, floatfmt=".6g")
 
 
 def _fmt_se(value, rel=None, absolute=None):

@@ -47,6 +47,7 @@ ISO_CLASSES = tuple(ISO_CLASS_GD_N0_M3)
 # edge (for w = 2 the profile variance comes out 0.5 % below ∫Gd dn, 1.1 % with 64 cycles).
 FILTER_CYCLES_AT_NMIN = 128
 FFT_BLOCK_FACTOR = 4  # overlap-save FFT size = FFT_BLOCK_FACTOR x filter length
+MAX_FILTER_TAPS = 2 ** 19 - 1  # memory cap (working set ~250 MB); fewer cycles at n_min beyond it
 
 
 def class_limits(iso_class: str) -> tuple[float, float]:
@@ -88,7 +89,7 @@ def band_variance(gd_n0_m3: float, waviness: float, band: tuple[float, float]) -
 def filter_taps(spacing_m: float, band: tuple[float, float]) -> int:
     """Odd number of taps of the shaping filter (a power of two minus one)."""
     n_needed = FILTER_CYCLES_AT_NMIN / (band[0] * spacing_m)
-    return int(2 ** int(np.ceil(np.log2(max(n_needed, 64))))) - 1
+    return min(int(2 ** int(np.ceil(np.log2(max(n_needed, 64))))) - 1, MAX_FILTER_TAPS)
 
 
 @dataclass(frozen=True)

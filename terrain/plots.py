@@ -85,12 +85,13 @@ def save_road_plot(road, stats: dict, path: str | Path, title: str = "") -> None
     fig = plt.figure(figsize=(10, 8))
     ax1 = fig.add_subplot(3, 1, 1)
     d = road.distance_m
-    for z, name in ((road.left_m, "left"), (road.right_m, "right")):
+    for (z, name), color in zip(((road.left_m, "left"), (road.right_m, "right")), ("C0", "C1")):
         x, lo, hi = _envelope(d, z, PROFILE_MAX_POINTS)
         if lo is hi:
-            ax1.plot(x / 1000.0, z, lw=0.5, label=name)
-        else:
-            ax1.fill_between(x / 1000.0, lo, hi, lw=0, alpha=0.6, label=f"{name} (min/max)")
+            ax1.plot(x / 1000.0, z, lw=0.5, color=color, label=name)
+        else:  # min/max over each pixel-sized chunk, so no peak is lost
+            ax1.fill_between(x / 1000.0, lo, hi, color=color, edgecolor=color, lw=0.6, alpha=0.6,
+                             label=f"{name} (min/max per {d[1] * (d.size // x.size):.3g} m)")
     ax1.set_xlabel("distance [km]")
     ax1.set_ylabel("height [m]")
     ax1.legend(fontsize=7)

@@ -116,3 +116,19 @@ def test_flat_road_with_events_evaluates_the_exact_shape_at_grid_points():
     exact = 0.05 * (1 - np.cos(2 * np.pi * 0.503 / 2))
     assert h_between[0] == pytest.approx(exact, abs=1e-8)  # spline error ~ h·(2πΔ/L)^4
     assert slope[0] == pytest.approx(0.05 * np.pi * np.sin(2 * np.pi * 0.503 / 2), rel=1e-4)
+
+
+def test_example_spec_file_is_valid_and_applies_its_events():
+    from pathlib import Path
+
+    from terrain import load_road_spec
+
+    path = Path(__file__).resolve().parents[1] / "terrain" / "data" / "example_road.yaml"
+    spec = load_road_spec(path)
+    assert len(spec.events) == 6
+    with_events = build_road(spec, base_dir=path.parent)
+    without = build_road(spec.model_copy(update={"events": []}))
+    diff = with_events.right_m - without.right_m
+    s = with_events.distance_m
+    want = sum(ev.shape(s) for ev in spec.events if ev.track in ("right", "both"))
+    np.testing.assert_allclose(diff, want, atol=1e-14)
