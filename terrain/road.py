@@ -119,7 +119,7 @@ class Road:
         m = self.knot_slopes(track)
         s = np.asarray(s_m, dtype=float)
         x = np.clip(s, 0.0, self.length_m) / self._spacing
-        i = np.minimum(x.astype(np.intp), self.n_points - 2)
+        i = np.clip(x.astype(np.intp), 0, self.n_points - 2)  # NaN in -> NaN out, never a bad index
         t = x - i
         z0, z1, m0, m1 = z[i], z[i + 1], m[i] * self._spacing, m[i + 1] * self._spacing
         t2 = t * t

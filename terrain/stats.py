@@ -171,6 +171,11 @@ def iri_m_per_km(height_m: np.ndarray, spacing_m: float) -> float:
     return float(np.mean(np.abs(rel_velocity)) / IRI_SPEED * 1000.0)
 
 
+def _finite(x):
+    """float, or None for NaN/inf (JSON has no NaN)."""
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
 def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nperseg: int | None = None,
                     iri: bool = True) -> dict:
     """Statistics of a Road (see module docstring). Scalars first, then arrays for plots."""
@@ -203,9 +208,9 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
         j, pm, rv = band_average(f, p, edges, k_eff, r)
         track_relvar[name] = rv
         g1, w1, sg1, sw1 = fit_power_law(f, j, pm, rv)
-        tracks[name] = {"gd_n0_m3": g1, "gd_n0_rel_se": sg1, "waviness": w1, "waviness_se": sw1,
-                        "iso_class": iso8608.class_of_gd(g1), "rms_m": float(np.std(z)),
-                        "iri_m_per_km": iri_m_per_km(z, dx) if iri else None}
+        tracks[name] = {"gd_n0_m3": _finite(g1), "gd_n0_rel_se": _finite(sg1), "waviness": _finite(w1),
+                        "waviness_se": _finite(sw1), "iso_class": iso8608.class_of_gd(g1),
+                        "rms_m": float(np.std(z)), "iri_m_per_km": iri_m_per_km(z, dx) if iri else None}
 
     # coherence at n0: 1/3-octave band centred on 0.1 cycle/m
     a, b = COHERENCE_AT * 2.0 ** (-1.0 / 6.0), COHERENCE_AT * 2.0 ** (1.0 / 6.0)
@@ -214,12 +219,12 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
     coh01 = float(np.real(plr[j].sum()) / denom) if denom > 0 else None
 
     rms = float(np.sqrt(0.5 * (np.var(left) + np.var(right))))
-    iri_mean = 0.5 * (tracks["left"]["iri_m_per_km"] + tracks["right"]["iri_m_per_km"]) if iri else None
+    iri_mean = _finite(0.5 * (tracks["left"]["iri_m_per_km"] + tracks["right"]["iri_m_per_km"])) if iri else None
     return {
-        "gd_n0_m3": gd if np.isfinite(gd) else None,
-        "gd_n0_rel_se": se_gd if np.isfinite(se_gd) else None,
-        "waviness": w if np.isfinite(w) else None,
-        "waviness_se": se_w if np.isfinite(se_w) else None,
+        "gd_n0_m3": _finite(gd),
+        "gd_n0_rel_se": _finite(se_gd),
+        "waviness": _finite(w),
+        "waviness_se": _finite(se_w),
         "iso_class": iso8608.class_of_gd(gd),
         "rms_m": rms,
         "coherence_at_0p1_cycle_per_m": coh01,
