@@ -27,7 +27,7 @@ ambient_temperature: 25 degC
 initial_temperatures: [40 degC, 35 degC, 30 degC, 25 degC]
 compensation: {enabled: false}
 solver: {dt: 4 ms}
-output: {interval: 1 s, stats_interval: 0.5 km}
+output: {interval: 1 s, stats_interval: 0.5 km, chunk_samples: 50}   # write + checkpoint every 50 s
 """
 DISTANCE_M, SPEED, STATS_M = 4000.0, 20 / 3.6, 500.0
 

@@ -47,7 +47,10 @@ def test_shipped_files_validate(path):
         from vehicle.sweep import load_sweep
 
         _, _, cases = load_sweep(path)
-        assert len(cases) == 4
+        assert cases and all(c["source"].data for c in cases)
+        if path.name == "compensation_sweep.yaml":      # on/off x road class D/E
+            assert sorted((c["overrides"]["compensation.enabled"], c["overrides"]["road.iso_class"]) for c in cases) \
+                == [(False, "D"), (False, "E"), (True, "D"), (True, "E")]
     else:
         prep = load_prepared(path)
         assert prep.scenario.distance > 0

@@ -174,7 +174,9 @@ class Checkpoint:
 
 
 class H5Results:
-    """The drive's sink: appends samples and statistics, writes checkpoints, flushes."""
+    """The drive's sink: buffers samples and statistics rows, writes them a whole HDF5 chunk at a
+    time (each compressed chunk written once: appending block by block would rewrite the last
+    chunk every time, and SWMR mode does not reuse the freed space), then the checkpoint."""
 
     def __init__(self, f: h5py.File, stored: set[str], n_samples: int = 0, n_stats: int = 0,
                  wall_before_s: float = 0.0):
@@ -183,8 +185,13 @@ class H5Results:
         self.ts = f["timeseries"]
         self.st = f["stats"]
         self.ck = Checkpoint(f["checkpoint"])
-        self.n_samples = n_samples
+        self.chunk = int(self.ts["t_s"].chunks[0])
+        self.n_samples = n_samples          # rows written (and covered by the last checkpoint)
         self.n_stats = n_stats
+        self.buffer: dict[str, list] = {}
+        self.n_buffered = 0
+        self.stats_buffer: list[dict] = []
+        self.pending_state: dict | None = None
         self.wall_before_s = wall_before_s
         self.session_t0 = time.perf_counter()
         self.last_state: dict | None = None
@@ -192,7 +199,7 @@ class H5Results:
 
     @staticmethod
     def create_layout(f: h5py.File, block: dict, row: dict, state: dict, stored: set[str], compression: int,
-                      station_names, axle_names) -> None:
+                      chunk_rows: int, station_names, axle_names) -> None:
         """Every dataset the drive fills, empty and resizable (created before SWMR mode)."""
         kw = {"compression": "gzip", "compression_opts": int(compression), "shuffle": True} if compression else {}
 
@@ -206,8 +213,8 @@ class H5Results:
             return None
 
         # a block's arrays are (width, n) or (n,); a statistics row holds scalars or (width,) arrays
-        for gname, shapes, chunk in (("timeseries", {k: _rows(v).shape[1:] for k, v in block.items() if k in stored},
-                                      CHUNK_ROWS),
+        for gname, shapes, chunk in (("timeseries", {k: _rows(v).shape[1:] for k, v in block.items()
+                                                     if k in stored or k == "t_s"}, chunk_rows),
                                      ("stats", {k: np.asarray(v, float).shape for k, v in row.items()},
                                       STATS_CHUNK_ROWS)):
             g = f.create_group(gname)
@@ -224,33 +231,48 @@ class H5Results:
         pass
 
     def samples(self, block: dict) -> None:
-        n = len(np.atleast_1d(block["t_s"]))
         for key, value in block.items():
             if key in self.ts:
-                ds = self.ts[key]
-                ds.resize(self.n_samples + n, axis=0)
-                ds[self.n_samples:] = _rows(value)
-        self.n_samples += n
-        self.f.flush()
+                self.buffer.setdefault(key, []).append(_rows(value))
+        self.n_buffered += len(np.atleast_1d(block["t_s"]))
 
     def stats(self, rows: list[dict]) -> None:
-        if not rows:
-            return
-        for key in rows[0]:
-            if key in self.st:
-                ds = self.st[key]
-                ds.resize(self.n_stats + len(rows), axis=0)
-                ds[self.n_stats:] = np.array([np.asarray(r[key], float) for r in rows])
-        self.n_stats += len(rows)
-        self.f.flush()
+        self.stats_buffer.extend(rows)
 
     def checkpoint(self, state: dict) -> None:
-        """Written after (and flushed after) the data it covers."""
-        self.ck.write(state, {"n_samples": self.n_samples, "n_stats": self.n_stats, "wall_s": self.wall_s()})
-        self.last_state = state
+        """Called by the drive after every block: write when a chunk is full (or on Ctrl-C)."""
+        self.pending_state = state
+        full = (self.n_samples + self.n_buffered) // self.chunk > self.n_samples // self.chunk
+        if full or self.stop_requested:
+            self.flush()
         if self.stop_requested:
             # Ctrl-C arrived during the last block: stop here, where the file is consistent
             raise KeyboardInterrupt
+
+    def flush(self) -> None:
+        """Append the buffered rows, flush, then write the checkpoint that covers them."""
+        if self.n_buffered:
+            for key, parts in self.buffer.items():
+                ds = self.ts[key]
+                ds.resize(self.n_samples + self.n_buffered, axis=0)
+                ds[self.n_samples:] = np.concatenate(parts, axis=0)
+            self.n_samples += self.n_buffered
+            self.buffer, self.n_buffered = {}, 0
+        if self.stats_buffer:
+            n = len(self.stats_buffer)
+            for key in self.stats_buffer[0]:
+                if key in self.st:
+                    ds = self.st[key]
+                    ds.resize(self.n_stats + n, axis=0)
+                    ds[self.n_stats:] = np.array([np.asarray(r[key], float) for r in self.stats_buffer])
+            self.n_stats += n
+            self.stats_buffer = []
+        self.f.flush()
+        if self.pending_state is not None:
+            self.ck.write(self.pending_state, {"n_samples": self.n_samples, "n_stats": self.n_stats,
+                                               "wall_s": self.wall_s()})
+            self.last_state = self.pending_state
+            self.pending_state = None
 
     def wall_s(self) -> float:
         return self.wall_before_s + (time.perf_counter() - self.session_t0)
@@ -371,7 +393,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         c.attrs["temperature_K"] = model.params.charging.temperature
         write_equilibrium(e, "before", before, stations)
         H5Results.create_layout(f, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
-                                stations, axles)
+                                chunk_rows(prep.scenario), stations, axles)
         s = f.create_group("summary")
         s.attrs["status"] = "running"
         s.attrs["complete"] = False
@@ -411,6 +433,7 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
 
     with open_read(out) as f:
         stored = _stored_source(f, out)
+        stored_version = str(f["scenario"].attrs.get("hpsim_version", ""))
         status = str(f["summary"].attrs.get("status", "running")) if "summary" in f else "running"
         if status == "complete":
             log(f"{out}: already complete, nothing to do")
@@ -420,6 +443,9 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
     prep = prepare(stored)
+    if stored_version and stored_version != code_version():
+        log(f"{out}: warning: the run started with hpsim {stored_version}, resuming with {code_version()}; "
+            "if the model changed in between, the result differs from an uninterrupted run")
     model, drive = prep.drive(drive_class())
     if ck is None:
         state, counts = None, (0, 0, 0.0)
@@ -455,6 +481,13 @@ def _restore_sigint(old) -> None:
             pass
 
 
+def chunk_rows(scenario) -> int:
+    """Samples per HDF5 chunk (and between checkpoints): output.chunk_samples rounded up to whole
+    blocks of solver.samples_per_block."""
+    M = scenario.solver.samples_per_block
+    return int(M * max(1, -(-scenario.output.chunk_samples // M)))
+
+
 def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
     total_km = prep.scenario.distance / 1e3
     bar = cb = None
@@ -479,7 +512,10 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
         f.swmr_mode = True
         old_handler = _catch_sigint(sink)
         res = drive.run(sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
+        sink.flush()
     except SimulationError as exc:
+        if sink is not None:
+            sink.flush()             # the blocks before the failure, with their checkpoint
         f.close()
         if bar is not None:
             bar.close()

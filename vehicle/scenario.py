@@ -160,6 +160,9 @@ class OutputSpec(Model):
     stats_interval: float = 1000.0           # distance per statistics row
     store: Literal["all"] | list[str] = "all"
     compression: StrictInt = Field(4, ge=0, le=9)   # gzip level of the HDF5 datasets (0: none)
+    # samples per HDF5 chunk: data is written (and checkpointed) each time a chunk is full, so a
+    # killed run loses at most this many samples of work
+    chunk_samples: StrictInt = Field(512, ge=1, le=100_000)
 
     @field_validator("interval", mode="before")
     @classmethod
