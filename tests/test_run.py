@@ -236,6 +236,9 @@ def test_solver_failure_stops_with_a_message_and_keeps_the_data(workdir, monkeyp
     assert cli.main(["report", str(out), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     assert rep["status"] == "failed" and "axle2_left" in rep["error"] and rep["axles"][0]["N_after_daN"] is None
+    # the dashboard of what was done
+    assert cli.main(["plot", str(out), "-o", str(workdir / "failed.png")]) == 0
+    assert (workdir / "failed.png").stat().st_size > 20_000
 
 
 def test_plot_and_compare(reference, workdir, capsys):

@@ -54,6 +54,8 @@ def dashboard(path: str | Path, out: str | Path) -> Path:
         stations = [str(s) for s in f["scenario"].attrs["stations"]]
         s_km = _series(f, "distance_m")
         s_km = None if s_km is None else s_km / 1e3
+        t_all = _series(f, "t_s")
+        sample_dt = float(np.median(np.diff(t_all))) if t_all is not None and len(t_all) > 1 else 1.0
         T = _series(f, "strut_temperature_K")
         h = _series(f, "axle_height_change_m")
         eq = f["equilibrium"]
@@ -96,18 +98,22 @@ def dashboard(path: str | Path, out: str | Path) -> Path:
     a.legend(fontsize=8)
     # height change
     a = ax[0, 1]
-    if h is not None and s_km is not None:
-        dt_samples = max(len(s_km), 1)
-        window = max(1, min(60, dt_samples // 20))
+    window_s = None
+    if h is not None and s_km is not None and len(s_km) > 1:
+        # the drift (heating) is slow, the road's bumps fast: a centred moving mean over about a
+        # tenth of the drive (at most 600 samples) shows the drift
+        window = int(np.clip(len(s_km) // 10, 1, 600))
         hs = _moving_mean(h, window)
+        window_s = window * sample_dt
         for k, name in enumerate(axles):
-            a.plot(s_km, (h[:, k] - h_before[k]) * 1e3, color=colors[k % len(colors)], alpha=0.15, lw=0.6)
             a.plot(s_km, (hs[:, k] - h_before[k]) * 1e3, color=colors[k % len(colors)], label=name)
     for k, r in enumerate(rep["axles"]):
         if r["dh_mm"] is not None and s_km is not None and len(s_km):
             a.plot([s_km[-1]], [r["dh_mm"]], marker="o", color=colors[k % len(colors)], ms=6)
     a.set(xlabel="distance [km]", ylabel="hull height change at the axle [mm]",
-          title="height change vs before-drive equilibrium (moving mean; dots: after-drive equilibrium)")
+          title="height change vs before-drive equilibrium\n"
+                + (f"(moving mean over {window_s:.0f} s; " if window_s else "(")
+                + "dots: after-drive equilibrium)")
     a.title.set_fontsize(9)
     a.grid(alpha=0.3)
     a.legend(fontsize=8)
