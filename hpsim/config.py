@@ -85,7 +85,8 @@ def format_validation_error(exc: ValidationError, source: str) -> str:
         if err["type"] == "extra_forbidden":
             msg = "unknown key (check the spelling)"
         value = err.get("input")
-        shown = "" if err["type"] in ("missing", "extra_forbidden") or isinstance(value, dict) else f" (got {value!r})"
+        quiet = err["type"] in ("missing", "extra_forbidden") or isinstance(value, dict) or "got" in msg
+        shown = "" if quiet else f" (got {value!r})"
         lines.append(f"{source}: {loc}: {msg}{shown}")
     return "; ".join(lines)
 

@@ -73,19 +73,11 @@ def cmd_equilibrium(args):
     from .params import load_vehicle
 
     P = load_vehicle(args.vehicle)
-    n_ax, n_st = P.n_axles, P.n_stations
     if args.temperatures is None:
-        T = np.full(n_st, P.charging.temperature)
+        T = np.full(P.n_stations, P.charging.temperature)
     else:
-        T = np.asarray(parse_quantity_list(args.temperatures, "K", where="--temperatures"), float)
-        if len(T) == 1:
-            T = np.full(n_st, T[0])
-        elif len(T) == n_ax:
-            T = np.repeat(T, 2)
-        elif len(T) != n_st:
-            raise UserInputError(
-                f"--temperatures: got {len(T)} values ({args.temperatures!r}); allowed: 1 (all struts), {n_ax} (one per "
-                f"axle) or {n_st} (one per strut, axle-major, left first)")
+        T = P.per_station(parse_quantity_list(args.temperatures, "K", where="--temperatures"),
+                          f"--temperatures ({args.temperatures!r})")
         if np.any(T <= 0) or np.any(T > 273.15 + 250):
             raise UserInputError(f"--temperatures: {args.temperatures!r} must be in (-273.15, 250] degC")
     model = VehicleModel(P)

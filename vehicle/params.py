@@ -168,6 +168,21 @@ class VehicleParams(Model):
         return [f"axle{self.station_axle(i) + 1}_{'left' if i % 2 == 0 else 'right'}"
                 for i in range(self.n_stations)]
 
+    def per_station(self, values, where: str):
+        """One value for all stations, one per axle or one per station (axle-major, left first)."""
+        import numpy as np
+
+        v = np.atleast_1d(np.asarray(values, float))
+        if len(v) == 1:
+            return np.full(self.n_stations, v[0])
+        if len(v) == self.n_axles:
+            return np.repeat(v, 2)
+        if len(v) == self.n_stations:
+            return v.copy()
+        raise UserInputError(
+            f"{where}: got {len(v)} values; allowed: 1 (all struts), {self.n_axles} (one per axle) "
+            f"or {self.n_stations} (one per strut, axle-major, left first)")
+
     def unsprung_mass_total(self) -> float:
         return sum(2 * a.unsprung_mass for a in self.axles)
 

@@ -491,17 +491,8 @@ def prepare(src: ScenarioSource) -> Prepared:
         except UserInputError as exc:
             raise UserInputError(f"{src.name}: struts.axle{k + 1} (strut {axle.strut!r}): {exc}") from None
     # initial temperatures: one, one per axle or one per station (axle-major, left first)
-    n_ax, n_st = vehicle.n_axles, vehicle.n_stations
     T = S.initial_temperatures if S.initial_temperatures is not None else S.ambient_temperature
-    T = np.atleast_1d(np.asarray(T, float))
-    if len(T) == 1:
-        T = np.full(n_st, T[0])
-    elif len(T) == n_ax:
-        T = np.repeat(T, 2)
-    elif len(T) != n_st:
-        raise UserInputError(
-            f"{src.name}: initial_temperatures: got {len(T)} values; allowed: 1 (all struts), {n_ax} (one per axle) "
-            f"or {n_st} (one per strut, axle-major, left first)")
+    T = vehicle.per_station(T, f"{src.name}: initial_temperatures")
     # road
     road_spec = road_spec_from(S, vehicle, src)
     return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T)
