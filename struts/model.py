@@ -102,11 +102,11 @@ class SeparatedStrut:
         """Gas volume [m^3] at deflection x (seed 000 eq. 4)."""
         return self.extended_gas_volume(T_wall, dV_oil) - self.p.geometry.gas_area * x
 
-    def gas_pressure(self, x, T_gas, T_wall, m_gas, dV_oil=0.0):
-        """Gas pressure [Pa]. With the polytropic process T_gas is ignored."""
+    def gas_pressure(self, x, T_gas, T_wall, m_gas, dV_oil=0.0, process: str | None = None):
+        """Gas pressure [Pa]; process None takes the file's. With "polytropic" T_gas is ignored."""
         eos = self.p.gas.eos
         V = self.gas_volume(x, T_wall, dV_oil)
-        if self.p.gas.process == "polytropic":
+        if (process or self.p.gas.process) == "polytropic":
             V_ext = self.extended_gas_volume(T_wall, dV_oil)
             p_ext = gaslaw.pressure(T_wall, V_ext / m_gas, self.gas, eos)
             return gaslaw.polytropic_pressure(p_ext, V_ext, V, self.p.gas.polytropic_exponent)
@@ -118,15 +118,12 @@ class SeparatedStrut:
         process=None uses the file's: "energy" -> isothermal at T (the gas has had time to
         exchange heat); "polytropic" -> seed 000 eq. 5 from full extension.
         """
-        if process == "isothermal" or (process is None and self.p.gas.process == "energy"):
-            V = self.gas_volume(x, T, dV_oil)
-            return gaslaw.pressure(T, V / m_gas, self.gas, self.p.gas.eos) * self.p.geometry.gas_area
-        if process in ("polytropic", None):
-            V_ext = self.extended_gas_volume(T, dV_oil)
-            p_ext = gaslaw.pressure(T, V_ext / m_gas, self.gas, self.p.gas.eos)
-            V = self.gas_volume(x, T, dV_oil)
-            return gaslaw.polytropic_pressure(p_ext, V_ext, V, self.p.gas.polytropic_exponent) * self.p.geometry.gas_area
-        raise ValueError(f"unknown static process {process!r}")
+        if process is None:
+            process = "isothermal" if self.p.gas.process == "energy" else "polytropic"
+        if process not in ("isothermal", "polytropic"):
+            raise ValueError(f"unknown static process {process!r}")
+        law = "energy" if process == "isothermal" else "polytropic"
+        return self.gas_pressure(x, T, T, m_gas, dV_oil, law) * self.p.geometry.gas_area
 
     # --- oil properties -----------------------------------------------------------------------
     @cached_property

@@ -27,7 +27,7 @@ from .params import StrutParams
 _MAX_FREQUENCY_HZ = 50.0
 
 
-def _gas_mass(strut, p0_Pa, T_K):
+def _gas_mass(strut, p0_Pa):
     p = strut.p
     if p0_Pa is None:
         p0_Pa = p.charge.pressure
@@ -39,7 +39,7 @@ def characteristic(params: StrutParams, *, p0_Pa=None, T_K=None, process=None, n
     """Quasi-static F(x) over the stroke: dict with x_m, force_N, gas_pressure_Pa."""
     strut = make_strut(params)
     T = params.charge.temperature if T_K is None else T_K
-    m_gas = _gas_mass(strut, p0_Pa, T)
+    m_gas = _gas_mass(strut, p0_Pa)
     x = np.linspace(0.0, params.geometry.stroke, n_points)
     F = np.asarray(strut.static_gas_force(x, T, m_gas, process=process), dtype=float)
     return {"x_m": x, "force_N": F, "gas_pressure_Pa": F / params.geometry.gas_area,
@@ -50,7 +50,7 @@ def static_point(params: StrutParams, load_N: float, *, p0_Pa=None, T_K=None, pr
     """Static deflection [m] and local stiffness dF/dx [N/m] at `load_N`."""
     strut = make_strut(params)
     T = params.charge.temperature if T_K is None else T_K
-    m_gas = _gas_mass(strut, p0_Pa, T)
+    m_gas = _gas_mass(strut, p0_Pa)
     stroke = params.geometry.stroke
 
     def f(x):
@@ -133,7 +133,7 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     check_cycle_arguments(params, amplitude_m, frequency_Hz, mean_m, cycles)
     strut = make_strut(params)
     T = params.charge.temperature if T_K is None else T_K
-    m_gas = _gas_mass(strut, p0_Pa, T)
+    m_gas = _gas_mass(strut, p0_Pa)
     omega = 2.0 * math.pi * frequency_Hz
     period = 1.0 / frequency_Hz
 

@@ -129,15 +129,23 @@ class VehicleModel:
         self.nu = 2 * self.n + 2
         self.np = 2 * self.n + 1
 
+    def station_motion(self, X, i: int):
+        """(strut deflection [m], strut velocity [m/s]) of station i from named states X.
+
+        The wheel's motion relative to the hull point above it, through the motion ratio
+        (hull.py); symbolic or numeric.
+        """
+        zs = hull_eq.station_displacement(X["z"], X["theta"], X["phi"], self.a[i], self.y[i], self.a_cg, self.y_cg)
+        dzs = hull_eq.station_displacement(X["dz"], X["dtheta"], X["dphi"], self.a[i], self.y[i],
+                                           self.a_cg, self.y_cg)
+        return (hull_eq.strut_deflection(self.x_charged, self.r[i], X[f"w[{i}]"], zs),
+                self.r[i] * (X[f"dw[{i}]"] - dzs))
+
     def strut_deflections(self, X) -> np.ndarray:
         """Strut deflections [m] from state vectors X (nx, ...) -> (n_stations, ...)."""
         X = np.asarray(X)
-        out = []
-        for i in range(self.n):
-            zs = hull_eq.station_displacement(X[self.idx("z")], X[self.idx("theta")], X[self.idx("phi")],
-                                              self.a[i], self.y[i], self.a_cg, self.y_cg)
-            out.append(hull_eq.strut_deflection(self.x_charged, self.r[i], X[self.idx(f"w[{i}]")], zs))
-        return np.array(out)
+        named = {nm: X[k] for k, nm in enumerate(self.layout.names)}
+        return np.array([self.station_motion(named, i)[0] for i in range(self.n)])
 
     @cached_property
     def _z_index(self) -> dict:
@@ -178,7 +186,7 @@ class VehicleModel:
         x_nom = [p[n + i] for i in range(n)]
         comp_on = p[2 * n]
 
-        zc, th, ph = X["z"], X["theta"], X["phi"]
+        zc, th = X["z"], X["theta"]
         dzc, dth, dph = X["dz"], X["dtheta"], X["dphi"]
         h_conv = thermal.convection_coefficient(P.heat, speed)
 
@@ -192,10 +200,7 @@ class VehicleModel:
             strut = self.struts[i]
             w, dw = X[f"w[{i}]"], X[f"dw[{i}]"]
             Ts = X[f"T_strut[{i}]"]
-            zs = hull_eq.station_displacement(zc, th, ph, self.a[i], self.y[i], self.a_cg, self.y_cg)
-            dzs = hull_eq.station_displacement(dzc, dth, dph, self.a[i], self.y[i], self.a_cg, self.y_cg)
-            xs = hull_eq.strut_deflection(self.x_charged, self.r[i], w, zs)
-            vs = self.r[i] * (dw - dzs)
+            xs, vs = self.station_motion(X, i)
             # levelling
             xf = X[f"xf[{i}]"]
             V_oil = X[f"V_oil[{i}]"]
@@ -297,8 +302,7 @@ class VehicleModel:
             if strut.compressible:
                 dps.append(None)
                 continue
-            zs = hull_eq.station_displacement(X["dz"], X["dtheta"], X["dphi"], self.a[i], self.y[i], self.a_cg, self.y_cg)
-            vs = self.r[i] * (X[f"dw[{i}]"] - zs)
+            _, vs = self.station_motion(X, i)
             dps.append(strut.valve_pressure_drop(vs, X[f"T_strut[{i}]"], dp_guess=X[f"dp_memory[{i}]"],
                                                  newton_iterations=iterations, warm=True))
         return dps
@@ -370,10 +374,7 @@ class VehicleModel:
             strut = self.struts[i]
             w, dw = self.idx(f"w[{i}]"), self.idx(f"dw[{i}]")
             B = [1.0, -(self.a[i] - self.a_cg), self.y[i] - self.y_cg]   # d z_station / d (z, theta, phi)
-            zs = sum(B[j] * X[nm] for j, nm in enumerate(("z", "theta", "phi")))
-            dzs = sum(B[j] * X[nm] for j, nm in enumerate(("dz", "dtheta", "dphi")))
-            xs = self.x_charged + self.r[i] * (X[f"w[{i}]"] - zs)
-            vs = self.r[i] * (X[f"dw[{i}]"] - dzs)
+            xs, vs = self.station_motion(X, i)
             dp = 0.0 if dps[i] is None else dps[i]
             args = [xs, vs, X[f"T_strut[{i}]"], p[i], X[f"V_oil[{i}]"], dp] + \
                 [X[f"{nm}[{i}]"] for nm in strut.state_names]
