@@ -6,7 +6,7 @@ Times the production solver (compiled ROS2, 4 ms) with a cold compilation cache 
 includes generating and compiling the C code; --warm-cache reuses ~/.cache/hpsim), then runs
 the same drive with the reference: the same DAE integrated with an 8x smaller step and a fully
 converged valve Newton solve (the step-converged solution; the independent IDAS reference,
-vehicle.solvers.IdasReference, agrees with it but needs ~10 s of wall time per simulated second,
+vehicle.numerics.solvers.IdasReference, agrees with it but needs ~10 s of wall time per simulated second,
 too slow for kilometres). Reports the final strut temperature and after-drive wheel-load errors.
 
 JSON keys: distance_km, simulated_s, build_s, wall_s, rtf, ref_max_temperature_error_K,
@@ -29,9 +29,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def run(distance_m: float, dt: float, newton_iterations: int | None = None):
     from terrain import RoadSpec, build_road
-    from vehicle.drive import Drive, DriveSettings, SpeedProfile
-    from vehicle.model import VehicleModel
-    from vehicle.params import load_vehicle
+    from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+    from vehicle.physics.model import VehicleModel
+    from vehicle.physics.params import load_vehicle
 
     t0 = time.perf_counter()
     model = VehicleModel(load_vehicle("apc_8x8"))

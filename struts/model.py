@@ -4,7 +4,7 @@ A strut model exposes its internal differential states, its algebraic variables,
 and `equations(...)`, which returns symbolic (CasADi) or numeric (NumPy)
 expressions for the state rates, the algebraic residuals, the force and the
 power dissipated by each mechanism. The rig (`struts.rig`) and the vehicle
-(`vehicle.model`) both assemble these equations; neither re-implements them.
+(`vehicle.physics.model`) both assemble these equations; neither re-implements them.
 
 Inputs from the outside world (the rig or the vehicle):
   x        deflection [m], 0 at full extension, > 0 in compression

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from vehicle.calibration import _run, calibrate_heat
-from vehicle.scenario import read_scenario
+from vehicle.runs.calibration import _run, calibrate_heat
+from vehicle.runs.scenario import read_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from vehicle.cli import main
-from vehicle.params import load_vehicle
+from vehicle.physics.params import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -11,7 +11,7 @@ import pytest
 
 from hpsim.errors import UserInputError
 from vehicle import cli
-from vehicle.scenario import apply_overrides, load_prepared, prepare, read_scenario
+from vehicle.runs.scenario import apply_overrides, load_prepared, prepare, read_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
@@ -44,7 +44,7 @@ def _run_cli(argv, capsys):
 @pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.name)
 def test_shipped_files_validate(path):
     if "sweep" in path.name:
-        from vehicle.sweep import load_sweep
+        from vehicle.runs.sweep import load_sweep
 
         _, _, cases = load_sweep(path)
         assert cases and all(c["source"].data for c in cases)

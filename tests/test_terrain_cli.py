@@ -126,10 +126,3 @@ def test_console_script_exit_code(tmp_path):
     res = subprocess.run([sys.executable, "-m", "vehicle.cli", "road", "generate", "--class", "Q",
                           "--length", "1km", "-o", str(tmp_path / "x.csv")], capture_output=True, text=True)
     assert res.returncode == 2 and "hpsim road: error: --class" in res.stderr and res.stdout == ""
-
-
-def test_terrain_imports_neither_struts_nor_vehicle():
-    code = ("import sys, terrain, terrain.cli, terrain.plots, terrain.stats, terrain.spec; "
-            "bad = [m for m in sys.modules if m.split('.')[0] in ('struts', 'vehicle')]; print(bad)")
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert res.stdout.strip() == "[]"

@@ -4,9 +4,9 @@ import pytest
 
 from struts import gas as gaslaw
 from terrain import RoadSpec, build_road
-from vehicle import thermal
-from vehicle.model import ENERGY_TERMS
-from vehicle.params import GRAVITY, load_vehicle
+from vehicle.physics import thermal
+from vehicle.physics.model import ENERGY_TERMS
+from vehicle.physics.params import GRAVITY, load_vehicle
 
 from .vehicle_helpers import Recorder, make_drive
 

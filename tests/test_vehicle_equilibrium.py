@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from hpsim.errors import UserInputError
-from vehicle.equilibrium import EquilibriumSolver, charge_gas_masses, equilibrium_table
-from vehicle.model import VehicleModel
-from vehicle.params import GRAVITY, load_vehicle
+from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses, equilibrium_table
+from vehicle.physics.model import VehicleModel
+from vehicle.physics.params import GRAVITY, load_vehicle
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +81,7 @@ def test_bad_vehicle_files_fail_with_a_clear_message(override, needle):
 
 def test_missing_key_names_file_and_key(tmp_path):
     import yaml
-    from vehicle.params import vehicle_file
+    from vehicle.physics.params import vehicle_file
 
     data = yaml.safe_load(vehicle_file("apc_8x8").read_text())
     del data["tyre"]["damping"]

@@ -14,10 +14,10 @@ import pytest
 
 from struts import valves
 from terrain import RoadSpec, build_road
-from vehicle.drive import Drive, DriveSettings, SpeedProfile
-from vehicle.equilibrium import charge_gas_masses
-from vehicle.model import VehicleModel
-from vehicle.params import load_vehicle
+from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+from vehicle.physics.equilibrium import charge_gas_masses
+from vehicle.physics.model import VehicleModel
+from vehicle.physics.params import load_vehicle
 
 LINEAR_STRUT = {
     "friction.F0_compression": 0.0, "friction.F0_rebound": 0.0, "friction.pressure_coefficient": 0.0,

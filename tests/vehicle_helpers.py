@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from terrain import RoadSpec, build_road
-from vehicle.drive import Drive, DriveSettings, SpeedProfile
-from vehicle.model import VehicleModel
-from vehicle.params import load_vehicle
+from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+from vehicle.physics.model import VehicleModel
+from vehicle.physics.params import load_vehicle
 
 
 class Recorder:

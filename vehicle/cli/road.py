@@ -17,14 +17,14 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from hpsim.cli import format_table, print_json
+from hpsim.tables import format_table, print_json
 from hpsim.config import load_yaml
 from hpsim.errors import UserInputError
 
-from . import iso8608
-from .coherence import COHERENCE_MODELS, coherence_model
-from .road import Road
-from .spec import RoadSpec, build_road
+from terrain import iso8608
+from terrain.coherence import COHERENCE_MODELS, coherence_model
+from terrain.road import Road
+from terrain.spec import RoadSpec, build_road
 
 # RoadSpec field -> command-line option (for error messages)
 _OPTIONS = {
@@ -191,7 +191,7 @@ def cmd_generate(args) -> int:
 
 
 def _statistics(road):
-    from .stats import road_statistics
+    from terrain.stats import road_statistics
 
     return road_statistics(road)
 
@@ -200,7 +200,7 @@ def cmd_psd(args) -> int:
     road, spec = _load_road(args)
     stats = _statistics(road)
     if args.plot:
-        from .plots import save_psd_plot
+        from terrain.plots import save_psd_plot
 
         save_psd_plot(stats, args.plot, title=_title(args, spec))
     out = {k: v for k, v in stats.items() if k not in _JSON_ARRAYS}
@@ -213,7 +213,7 @@ def cmd_psd(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    from .plots import save_road_plot
+    from terrain.plots import save_road_plot
 
     road, spec = _load_road(args)
     stats = _statistics(road)

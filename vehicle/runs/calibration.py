@@ -19,12 +19,10 @@ import time
 
 import numpy as np
 
-from hpsim.cli import format_table, print_json
 from hpsim.errors import UserInputError
-from hpsim.units import parse_quantity
 
-from . import thermal
-from .scenario import apply_overrides, read_scenario, prepare
+from vehicle.physics import thermal
+from vehicle.runs.scenario import apply_overrides, read_scenario, prepare
 
 
 def _run(src, parameter: str, value: float):
@@ -81,30 +79,3 @@ def calibrate_heat(scenario_path, target_rise_K: float, parameter: str = "heat.a
     return {"parameter": parameter, "value": value, "target_rise_K": target_rise_K, "achieved_rise_K": rise,
             "runs": [{"value": v, "mean_rise_K": r} for v, r in history],
             "wall_s": time.perf_counter() - t0, "scenario": str(scenario_path)}
-
-
-def register(sub):
-    p = sub.add_parser("calibrate", help="calibrate the heat-transfer parameter to a measured mean temperature rise")
-    p.add_argument("scenario", help="scenario YAML (e.g. scenarios/mileage_106km.yaml)")
-    p.add_argument("--target-rise", required=True, help="mean strut temperature rise, e.g. 54K")
-    p.add_argument("--parameter", default="heat.air_speed_ratio")
-    p.add_argument("--tolerance", default="0.1K", help="accepted error of the mean rise (default 0.1K)")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_calibrate)
-
-
-def cmd_calibrate(args):
-    import sys
-
-    target = parse_quantity(args.target_rise, "delta_degC", where="--target-rise")
-    if not 0 < target < 300:
-        raise UserInputError(f"--target-rise: must be in (0, 300) K, got {target}")
-    tol = parse_quantity(args.tolerance, "delta_degC", where="--tolerance")
-    log = (lambda m: print(m, file=sys.stderr)) if args.json else print
-    res = calibrate_heat(args.scenario, target, args.parameter, tol_K=tol, log=log)
-    if args.json:
-        print_json(res)
-    else:
-        print(format_table(["parameter", "calibrated value", "mean rise [K]", "target [K]", "runs", "wall [s]"],
-                           [(res["parameter"], res["value"], res["achieved_rise_K"], target, len(res["runs"]),
-                             res["wall_s"])]))

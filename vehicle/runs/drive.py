@@ -19,9 +19,9 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
-from .equilibrium import EquilibriumSolver, charge_gas_masses
-from .model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
-from .solvers import Ros2Stepper
+from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
+from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
+from vehicle.numerics.solvers import Ros2Stepper
 
 
 @dataclass

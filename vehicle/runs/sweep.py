@@ -30,7 +30,7 @@ from pydantic import ValidationError
 from hpsim.config import Model, format_validation_error, load_yaml
 from hpsim.errors import SimulationError, UserInputError
 
-from .scenario import ScenarioSource, apply_overrides, prepare, read_scenario
+from vehicle.runs.scenario import ScenarioSource, apply_overrides, prepare, read_scenario
 
 
 class SweepSpec(Model):
@@ -106,7 +106,7 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
 
 def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
     """One case in a worker process: never raises, returns status and message."""
-    from .results import run_scenario
+    from vehicle.runs.results import run_scenario
 
     t0 = time.perf_counter()
     try:
@@ -139,7 +139,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
               scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
     import os
 
-    from .results import results_status
+    from vehicle.runs.results import results_status
 
     log = log or (lambda m: None)
     path = Path(path)
@@ -211,7 +211,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
 
 
 def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
-    from .report import report
+    from vehicle.runs.summary import report
 
     keys = []
     for c in cases:
@@ -253,30 +253,7 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
         w.writeheader()
         for row in table:
             w.writerow({k: row.get(k, "") for k in columns})
-    plots = []
-    if ok_files:
-        from .plots import compare_plot
-
-        plots.append(str(compare_plot(ok_files, out_dir / "compare.png", labels=ok_labels)))
-    return {"sweep": str(path), "output_dir": str(out_dir), "summary_csv": str(csv_path), "plots": plots,
+    # the comparison figure is drawn by the presentation layer (vehicle.cli.drives) from these
+    return {"sweep": str(path), "output_dir": str(out_dir), "summary_csv": str(csv_path), "plots": [],
+            "finished_files": [str(f) for f in ok_files], "finished_labels": ok_labels,
             "cases": table, "failed": [r["case"] for r in table if r["status"] == "failed"]}
-
-
-def format_summary(result: dict) -> str:
-    from hpsim.cli import format_table
-
-    rows = []
-    for r in result["cases"]:
-        ls = r.get("load_shift_pct")
-        lc = r.get("load_shift_vs_charged_pct")
-        rows.append([r["case"], r["status"], "-" if ls in (None, "") else f"{ls:.2f}",
-                     "-" if lc in (None, "") else f"{lc:.2f}",
-                     "-" if r.get("mean_temperature_rise_K") in (None, "") else f"{r['mean_temperature_rise_K']:.1f}",
-                     (r["error"][:100] + "...") if len(r.get("error", "")) > 100 else r.get("error", "")])
-    text = format_table(["case", "status", "load shift [%]", "vs charged [%]", "mean T rise [K]", "error"], rows)
-    text += f"\nsummary: {result['summary_csv']}"
-    if result["plots"]:
-        text += "\nplots: " + ", ".join(result["plots"])
-    if result["failed"]:
-        text += f"\nfailed: {', '.join(result['failed'])}"
-    return text

@@ -36,7 +36,7 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
-from .scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
+from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
 
 FORMAT = "hpsim-drive"
 FORMAT_VERSION = 1
@@ -70,7 +70,7 @@ def _now() -> str:
 def drive_class():
     """`Drive` plus `describe()`: the keys and shapes of what it will hand to the sink, so the file's
     datasets can all be created before the drive starts (SWMR mode cannot create objects)."""
-    from .drive import Drive
+    from vehicle.runs.drive import Drive
 
     class RunDrive(Drive):
         def describe(self):
@@ -429,7 +429,7 @@ def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
 
 
 def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_every_blocks) -> dict:
-    from .drive import DriveState
+    from vehicle.runs.drive import DriveState
 
     with open_read(out) as f:
         stored = _stored_source(f, out)

@@ -13,7 +13,7 @@ import itertools
 import re
 from pathlib import Path
 
-from hpsim.cli import format_table, print_json
+from hpsim.tables import format_table, print_json
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
 

@@ -21,10 +21,10 @@ from scipy.optimize import brentq
 
 from hpsim.errors import UserInputError
 
-from . import hull as hull_eq
-from .model import VehicleModel
-from .params import GRAVITY
-from .tyre import tyre_force
+from vehicle.physics import hull as hull_eq
+from vehicle.physics.model import VehicleModel
+from vehicle.physics.params import GRAVITY
+from vehicle.physics.tyre import tyre_force
 
 
 @dataclass

@@ -5,10 +5,10 @@ A scenario is a YAML mapping validated in two steps *before any work starts*:
 1. `Scenario` (pydantic, unknown keys rejected at every level): types, units and ranges of the
    scenario's own keys. Every error names the file, the key path, the value and what is allowed.
 2. `prepare()`: the parts that need other packages — the vehicle file with its overrides
-   (`vehicle.params.VehicleParams`), the strut files with their overrides, the road
+   (`vehicle.physics.params.VehicleParams`), the strut files with their overrides, the road
    (`terrain.RoadSpec`) and the count of initial temperatures (1, one per axle or one per
    station) — are validated the same way, then `Prepared.drive()` builds the
-   `vehicle.drive.Drive`.
+   `vehicle.runs.drive.Drive`.
 
 Key paths in overrides may be dotted and may index lists: `axles.0.unsprung_mass` or
 `{axles: {0: {unsprung_mass: ...}}}` (see `apply_overrides`).
@@ -36,9 +36,9 @@ DISTANCE_RANGE_M = (1.0, 20_000e3)            # 1 m .. 20 000 km
 SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
 AMBIENT_RANGE_K = (273.15 - 60, 273.15 + 60)  # -60 .. 60 degC
 STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
-DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.drive.DriveSettings.validate
+DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSettings.validate
 
-# time series a drive produces (vehicle.drive.Drive._block_outputs); `output.store` picks from these
+# time series a drive produces (vehicle.runs.drive.Drive._block_outputs); `output.store` picks from these
 SERIES = ("speed_m_per_s", "strut_temperature_K", "axle_height_change_m", "hull_acceleration", "heave_m",
           "pitch_rad", "roll_rad", "oil_added_m3", "strut_force", "strut_deflection", "gas_pressure",
           "gas_temperature", "wheel_load", "energy_valve_J", "energy_friction_J", "energy_gas_J",
@@ -349,12 +349,12 @@ def validate_scenario(src: ScenarioSource) -> Scenario:
 class Prepared:
     source: ScenarioSource
     scenario: Scenario
-    vehicle: Any                 # vehicle.params.VehicleParams
+    vehicle: Any                 # vehicle.physics.params.VehicleParams
     road_spec: Any               # terrain.RoadSpec
     initial_temperatures_K: np.ndarray
 
     def settings(self):
-        from .drive import DriveSettings, SpeedProfile
+        from vehicle.runs.drive import DriveSettings, SpeedProfile
 
         S = self.scenario
         if isinstance(S.speed, SpeedProfileSpec):
@@ -369,7 +369,7 @@ class Prepared:
                              stats_interval_m=S.output.stats_interval)
 
     def model(self):
-        from .model import VehicleModel
+        from vehicle.physics.model import VehicleModel
 
         try:
             return VehicleModel(self.vehicle)
@@ -386,7 +386,7 @@ class Prepared:
 
     def drive(self, drive_class=None):
         """(model, Drive) ready to run."""
-        from .drive import Drive
+        from vehicle.runs.drive import Drive
 
         model = self.model()
         road = self.road()
@@ -428,7 +428,7 @@ def _resolve_path(p: str, base_dir: Path) -> str:
 
 def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
     """The vehicle's parameter mapping with the scenario's overrides, struts and compensation applied."""
-    from .params import vehicle_file
+    from vehicle.physics.params import vehicle_file
 
     if S.vehicle.file is not None:
         path = vehicle_file(_resolve_path(S.vehicle.file, src.base_dir))
@@ -476,7 +476,7 @@ def prepare(src: ScenarioSource) -> Prepared:
 
     from struts.params import load_strut
 
-    from .params import VehicleParams
+    from vehicle.physics.params import VehicleParams
 
     S = validate_scenario(src)
     data, vpath = vehicle_data(S, src)

@@ -65,12 +65,12 @@ def register(sub):
 def cmd_equilibrium(args):
     import numpy as np
 
-    from hpsim.cli import format_table, print_json
+    from hpsim.tables import format_table, print_json
     from hpsim.units import parse_quantity_list
 
-    from .equilibrium import EquilibriumSolver, charge_gas_masses, equilibrium_table
-    from .model import VehicleModel
-    from .params import load_vehicle
+    from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses, equilibrium_table
+    from vehicle.physics.model import VehicleModel
+    from vehicle.physics.params import load_vehicle
 
     P = load_vehicle(args.vehicle)
     if args.temperatures is None:
@@ -98,8 +98,8 @@ def cmd_equilibrium(args):
 
 # --- run -------------------------------------------------------------------------------------------
 def cmd_run(args):
-    from .report import format_report, report
-    from .results import RunInterrupted, run_scenario
+    from vehicle.presentation.report import format_report, report
+    from vehicle.runs.results import RunInterrupted, run_scenario
 
     scen = Path(args.scenario)
     out = Path(args.output) if args.output else Path(scen.stem + ".h5")
@@ -119,9 +119,9 @@ def cmd_run(args):
 
 
 def cmd_report(args):
-    from hpsim.cli import print_json
+    from hpsim.tables import print_json
 
-    from .report import format_report, report
+    from vehicle.presentation.report import format_report, report
 
     rep = report(args.results)
     if args.json:
@@ -132,13 +132,13 @@ def cmd_report(args):
 
 
 def cmd_compare(args):
-    from hpsim.cli import print_json
+    from hpsim.tables import print_json
 
-    from .report import compare, format_compare
+    from vehicle.presentation.report import compare, format_compare
 
     cmp = compare(args.results)
     if args.plot:
-        from .plots import compare_plot
+        from vehicle.presentation.plots import compare_plot
 
         compare_plot(args.results, args.plot)
     if args.json:
@@ -151,7 +151,7 @@ def cmd_compare(args):
 
 
 def cmd_plot(args):
-    from .plots import dashboard
+    from vehicle.presentation.plots import dashboard
 
     out = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
     dashboard(args.results, out)
@@ -160,14 +160,19 @@ def cmd_plot(args):
 
 
 def cmd_sweep(args):
-    from hpsim.cli import print_json
+    from hpsim.tables import print_json
 
-    from .sweep import format_summary, run_sweep
+    from vehicle.presentation.plots import compare_plot
+    from vehicle.presentation.report import format_summary
+    from vehicle.runs.sweep import run_sweep
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        log=(lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True)))
+    if result["finished_files"]:
+        result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
+                                                labels=result["finished_labels"])))
     if args.json:
         print_json(result)
     else:

@@ -3,7 +3,7 @@
 `VehicleModel` is equations only (PyBaMM-style): it names its states, algebraic variables,
 inputs and run parameters, and builds CasADi expressions for
     dx/dt = f(x, z, u, p),   0 = g(x, z, u, p),   outputs y(x, z, u, p).
-Solvers (`vehicle.solvers`) decide how to integrate it; `vehicle.drive` ties it to a road and a
+Solvers (`vehicle.numerics.solvers`) decide how to integrate it; `vehicle.runs.drive` ties it to a road and a
 speed profile.
 
 States (per station i, stations axle-major, left first):
@@ -30,11 +30,11 @@ import numpy as np
 from struts.model import StrutInputs, make_strut
 from struts.params import load_strut
 
-from . import compensation as comp
-from . import hull as hull_eq
-from . import thermal
-from .params import GRAVITY, VehicleParams
-from .tyre import tyre_force
+from vehicle.physics import compensation as comp
+from vehicle.physics import hull as hull_eq
+from vehicle.physics import thermal
+from vehicle.physics.params import GRAVITY, VehicleParams
+from vehicle.physics.tyre import tyre_force
 
 ENERGY_TERMS = ("valve", "friction", "gas", "end_stop", "strut_work", "tyre_work", "road_work")
 DISSIPATION_TERMS = ("valve", "friction", "gas", "end_stop")

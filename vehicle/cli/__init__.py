@@ -1,8 +1,9 @@
-"""`hpsim` command line: one entry point, sub-commands contributed by each package.
+"""`hpsim` command line: the one console entry point and every sub-command, all in this package.
 
-    hpsim strut ...    (struts.cli)
-    hpsim road ...     (terrain.cli)
-    hpsim vehicle ... / run / report / compare / sweep / plot   (vehicle)
+    hpsim strut ...                                  strut.py     (rig, characteristic, fit, gas)
+    hpsim road ...                                   road.py      (generate, psd, plot)
+    hpsim vehicle ... / run / report / compare / sweep / plot   drives.py
+    hpsim calibrate                                  calibrate.py
 
 User errors (bad argument, bad file) print one line and exit with code 2.
 """
@@ -25,20 +26,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"hpsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    import struts.cli
-    import terrain.cli
+    from . import road, strut
 
-    struts.cli.register(sub)
-    terrain.cli.register(sub)
-    try:
-        from . import commands
-    except ImportError:  # vehicle commands not built yet
-        commands = None
-    if commands is not None:
-        commands.register(sub)
-    from . import calibration
+    strut.register(sub)
+    road.register(sub)
+    from . import calibrate, drives
 
-    calibration.register(sub)
+    drives.register(sub)
+    calibrate.register(sub)
     return parser
 
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .report import compare, open_results, report_from
-from .results import valid_counts
+from vehicle.presentation.report import compare, open_results, report_from
+from vehicle.runs.results import valid_counts
 
 MECHANISMS = (("valve", "valve (damping)"), ("friction", "seal friction"), ("gas", "gas heat"),
               ("end_stop", "end stops"))

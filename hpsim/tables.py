@@ -1,4 +1,4 @@
-"""Small helpers shared by the sub-command modules (struts.cli, terrain.cli, vehicle.cli)."""
+"""Small helpers shared by the sub-command modules (vehicle.cli.strut, vehicle.cli.road, vehicle.cli)."""
 from __future__ import annotations
 
 import json
