@@ -45,7 +45,59 @@ class Equilibrium:
 
 
 def charge_gas_masses(model: VehicleModel) -> np.ndarray:
-    """Gas mass [kg] per strut so that the charging loads are carried at the charging heights."""
+    """Gas mass [kg] per strut by the vehicle's `charging.method` (issue 10 §5, REFERENCE §1, §3).
+
+    load_and_height: the charging loads are carried at the charging deflection at the charging
+        temperature with the standing gas law of the strut file (isothermal for `gas.process:
+        energy`, seed 000 eq. 5 for `polytropic`): exact loads and heights, standing.
+    gas_pressure: each strut's `charge.pressure` at full extension at its `charge.temperature`
+        (`strut.charge_gas_mass`); strut overrides of charge.pressure take effect.
+    polytropic_convention: the charging loads at the charging deflection and temperature by seed
+        000's polytropic law from full extension (eq. 5, the strut file's exponent), the convention
+        that gives 41.8 kN at 112 mm for 4.8 MPa at 20 degC.
+    `charging.fill_pressure_offset` then adds to the fill pressure at full extension (at the
+    temperature that defines the method's charge) for sensitivity studies.
+    """
+    P = model.params
+    method = P.charging.method
+    if method == "gas_pressure":
+        masses = np.array([float(s.charge_gas_mass) for s in model.struts])
+        T_fill = np.array([float(s.p.charge.temperature) for s in model.struts])
+    else:
+        masses = _masses_for_charging_loads(model, "polytropic" if method == "polytropic_convention" else None)
+        T_fill = np.full(model.n, P.charging.temperature)
+    dp_fill = P.charging.fill_pressure_offset
+    if dp_fill != 0.0:
+        from struts import gas as gaslaw
+
+        for i in range(model.n):
+            strut = model.struts[i]
+            V_ext = float(strut.extended_gas_volume(T_fill[i]))
+            p_fill = float(gaslaw.pressure(T_fill[i], V_ext / masses[i], strut.gas, strut.p.gas.eos))
+            if p_fill + dp_fill <= 0.1e6:
+                raise UserInputError(f"{P.name}: charging.fill_pressure_offset {dp_fill / 1e6:.3g} MPa leaves "
+                                     f"{(p_fill + dp_fill) / 1e6:.3g} MPa at {model.station_names[i]} (> 0.1 MPa needed)")
+            masses[i] = strut.gas_mass_for(p_fill + dp_fill, T_fill[i])
+        return masses
+    if method == "gas_pressure":
+        return masses
+    # the hull must be in equilibrium at the charged pose with these loads
+    Fs = (model.charged_wheel_loads - model.m_u * GRAVITY) / model.r
+    Qz, Qt, Qp = hull_eq.generalised_forces(model.r * Fs, model.a, model.y, model.a_cg, model.y_cg)
+    W = model.M * GRAVITY
+    if abs(Qz - W) > 5e-3 * W or abs(Qt) > 5e-3 * W * 1.0 or abs(Qp) > 5e-3 * W * 1.0:
+        raise UserInputError(
+            f"{P.name}: charging.wheel_loads are not in equilibrium with the hull (sprung weight {W:.6g} N, "
+            f"loads carry {Qz:.6g} N, pitch moment {Qt:.4g} N m, roll moment {Qp:.4g} N m); "
+            "omit hull.mass / hull.cg_x to derive them from the loads")
+    return masses
+
+
+def _masses_for_charging_loads(model: VehicleModel, process: str | None) -> np.ndarray:
+    """Gas mass [kg] per strut that carries the charging load at the charging deflection and temperature.
+
+    process: None = the strut file's standing law (`static_gas_force`), "polytropic" = seed 000 eq. 5.
+    """
     P = model.params
     T = P.charging.temperature
     masses = np.zeros(model.n)
@@ -64,7 +116,7 @@ def charge_gas_masses(model: VehicleModel) -> np.ndarray:
                 f"the unsprung weight {model.m_u[i] * GRAVITY:.6g} N")
 
         def residual(m):
-            return float(strut.static_gas_force(model.x_charged, T, m)) - F_needed
+            return float(strut.static_gas_force(model.x_charged, T, m, process=process)) - F_needed
 
         m_lo, m_hi = 1e-4, 5.0
         if residual(m_hi) < 0:
@@ -77,29 +129,47 @@ def charge_gas_masses(model: VehicleModel) -> np.ndarray:
             raise UserInputError(
                 f"{P.name}: strut {strut.p.name} at {name} would need {p_gas / 1e6:.4g} MPa to carry its load "
                 "(allowed up to 60 MPa)")
-    dp_fill = P.charging.fill_pressure_offset
-    if dp_fill != 0.0:
-        from struts import gas as gaslaw
-
-        for i in range(model.n):
-            strut = model.struts[i]
-            V_ext = float(strut.extended_gas_volume(T))
-            p_fill = float(gaslaw.pressure(T, V_ext / masses[i], strut.gas, strut.p.gas.eos))
-            if p_fill + dp_fill <= 0.1e6:
-                raise UserInputError(f"{P.name}: charging.fill_pressure_offset {dp_fill / 1e6:.3g} MPa leaves "
-                                     f"{(p_fill + dp_fill) / 1e6:.3g} MPa at {model.station_names[i]} (> 0.1 MPa needed)")
-            masses[i] = strut.gas_mass_for(p_fill + dp_fill, T)
-        return masses
-    # the hull must be in equilibrium at the charged pose with these loads
-    Fs = (model.charged_wheel_loads - model.m_u * GRAVITY) / model.r
-    Qz, Qt, Qp = hull_eq.generalised_forces(model.r * Fs, model.a, model.y, model.a_cg, model.y_cg)
-    W = model.M * GRAVITY
-    if abs(Qz - W) > 5e-3 * W or abs(Qt) > 5e-3 * W * 1.0 or abs(Qp) > 5e-3 * W * 1.0:
-        raise UserInputError(
-            f"{P.name}: charging.wheel_loads are not in equilibrium with the hull (sprung weight {W:.6g} N, "
-            f"loads carry {Qz:.6g} N, pitch moment {Qt:.4g} N m, roll moment {Qp:.4g} N m); "
-            "omit hull.mass / hull.cg_x to derive them from the loads")
     return masses
+
+
+def static_balance(model: VehicleModel, q, T, m, dV, strut_force_offset=None) -> dict:
+    """The 3 + n static balances of the hull on its stations and their by-products (symbolic or numeric).
+
+    q = (z, theta, phi, w_1..w_n) [m, rad, rad, m]; T [K], m [kg], dV [m^3] per strut. Each strut
+    carries its static gas force (`static_gas_force`) plus its end-stop force; valves carry nothing.
+    strut_force_offset(i, p_gas_Pa) -> extra strut force [N] at station i (seal friction held at
+    rest, vehicle.physics.weighing); None: frictionless. Residuals are scaled by 1e-4 (N -> ~1).
+    Returns residual (list), wheel_loads, strut_forces, gas_forces, gas_pressures, deflections,
+    station_heights [m, hull above each station vs the charged pose], axle_heights [m].
+    """
+    P = model.params
+    n = model.n
+    res, Fs_list, Fg_list, Ft_list, xs_list, p_list, zs_list = [], [], [], [], [], [], []
+    for i in range(n):
+        zs = hull_eq.station_displacement(q[0], q[1], q[2], model.a[i], model.y[i], model.a_cg, model.y_cg)
+        xs = hull_eq.strut_deflection(model.x_charged, model.r[i], q[3 + i], zs)
+        strut = model.struts[i]
+        F_gas = strut.static_gas_force(xs, T[i], m[i], dV[i])
+        p_gas = F_gas / strut.p.geometry.gas_area
+        Fs = F_gas + strut.end_stop_force(xs, 0.0)[0]
+        if strut_force_offset is not None:
+            Fs = Fs + strut_force_offset(i, p_gas)
+        Ft = tyre_force(model.tyre_static_deflection[i] - q[3 + i], 0.0, P.tyre.stiffness, P.tyre.damping,
+                        P.tyre.lift_off_smoothing)
+        res.append((Ft - model.r[i] * Fs - model.m_u[i] * GRAVITY) / 1e4)
+        Fs_list.append(Fs)
+        Fg_list.append(F_gas)
+        Ft_list.append(Ft)
+        xs_list.append(xs)
+        p_list.append(p_gas)
+        zs_list.append(zs)
+    Qz, Qt, Qp = hull_eq.generalised_forces([model.r[i] * Fs_list[i] for i in range(n)], model.a, model.y,
+                                            model.a_cg, model.y_cg)
+    res = [(Qz - model.M * GRAVITY) / 1e4, Qt / 1e4, Qp / 1e4] + res
+    axle_heights = [hull_eq.axle_height_change(q[0], q[1], ax.position, model.a_cg) for ax in P.axles]
+    return {"residual": res, "wheel_loads": Ft_list, "strut_forces": Fs_list, "gas_forces": Fg_list,
+            "gas_pressures": p_list, "deflections": xs_list, "station_heights": zs_list,
+            "axle_heights": axle_heights}
 
 
 class EquilibriumSolver:
@@ -112,26 +182,12 @@ class EquilibriumSolver:
         T = ca.SX.sym("T", n)
         m = ca.SX.sym("m", n)
         dV = ca.SX.sym("dV", n)
-        res, Fs_list, Ft_list, xs_list = [], [], [], []
-        P = model.params
-        for i in range(n):
-            zs = hull_eq.station_displacement(q[0], q[1], q[2], model.a[i], model.y[i], model.a_cg, model.y_cg)
-            xs = hull_eq.strut_deflection(model.x_charged, model.r[i], q[3 + i], zs)
-            strut = model.struts[i]
-            Fs = strut.static_gas_force(xs, T[i], m[i], dV[i]) + strut.end_stop_force(xs, 0.0)[0]
-            Ft = tyre_force(model.tyre_static_deflection[i] - q[3 + i], 0.0, P.tyre.stiffness, P.tyre.damping,
-                            P.tyre.lift_off_smoothing)
-            res.append((Ft - model.r[i] * Fs - model.m_u[i] * GRAVITY) / 1e4)
-            Fs_list.append(Fs)
-            Ft_list.append(Ft)
-            xs_list.append(xs)
-        Qz, Qt, Qp = hull_eq.generalised_forces([model.r[i] * Fs_list[i] for i in range(n)], model.a, model.y,
-                                                model.a_cg, model.y_cg)
-        res = [(Qz - model.M * GRAVITY) / 1e4, Qt / 1e4, Qp / 1e4] + res
-        self.F = ca.Function("eq_res", [q, T, m, dV], [ca.vertcat(*res)])
-        self.Jf = ca.Function("eq_jac", [q, T, m, dV], [ca.jacobian(ca.vertcat(*res), q)])
-        self.out = ca.Function("eq_out", [q, T, m, dV], [ca.vertcat(*Ft_list), ca.vertcat(*Fs_list),
-                                                         ca.vertcat(*xs_list)])
+        b = static_balance(model, q, T, m, dV)
+        res = ca.vertcat(*b["residual"])
+        self.F = ca.Function("eq_res", [q, T, m, dV], [res])
+        self.Jf = ca.Function("eq_jac", [q, T, m, dV], [ca.jacobian(res, q)])
+        self.out = ca.Function("eq_out", [q, T, m, dV], [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]),
+                                                         ca.vertcat(*b["deflections"])])
 
     def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None) -> Equilibrium:
         model = self.model

@@ -11,7 +11,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from hpsim.config import Model, Plain, Quantity, QuantityList, deep_update, load_yaml, validate
 from hpsim.errors import UserInputError
@@ -110,9 +110,25 @@ class Compensation(Model):
     smoothing: m = 1e-3
 
 
-class Charging(Model):
-    """How the gas charges were set while stationary (seed 000 §3; REFERENCE §3)."""
+CHARGING_METHODS = ("load_and_height", "gas_pressure", "polytropic_convention")
 
+
+class Charging(Model):
+    """How the gas charges were set while stationary (seed 000 §3; REFERENCE §3; issue 10 §5).
+
+    `method` decides the gas mass of every strut (vehicle.physics.equilibrium.charge_gas_masses):
+      load_and_height        the wheel_loads are carried at strut_deflection at `temperature` with
+                             the standing (isothermal) gas law of the strut file
+      gas_pressure           each strut file's charge: charge.pressure at full extension at
+                             charge.temperature (a strut override of charge.pressure takes effect)
+      polytropic_convention  the wheel_loads are carried at strut_deflection at `temperature` with
+                             seed 000's spring law p V^n = const from full extension (eq. 5), the
+                             convention behind the strut file's 4.8 MPa / 41.8 kN / 112 mm
+    The charged pose (strut_deflection, wheel_loads) stays the reference of all displacements;
+    with gas_pressure or polytropic_convention the standing vehicle does not sit exactly there.
+    """
+
+    method: Literal[CHARGING_METHODS] = "load_and_height"
     wheel_loads: QuantityList("N")   # per axle, per wheel (left = right)
     heights: QuantityList("m")                # hull height at each axle
     temperature: K
@@ -120,6 +136,16 @@ class Charging(Model):
     # charge every strut this much above (or below) the set-up charge: the gas mass follows the
     # fill pressure at full extension at the charging temperature (sensitivity studies)
     fill_pressure_offset: Quantity("Pa") = 0.0
+
+    @field_validator("method", mode="before")
+    @classmethod
+    def _method(cls, v):
+        # {value: ..., source: ...} like the quantities: the vehicle file says why it uses a method
+        if isinstance(v, dict) and "value" in v and set(v) <= {"value", "source", "note"}:
+            v = v["value"]
+        if v not in CHARGING_METHODS:
+            raise ValueError(f"must be one of {', '.join(CHARGING_METHODS)}, got {v!r}")
+        return v
 
 
 class VehicleParams(Model):
@@ -145,6 +171,15 @@ class VehicleParams(Model):
             raise ValueError("charging.wheel_loads must be > 0 N")
         if self.track <= 0:
             raise ValueError(f"track must be > 0 m, got {self.track}")
+        if self.charging.method != "gas_pressure":
+            for k, axle in enumerate(self.axles):
+                if _has_key(axle.strut_overrides, "charge.pressure"):
+                    raise ValueError(
+                        f"axles.{k}.strut_overrides: charge.pressure has no effect with charging.method "
+                        f"{self.charging.method!r}: charging.method decides the gas mass (here from "
+                        "charging.wheel_loads at charging.strut_deflection); set charging.method: gas_pressure "
+                        "(in a scenario: vehicle.overrides: {charging.method: gas_pressure}) to charge by "
+                        "pressure, or use charging.fill_pressure_offset")
         return self
 
     # --- derived ------------------------------------------------------------------------------
@@ -201,6 +236,21 @@ class VehicleParams(Model):
 
     def total_weight(self) -> float:
         return (self.sprung_mass() + self.unsprung_mass_total()) * GRAVITY
+
+
+def _has_key(mapping: dict, dotted: str) -> bool:
+    """True if `mapping` sets `dotted` ("charge.pressure"), as a dotted key or nested mappings."""
+    if not isinstance(mapping, dict):
+        return False
+    if dotted in mapping:
+        return True
+    head, _, rest = dotted.partition(".")
+    for key, value in mapping.items():
+        if key == head and rest:
+            return _has_key(value, rest)
+        if str(key).startswith(head + ".") and _has_key({str(key)[len(head) + 1:]: value}, rest):
+            return True
+    return False
 
 
 def builtin_vehicles() -> list[str]:
