@@ -8,6 +8,8 @@ Per axle, values are the mean of the left and right station:
   energy_dissipated_MJ   valve + friction + gas heat + end-stop energy of the strut
   N_charged_daN, dN_charged_pct   the charged (set-up) wheel load and the after-drive change
                          against it
+  dN_band_pct, dh_band_mm  [low, high] of dN_pct and dh_mm that two weighings with seal friction
+                         can give (vehicle.physics.weighing; None without /equilibrium/*_band)
 Whole vehicle: load_shift_pct = 100 * sum_axles |N_after - N_before| / sum_axles N_before
 (the load redistribution in one number), load_shift_vs_charged_pct (the same against the
 charged loads; equal to load_shift_pct when the struts start at the charging temperature),
@@ -99,6 +101,7 @@ def report_from(f: h5py.File, name: str) -> dict:
         h1 = np.full(len(axles), np.nan)
     E = dissipated_energy_J(f)
     E_ax = _axle_mean(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
+    bands = weighing_difference_bands(eq, len(axles))
     n_done = valid_counts(f)[0]
     if "distance_km" in summ and status == "complete":
         dist_km, sim_s = float(summ["distance_km"]), float(summ["simulated_s"])
@@ -117,7 +120,8 @@ def report_from(f: h5py.File, name: str) -> dict:
         rows.append({"axle": k + 1, "T_start_C": num(T0[k]), "T_end_C": num(T1[k]), "dh_mm": num((h1[k] - h0[k]) * 1e3),
                      "N_before_daN": num(N0[k] / 10.0), "N_after_daN": num(N1[k] / 10.0),
                      "dN_pct": num(100.0 * (N1[k] - N0[k]) / N0[k]), "energy_dissipated_MJ": num(E_ax[k]),
-                     "N_charged_daN": num(Nc[k] / 10.0), "dN_charged_pct": num(100.0 * (N1[k] - Nc[k]) / Nc[k])})
+                     "N_charged_daN": num(Nc[k] / 10.0), "dN_charged_pct": num(100.0 * (N1[k] - Nc[k]) / Nc[k]),
+                     "dN_band_pct": bands["dN_band_pct"][k], "dh_band_mm": bands["dh_band_mm"][k]})
     shift = 100.0 * np.sum(np.abs(N1 - N0)) / np.sum(N0)
     shift_charged = 100.0 * np.sum(np.abs(N1 - Nc)) / np.sum(Nc)
     resolved = json.loads(sc.attrs["resolved_json"])
@@ -137,6 +141,22 @@ def report_from(f: h5py.File, name: str) -> dict:
     if "error" in summ:
         out["error"] = str(summ["error"])
     return out
+
+
+def weighing_difference_bands(eq, n_axles: int) -> dict:
+    """Per axle [low, high] of dN [%] and dh [mm] from /equilibrium/before_band and /after_band
+    (vehicle.physics.weighing.band_datasets; two independent weighings: low = after_low -
+    before_high, see difference_bands), or None per axle when the file has no bands."""
+    from vehicle.physics.weighing import difference_bands
+
+    none = {"dN_band_pct": [None] * n_axles, "dh_band_mm": [None] * n_axles}
+    if not eq or "before_band" not in eq or "after_band" not in eq:
+        return none
+    try:
+        d = difference_bands(eq["before_band"], eq["after_band"])
+    except KeyError:
+        return none
+    return {k: [[float(x) if np.isfinite(x) else None for x in row] for row in v] for k, v in d.items()}
 
 
 # --- compare -------------------------------------------------------------------------------------
