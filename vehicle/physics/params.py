@@ -110,6 +110,16 @@ class Compensation(Model):
     smoothing: m = 1e-3
 
 
+class Seat(Model):
+    """A seat on the hull where ride comfort is evaluated (vehicle.physics.ride): position from the
+    sprung CG, x + rearward (as the axle positions), y + left, z + up (lateral reading in roll)."""
+
+    name: str
+    x_from_cg: m
+    y_from_cg: m = 0.0
+    z_from_cg: m = 0.0
+
+
 CHARGING_METHODS = ("load_and_height", "gas_pressure", "polytropic_convention")
 
 
@@ -158,6 +168,15 @@ class VehicleParams(Model):
     heat: Heat
     compensation: Compensation = Compensation()
     charging: Charging
+    seats: list[Seat] = []          # ride-comfort evaluation points (driver, crew)
+
+    @field_validator("seats")
+    @classmethod
+    def _seat_names(cls, v):
+        names = [st.name for st in v]
+        if len(set(names)) != len(names):
+            raise ValueError(f"seat names must differ, got {names}")
+        return v
 
     @model_validator(mode="after")
     def _check(self):
