@@ -68,10 +68,10 @@ def assert_same_results(a: Path, b: Path):
             assert A["summary"].attrs[k] == B["summary"].attrs[k]
 
 
-def test_layout_is_plain_hdf5(reference, workdir):
+def test_layout_is_netcdf4_cf_hdf5(reference, workdir):
     n = int(round(DISTANCE_M / SPEED))
     with h5py.File(reference, "r") as f:
-        assert f.attrs["format"] == "hpsim-drive"
+        assert f.attrs["format"] == "hpsim-drive" and f.attrs["format_version"] == 2 and f.attrs["Conventions"] == "CF-1.8"
         sc = f["scenario"]
         assert sc.attrs["yaml"] == SCENARIO
         assert sc.attrs["hpsim_version"]
@@ -81,21 +81,21 @@ def test_layout_is_plain_hdf5(reference, workdir):
         assert set(resolved["struts"]) == {"axle1", "axle2", "axle3", "axle4"}
         assert len(resolved["vehicle_derived"]["gas_masses_kg"]) == 8
         ts = f["timeseries"]
-        t = ts["t_s"][()]
+        t = ts["time"][()]
         assert len(t) == n and np.allclose(np.diff(t), 1.0) and t[-1] == pytest.approx(DISTANCE_M / SPEED)
-        assert ts["distance_m"][-1] == pytest.approx(DISTANCE_M)
-        for k, width in (("strut_temperature_K", 8), ("wheel_load", 8), ("axle_height_change_m", 4),
-                         ("energy_valve_J", 8), ("hull_acceleration", 3)):
-            assert ts[k].shape == (n, width)
+        assert ts["distance"][-1] == pytest.approx(DISTANCE_M)
+        for k, shape in (("strut_temperature", (n, 8)), ("wheel_load", (n, 8)), ("axle_height_change", (n, 4)),
+                         ("energy_valve", (n, 8)), ("heave_acceleration", (n,)), ("roll_acceleration", (n,))):
+            assert ts[k].shape == shape
             assert ts[k].chunks is not None and ts[k].compression == "gzip" and ts[k].maxshape[0] is None
-        assert list(ts["wheel_load"].attrs["columns"])[:2] == ["axle1_left", "axle1_right"]
-        assert ts["wheel_load"].attrs["unit"] == "N"
+        assert [str(s) for s in ts["station"].asstr()[:2]] == ["axle1_left", "axle1_right"]
+        assert ts["wheel_load"].attrs["units"] == "N" and ts["pitch_acceleration"].attrs["units"] == "rad s-2"
         st = f["stats"]
-        assert st["distance_end_m"].shape == (int(DISTANCE_M / STATS_M),)
-        np.testing.assert_allclose(st["distance_end_m"][()], np.arange(1, 9) * STATS_M)
-        np.testing.assert_allclose(st["duration_s"][()], STATS_M / SPEED, rtol=1e-6)
+        assert st["km"].shape == (int(DISTANCE_M / STATS_M),)
+        np.testing.assert_allclose(st["km"][()], np.arange(1, 9) * STATS_M / 1e3)
+        np.testing.assert_allclose(st["duration"][()], STATS_M / SPEED, rtol=1e-6)
         for g in ("before", "after", "charged"):
-            assert "wheel_loads_N" in f["equilibrium"][g]
+            assert "wheel_load" in f["equilibrium"][g]
         assert f["summary"].attrs["complete"] and f["summary"].attrs["status"] == "complete"
         for k in ("distance_km", "simulated_s", "wall_s", "build_s"):
             assert k in f["summary"].attrs
@@ -111,16 +111,16 @@ def test_report_agrees_with_the_file(reference, capsys):
     with h5py.File(reference, "r") as f:
         before, after = f["equilibrium/before"], f["equilibrium/after"]
         ts = f["timeseries"]
-        T_last = ts["strut_temperature_K"][-1]
-        E_last = sum(ts[f"energy_{e}_J"][-1] for e in ("valve", "friction", "gas", "end_stop"))
+        T_last = ts["strut_temperature"][-1]
+        E_last = sum(ts[f"energy_{e}"][-1] for e in ("valve", "friction", "gas", "end_stop"))
         for k, a in enumerate(rep["axles"]):
             l, r = 2 * k, 2 * k + 1
-            assert a["T_start_C"] == pytest.approx(0.5 * (before["temperatures_K"][l] + before["temperatures_K"][r]) - 273.15)
+            assert a["T_start_C"] == pytest.approx(0.5 * (before["strut_temperature"][l] + before["strut_temperature"][r]) - 273.15)
             assert a["T_end_C"] == pytest.approx(0.5 * (T_last[l] + T_last[r]) - 273.15)
-            assert a["T_end_C"] == pytest.approx(0.5 * (after["temperatures_K"][l] + after["temperatures_K"][r]) - 273.15)
-            assert a["dh_mm"] == pytest.approx(1e3 * (after["axle_height_change_m"][k] - before["axle_height_change_m"][k]))
-            N0 = 0.5 * (before["wheel_loads_N"][l] + before["wheel_loads_N"][r])
-            N1 = 0.5 * (after["wheel_loads_N"][l] + after["wheel_loads_N"][r])
+            assert a["T_end_C"] == pytest.approx(0.5 * (after["strut_temperature"][l] + after["strut_temperature"][r]) - 273.15)
+            assert a["dh_mm"] == pytest.approx(1e3 * (after["axle_height_change"][k] - before["axle_height_change"][k]))
+            N0 = 0.5 * (before["wheel_load"][l] + before["wheel_load"][r])
+            N1 = 0.5 * (after["wheel_load"][l] + after["wheel_load"][r])
             assert a["N_before_daN"] == pytest.approx(N0 / 10) and a["N_after_daN"] == pytest.approx(N1 / 10)
             assert a["dN_pct"] == pytest.approx(100 * (N1 - N0) / N0)
             assert a["energy_dissipated_MJ"] == pytest.approx(0.5 * (E_last[l] + E_last[r]) / 1e6)
@@ -129,11 +129,11 @@ def test_report_agrees_with_the_file(reference, capsys):
         assert [round(a["T_start_C"], 6) for a in rep["axles"]] == [40, 35, 30, 25]
         # the dissipated energy matches the per-interval mean powers of the statistics
         st = f["stats"]
-        P = sum(st[f"power_{e}_W"][()] for e in ("valve", "friction", "gas", "end_stop"))
-        E_stats = (P * st["duration_s"][()][:, None]).sum(axis=0)
+        P = sum(st[f"power_{e}"][()] for e in ("valve", "friction", "gas", "end_stop"))
+        E_stats = (P * st["duration"][()][:, None]).sum(axis=0)
         np.testing.assert_allclose(E_stats, E_last, rtol=1e-6)
         # the total wheel load is the vehicle's weight before and after
-        assert np.sum(after["wheel_loads_N"]) == pytest.approx(np.sum(before["wheel_loads_N"]), rel=1e-6)
+        assert np.sum(after["wheel_load"]) == pytest.approx(np.sum(before["wheel_load"]), rel=1e-6)
     # the text table
     assert cli.main(["report", str(reference)]) == 0
     text = capsys.readouterr().out
@@ -198,7 +198,7 @@ def test_ctrl_c_leaves_a_readable_resumable_file(reference, workdir):
     assert "interrupted at" in err and "--resume" in err and "Traceback" not in err
     with h5py.File(out, "r") as f:            # closed cleanly: plain h5py opens it
         assert f["summary"].attrs["status"] == "interrupted"
-        assert f["timeseries/t_s"].shape[0] >= 60
+        assert f["timeseries/time"].shape[0] >= 60
     # an existing file is not overwritten by mistake
     r = run_hpsim(["run", workdir / "drive.yaml", "-o", out, "--no-progress"])
     assert r.returncode == 2 and "--resume" in r.stderr
@@ -230,7 +230,7 @@ def test_solver_failure_stops_with_a_message_and_keeps_the_data(workdir, monkeyp
     with h5py.File(out, "r") as f:
         assert f["summary"].attrs["status"] == "failed" and not f["summary"].attrs["complete"]
         assert "axle2_left" in f["summary"].attrs["error"]
-        d = f["timeseries/distance_m"][()]
+        d = f["timeseries/distance"][()]
         assert 1100.0 < d[-1] <= 1200.0 + 1e-6
     monkeypatch.undo()
     assert cli.main(["report", str(out), "--json"]) == 0

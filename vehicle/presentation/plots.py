@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from vehicle.presentation.report import compare, open_results, report_from
-from vehicle.runs.results import valid_counts
 
 MECHANISMS = (("valve", "valve (damping)"), ("friction", "seal friction"), ("gas", "gas heat"),
               ("end_stop", "end stops"))
@@ -35,12 +34,9 @@ def _moving_mean(y: np.ndarray, window: int) -> np.ndarray:
     return out if y.ndim == 2 else out[:, 0]
 
 
-def _series(f, name):
-    ds = f.get(f"timeseries/{name}")
-    if ds is None:
-        return None
-    n = min(valid_counts(f)[0], ds.shape[0])
-    return np.asarray(ds[:n], float)
+def _series(r, name):
+    """A time series of the results (vehicle.runs.reader.ResultsView), rows covered by the checkpoint."""
+    return r.series(name)
 
 
 def dashboard(path: str | Path, out: str | Path) -> Path:
@@ -50,33 +46,32 @@ def dashboard(path: str | Path, out: str | Path) -> Path:
     out = Path(out)
     with open_results(path) as f:
         rep = report_from(f, str(path))
-        axles = [str(a) for a in f["scenario"].attrs["axles"]]
-        stations = [str(s) for s in f["scenario"].attrs["stations"]]
-        s_km = _series(f, "distance_m")
+        axles, stations = f.axles, f.stations
+        s_km = _series(f, "distance")
         s_km = None if s_km is None else s_km / 1e3
-        t_all = _series(f, "t_s")
+        t_all = _series(f, "time")
         sample_dt = float(np.median(np.diff(t_all))) if t_all is not None and len(t_all) > 1 else 1.0
-        T = _series(f, "strut_temperature_K")
-        h = _series(f, "axle_height_change_m")
-        eq = f["equilibrium"]
-        N_before = np.asarray(eq["before/wheel_loads_N"], float)
-        N_after = np.asarray(eq["after/wheel_loads_N"], float) if "after" in eq else None
-        h_before = np.asarray(eq["before/axle_height_change_m"], float)
-        st = f.get("stats")
-        n_rows = min(valid_counts(f)[1], st["distance_end_m"].shape[0]) if st is not None else 0
+        T = _series(f, "strut_temperature")
+        h = _series(f, "axle_height_change")
+        before, after = f.equilibrium("before"), f.equilibrium("after")
+        N_before = np.asarray(before["wheel_load"], float)
+        N_after = np.asarray(after["wheel_load"], float) if after is not None else None
+        h_before = np.asarray(before["axle_height_change"], float)
+        s_stats = f.stats_series("km")
+        n_rows = 0 if s_stats is None else len(s_stats)
         power = {}
         if n_rows >= 2:
-            s_stats = np.asarray(st["distance_end_m"][:n_rows]) / 1e3
             for key, _ in MECHANISMS:
-                if f"power_{key}_W" in st:
-                    power[key] = np.asarray(st[f"power_{key}_W"][:n_rows], float).sum(axis=1)
+                P = f.stats_series(f"power_{key}")
+                if P is not None:
+                    power[key] = P.sum(axis=1)
             power_x = s_stats
             power_how = "per statistics interval"
         else:
             power_x = None
-            t = _series(f, "t_s")
+            t = _series(f, "time")
             for key, _ in MECHANISMS:
-                E = _series(f, f"energy_{key}_J")
+                E = _series(f, f"energy_{key}")
                 if E is not None and t is not None and len(t) >= 2:
                     power[key] = np.gradient(E.sum(axis=1), t)
             power_x = s_km

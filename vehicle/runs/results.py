@@ -1,23 +1,34 @@
-"""Results of a drive in HDF5 (layout: docs/hdf5.md), written as the drive goes, and resumable.
+"""Running a scenario into a sink: an HDF5 results file (layout: docs/hdf5.md), resumable, or memory.
 
 `run_scenario()` is what `hpsim run` and every sweep case do:
 
 1. validate the scenario and build the drive (nothing is written before the scenario is valid);
-2. create the file (HDF5 1.10 format, written under a temporary name and renamed): /scenario,
-   /equilibrium/charged and /before, and *every* dataset the drive will fill (time series,
-   statistics, checkpoint slots), so that nothing needs creating later;
-3. switch to SWMR (single-writer/multiple-reader) mode and drive: each block of samples is
-   appended to chunked, compressed, resizable datasets and flushed; then the checkpoint (the
-   drive's resume state plus the counts of samples and statistics rows it covers) is written to
-   the inactive one of two slots, flushed, and only then the pointer to it is switched and
-   flushed. SWMR's ordered metadata flushes keep the file valid whatever moment the process
-   dies, and the double-buffered checkpoint is never half written;
-4. close, reopen normally and write /equilibrium/after and /summary (status, complete=True).
+   take the output's lock file `<out>.lock` (pid and host of the writer; a lock whose process is
+   gone is taken over), so that a second run, resume or overwrite on the same file is refused;
+2. create the file (HDF5 1.10 format, netCDF-4/CF structure, written under `<out>.partial` and
+   renamed): root and /scenario attributes, /equilibrium/charged and /before, and *every* variable
+   the drive will fill (time series, statistics, checkpoint slots), so that nothing needs creating
+   later;
+3. switch to SWMR (single-writer/multiple-reader) mode and drive: each chunk of samples is
+   appended to chunked, compressed, checksummed, resizable datasets and flushed; then the
+   checkpoint (the drive's resume state plus the counts of samples and statistics rows it covers)
+   is written to the inactive one of two slots, flushed, and only then the pointer to it is
+   switched and flushed. SWMR's ordered metadata flushes keep the file valid whatever moment the
+   process dies, and the double-buffered checkpoint is never half written;
+4. close, and write /equilibrium/after and /summary (status complete) into a copy `<out>.final`
+   that replaces the file when done: a kill during the final write leaves the previous file,
+   which `--resume` completes.
 
 Ctrl-C closes the file cleanly (status "interrupted"). A file whose writer was killed is still
-readable (open it with `h5py.File(path, "r", swmr=True)`; `open_read` does that). `--resume`
-copies what the checkpoint covers into a fresh file, rebuilds the drive from the scenario text
-stored in the file and continues from the checkpoint: the result equals an uninterrupted run.
+readable (vehicle.runs.reader opens it as an SWMR reader). `--resume` checks the whole file first
+(a damaged one is refused untouched), copies what the checkpoint covers into a fresh file
+(`<out>.resume`), rebuilds the drive from the scenario text stored in the file and continues from
+the checkpoint: the result equals an uninterrupted run. A full disk stops the run with "disk
+full" (exit 3); what was checkpointed stays readable and `--resume` continues once there is space.
+No temporary path (`.partial`, `.resume`, `.final`, `.lock`) is written through a symbolic link.
+
+`run_in_memory()` runs the same scenario into a MemorySink (vehicle.runs.sinks): the same
+variables, read through the same interface.
 """
 from __future__ import annotations
 
@@ -26,6 +37,7 @@ import functools
 import json
 import os
 import signal
+import socket
 import subprocess
 import time
 from pathlib import Path
@@ -36,14 +48,14 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
+from vehicle.runs.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
+                                 open_results)
 from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
+from vehicle.runs.sinks import (LIBVER, Checkpoint, H5Sink, MemorySink, clone_group, create_file, create_h5,  # noqa: F401
+                                finish_file, is_disk_full, remove_stale, sync_replace)
 
-FORMAT = "hpsim-drive"
-FORMAT_VERSION = 1
-LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
-CHUNK_ROWS = 512            # samples per HDF5 chunk of the time series
-STATS_CHUNK_ROWS = 64
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
+H5Results = H5Sink            # the name before the sinks became objects
 
 
 @functools.lru_cache(maxsize=1)
@@ -68,9 +80,13 @@ def _now() -> str:
 
 # --- the drive adapter ---------------------------------------------------------------------------
 def drive_class():
-    """`Drive` plus `describe()`: the keys and shapes of what it will hand to the sink, so the file's
-    datasets can all be created before the drive starts (SWMR mode cannot create objects)."""
+    """The drive class run_scenario uses: `Drive`, which has `describe()` (the keys and shapes of what it
+    will hand to the sink, so the file's datasets can all be created before the drive starts: SWMR mode
+    cannot create objects); a subclass adds it to a Drive without one."""
     from vehicle.runs.drive import Drive
+
+    if hasattr(Drive, "describe"):
+        return Drive
 
     class RunDrive(Drive):
         def describe(self):
@@ -85,226 +101,143 @@ def drive_class():
     return RunDrive
 
 
-# --- the writer ------------------------------------------------------------------------------------
-UNITS = {"t_s": "s", "distance_m": "m", "speed_m_per_s": "m/s", "strut_temperature_K": "K",
-         "axle_height_change_m": "m", "hull_acceleration": "m/s^2 (heave), rad/s^2 (pitch, roll)", "heave_m": "m",
-         "pitch_rad": "rad", "roll_rad": "rad", "oil_added_m3": "m^3", "strut_force": "N", "strut_deflection": "m",
-         "gas_pressure": "Pa", "gas_temperature": "K", "wheel_load": "N", "distance_end_m": "m", "duration_s": "s",
-         "rms_strut_velocity_m_per_s": "m/s", "rms_hull_acceleration": "m/s^2 (heave), rad/s^2 (pitch, roll)"}
+# --- what the runner hands a sink ------------------------------------------------------------------
+def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
+    """`start(info)`: root and scenario attributes, names, the charged and before-drive equilibria."""
+    resolved = prep.resolved()
+    resolved["vehicle_derived"]["gas_masses_kg"] = drive.gas_masses.tolist()
+    resolved["vehicle_derived"]["charged_wheel_loads_N"] = model.charged_wheel_loads.tolist()
+    stations = [str(s) for s in model.station_names]
+    axles = [f"axle{k + 1}" for k in range(model.params.n_axles)]
+    description = str(getattr(prep.scenario, "description", "") or "")
+    return {
+        "attrs": {"format": FORMAT, "format_version": FORMAT_VERSION, "Conventions": "CF-1.8",
+                  "title": description or f"hpsim drive: {src.name}",
+                  "source": f"hpsim {code_version()}",
+                  "history": f"{_now()}: hpsim run {src.name} (started)"},
+        "scenario": {"yaml": src.text, "source": src.name, "base_dir": str(src.base_dir),
+                     "resolved_json": json.dumps(resolved, indent=1, default=float),
+                     "hpsim_version": code_version(), "created": _now(), "stations": stations, "axles": axles,
+                     "distance_m": float(prep.scenario.distance), "total_time_s": float(drive.total_time_s)},
+        "stations": stations, "axles": axles,
+        "equilibrium": {"charged": {"wheel_loads_N": np.asarray(model.charged_wheel_loads, float),
+                                    "axle_height_change_m": np.zeros(len(axles)),
+                                    "temperatures_K": np.full(len(stations), float(model.params.charging.temperature))},
+                        "before": dict(before.__dict__)},
+        "summary": {"status": "running", "complete": False, "build_s": float(drive.build_s)},
+    }
 
 
-def _unit(key: str) -> str:
-    if key in UNITS:
-        return UNITS[key]
-    for suffix, unit in (("_J", "J"), ("_W", "W"), ("_K", "K"), ("_m", "m"), ("_s", "s")):
-        if key.endswith(suffix):
-            return unit
-    return ""
+def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
+    """`finish(info)`: the after-drive equilibrium, the final energies and temperatures, the summary."""
+    m = drive.model
+    x = res.state.x
+    values = {f"energy_{e}_J": np.asarray(x[idx], float) for e, idx in m.energy_index.items()}
+    values["strut_temperature_K"] = np.asarray(x[drive.T_index], float)
+    summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
+               "wall_s": float(wall_s), "build_s": float(drive.build_s),
+               "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),
+               "finished_at": _now(), "status": "complete", "complete": True}
+    return {"equilibrium": {"after": dict(res.after.__dict__)}, "summary_values": values, "summary": summary,
+            "history": f"{_now()}: completed"}
 
 
-def _rows(value, n: int | None = None) -> np.ndarray:
-    """Drive arrays are (width, n_samples) or (n_samples,): stored time-major (n_samples, width)."""
-    a = np.asarray(value, float)
-    return a.T if a.ndim == 2 else a.reshape(-1)
+def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> MemorySink:
+    """Run a scenario into memory: a MemorySink holding what the HDF5 file would (same variables)."""
+    src = scenario if isinstance(scenario, ScenarioSource) else read_scenario(scenario)
+    prep = prepare(src)
+    model, drive = prep.drive(drive_class())
+    sink = MemorySink(src.name)
+    sink.start(run_info(src, prep, model, drive, drive.initial_equilibrium()))
+    t0 = time.perf_counter()
+    res = drive.run(sink, progress=progress)
+    n_samples, n_stats = sink.counts()
+    sink.finish(final_info(drive, res, n_samples, n_stats, time.perf_counter() - t0))
+    return sink
 
 
-def open_read(path: str | Path) -> h5py.File:
-    """Open a results file for reading, also one whose writer was killed (SWMR read)."""
+# --- the output's lock file ------------------------------------------------------------------------
+def _pid_alive(pid: int) -> bool:
     try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        if "already open for write" in str(exc):
-            return h5py.File(path, "r", swmr=True)
-        raise
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:                                   # a zombie (killed, not yet reaped) is gone too
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except OSError:
+        return True
 
 
-class Checkpoint:
-    """Double-buffered resume state in /checkpoint: slots (2, L) float64 and pointer [slot, seq].
+class OutputLock:
+    """`<out>.lock` (JSON: pid, host, started): one writer per results file. A lock whose process is
+    gone (same host) is stale and taken over; a symbolic link there is never followed."""
 
-    A slot packs the DriveState dict plus n_samples, n_stats and wall_s; attrs["fields"] (JSON)
-    gives each field's [offset, length] and shape. pointer = [-1, 0] until the first checkpoint.
-    """
+    def __init__(self, out: Path):
+        self.out = out
+        self.path = out.with_name(out.name + ".lock")
+        self.held = False
 
-    META = ("n_samples", "n_stats", "wall_s")
-
-    def __init__(self, group: h5py.Group):
-        self.g = group
-        self.fields = json.loads(group.attrs["fields"])
-
-    @classmethod
-    def create(cls, f: h5py.File, state: dict) -> "Checkpoint":
-        g = f.create_group("checkpoint")
-        fields, off = {}, 0
-        for k, v in list(state.items()) + [(m, 0.0) for m in cls.META]:
-            a = np.asarray(v, float)
-            fields[k] = [off, int(a.size), list(a.shape)]
-            off += int(a.size)
-        g.create_dataset("slots", shape=(2, off), dtype="f8")
-        g.create_dataset("pointer", data=np.array([-1, 0], dtype="i8"))
-        g.attrs["fields"] = json.dumps(fields)
-        g.attrs["description"] = ("resume state of the drive: pointer = [active slot, sequence number] (slot -1: "
-                                  "none yet); slots[slot] packs the fields listed in attrs['fields'] as "
-                                  "name: [offset, length, shape]")
-        return cls(g)
-
-    def write(self, state: dict, meta: dict) -> None:
-        slot, seq = (int(v) for v in self.g["pointer"][()])
-        new = 1 - slot if slot in (0, 1) else 0
-        vec = np.zeros(self.g["slots"].shape[1])
-        values = {**state, **meta}
-        for k, (off, size, _shape) in self.fields.items():
-            vec[off:off + size] = np.asarray(values[k], float).ravel()
-        self.g["slots"][new] = vec
-        self.g.file.flush()
-        self.g["pointer"][...] = np.array([new, seq + 1], dtype="i8")
-        self.g.file.flush()
-
-    def read(self) -> tuple[dict, dict] | None:
-        slot, seq = (int(v) for v in self.g["pointer"][()])
-        if slot not in (0, 1):
+    def _holder(self) -> dict | None:
+        try:
+            fd = os.open(self.path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except FileNotFoundError:
+            return {}
+        except OSError:
             return None
-        vec = np.asarray(self.g["slots"][slot], float)
-        out = {}
-        for k, (off, size, shape) in self.fields.items():
-            v = vec[off:off + size]
-            out[k] = v.reshape(shape) if shape else float(v[0])
-        meta = {m: out.pop(m) for m in self.META}
-        meta["n_samples"], meta["n_stats"] = int(meta["n_samples"]), int(meta["n_stats"])
-        return out, meta
+        with os.fdopen(fd) as fh:
+            try:
+                data = json.loads(fh.read(4096))
+                return data if isinstance(data, dict) else None
+            except ValueError:
+                return None
+
+    def acquire(self) -> "OutputLock":
+        for _ in range(3):
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+            except FileExistsError:
+                if self.path.is_symlink():
+                    raise UserInputError(f"{self.path}: is a symbolic link (not followed); remove it if no hpsim run "
+                                         f"is writing {self.out}") from None
+                holder = self._holder()
+                if holder == {}:
+                    continue                       # removed in between: try again
+                host = socket.gethostname()
+                if holder is None or (holder.get("host") == host and not _pid_alive(int(holder.get("pid", -1)))):
+                    remove_stale(self.path)        # the writer is gone (or the lock is unreadable): stale
+                    continue
+                raise UserInputError(
+                    f"{self.out}: being written by another hpsim process (pid {holder.get('pid')} on "
+                    f"{holder.get('host')}, since {holder.get('started', '?')}); wait for it to finish or stop it "
+                    f"(lock file {self.path})") from None
+            except FileNotFoundError:
+                raise UserInputError(f"{self.out}: the folder {self.out.parent} does not exist") from None
+            except (PermissionError, IsADirectoryError) as exc:
+                raise UserInputError(f"{self.out}: cannot write in {self.out.parent} ({exc.strerror})") from None
+            with os.fdopen(fd, "w") as fh:
+                json.dump({"pid": os.getpid(), "host": socket.gethostname(), "started": _now()}, fh)
+            self.held = True
+            return self
+        raise UserInputError(f"{self.out}: cannot take the lock file {self.path} (another process keeps changing it)")
+
+    def release(self) -> None:
+        if self.held:
+            holder = self._holder()
+            if holder and holder.get("pid") == os.getpid():
+                remove_stale(self.path)
+            self.held = False
+
+    def __enter__(self):
+        return self.acquire()
+
+    def __exit__(self, *exc):
+        self.release()
 
 
-class H5Results:
-    """The drive's sink: buffers samples and statistics rows, writes them a whole HDF5 chunk at a
-    time (each compressed chunk written once: appending block by block would rewrite the last
-    chunk every time, and SWMR mode does not reuse the freed space), then the checkpoint."""
-
-    def __init__(self, f: h5py.File, stored: set[str], n_samples: int = 0, n_stats: int = 0,
-                 wall_before_s: float = 0.0):
-        self.f = f
-        self.stored = stored
-        self.ts = f["timeseries"]
-        self.st = f["stats"]
-        self.ck = Checkpoint(f["checkpoint"])
-        self.chunk = int(self.ts["t_s"].chunks[0])
-        self.n_samples = n_samples          # rows written (and covered by the last checkpoint)
-        self.n_stats = n_stats
-        self.buffer: dict[str, list] = {}
-        self.n_buffered = 0
-        self.stats_buffer: list[dict] = []
-        self.pending_state: dict | None = None
-        self.wall_before_s = wall_before_s
-        self.session_t0 = time.perf_counter()
-        self.last_state: dict | None = None
-        self.stop_requested = False
-
-    @staticmethod
-    def create_layout(f: h5py.File, block: dict, row: dict, state: dict, stored: set[str], compression: int,
-                      chunk_rows: int, station_names, axle_names) -> None:
-        """Every dataset the drive fills, empty and resizable (created before SWMR mode)."""
-        kw = {"compression": "gzip", "compression_opts": int(compression), "shuffle": True} if compression else {}
-
-        def columns(width):
-            if width == len(station_names):
-                return list(station_names)
-            if width == len(axle_names):
-                return list(axle_names)
-            if width == 3:
-                return ["heave", "pitch", "roll"]
-            return None
-
-        # a block's arrays are (width, n) or (n,); a statistics row holds scalars or (width,) arrays
-        for gname, shapes, chunk in (("timeseries", {k: _rows(v).shape[1:] for k, v in block.items()
-                                                     if k in stored or k == "t_s"}, chunk_rows),
-                                     ("stats", {k: np.asarray(v, float).shape for k, v in row.items()},
-                                      STATS_CHUNK_ROWS)):
-            g = f.create_group(gname)
-            for key, shape in shapes.items():
-                ds = g.create_dataset(key, shape=(0,) + shape, maxshape=(None,) + shape, dtype="f8",
-                                      chunks=(chunk,) + shape, **kw)
-                ds.attrs["unit"] = _unit(key)
-                if shape and columns(shape[0]) is not None:
-                    ds.attrs["columns"] = columns(shape[0])
-        Checkpoint.create(f, state)
-
-    # DriveSink protocol
-    def start(self, info: dict) -> None:  # pragma: no cover - not called by the drive
-        pass
-
-    def samples(self, block: dict) -> None:
-        for key, value in block.items():
-            if key in self.ts:
-                self.buffer.setdefault(key, []).append(_rows(value))
-        self.n_buffered += len(np.atleast_1d(block["t_s"]))
-
-    def stats(self, rows: list[dict]) -> None:
-        self.stats_buffer.extend(rows)
-
-    def checkpoint(self, state: dict) -> None:
-        """Called by the drive after every block: write when a chunk is full (or on Ctrl-C)."""
-        self.pending_state = state
-        full = (self.n_samples + self.n_buffered) // self.chunk > self.n_samples // self.chunk
-        if full or self.stop_requested:
-            self.flush()
-        if self.stop_requested:
-            # Ctrl-C arrived during the last block: stop here, where the file is consistent
-            raise KeyboardInterrupt
-
-    def flush(self) -> None:
-        """Append the buffered rows, flush, then write the checkpoint that covers them."""
-        if self.n_buffered:
-            for key, parts in self.buffer.items():
-                ds = self.ts[key]
-                ds.resize(self.n_samples + self.n_buffered, axis=0)
-                ds[self.n_samples:] = np.concatenate(parts, axis=0)
-            self.n_samples += self.n_buffered
-            self.buffer, self.n_buffered = {}, 0
-        if self.stats_buffer:
-            n = len(self.stats_buffer)
-            for key in self.stats_buffer[0]:
-                if key in self.st:
-                    ds = self.st[key]
-                    ds.resize(self.n_stats + n, axis=0)
-                    ds[self.n_stats:] = np.array([np.asarray(r[key], float) for r in self.stats_buffer])
-            self.n_stats += n
-            self.stats_buffer = []
-        self.f.flush()
-        if self.pending_state is not None:
-            self.ck.write(self.pending_state, {"n_samples": self.n_samples, "n_stats": self.n_stats,
-                                               "wall_s": self.wall_s()})
-            self.last_state = self.pending_state
-            self.pending_state = None
-
-    def wall_s(self) -> float:
-        return self.wall_before_s + (time.perf_counter() - self.session_t0)
-
-
-def write_equilibrium(g: h5py.Group, name: str, eq, station_names) -> None:
-    if name in g:
-        del g[name]
-    e = g.create_group(name)
-    for k, v in eq.__dict__.items():
-        if isinstance(v, np.ndarray):
-            e.create_dataset(k, data=np.asarray(v, float))
-        else:
-            e.attrs[k] = float(v)
-    e.attrs["stations"] = list(station_names)
-
-
-def _write_json_attr(obj, name: str, value) -> None:
-    obj.attrs[name] = json.dumps(value, indent=1, default=float)
-
-
-def set_status(path: Path, status: str, **attrs) -> None:
-    """Reopen normally (after the SWMR writer closed) and record the run's status in /summary."""
-    with h5py.File(path, "r+", libver=LIBVER) as f:
-        g = f.require_group("summary")
-        g.attrs["status"] = status
-        g.attrs["complete"] = status == "complete"
-        for k, v in attrs.items():
-            g.attrs[k] = v
-
-
-# --- running a scenario --------------------------------------------------------------------------
+# --- running a scenario into a file ------------------------------------------------------------------
 class RunInterrupted(Exception):
     """Ctrl-C during a run: the file is closed and readable; message says how far it got."""
 
@@ -313,13 +246,14 @@ class RunInterrupted(Exception):
         self.path = path
 
 
-def _stored_source(f: h5py.File, path: Path) -> ScenarioSource:
-    g = f.get("scenario")
-    if g is None or "yaml" not in g.attrs:
-        raise UserInputError(f"{path}: not an hpsim results file (no /scenario)")
-    name = str(g.attrs.get("source", path))
-    base = str(g.attrs.get("base_dir", Path(path).resolve().parent))
-    return read_scenario_text(str(g.attrs["yaml"]), name, base)
+def _disk_full(out: Path, exc: BaseException, what: str, resume_hint: str) -> SimulationError:
+    return SimulationError(f"{out}: disk full (no space left on device) {what}; {resume_hint}")
+
+
+def inspect_results(path: str | Path) -> tuple[str, int]:
+    """(status, format version) of a results file, after checking all of it; DamagedResults if it is damaged."""
+    with open_results(path) as r:
+        return r.status(), r.version
 
 
 def results_status(path: str | Path) -> str | None:
@@ -328,12 +262,8 @@ def results_status(path: str | Path) -> str | None:
     if not path.exists():
         return None
     try:
-        with open_read(path) as f:
-            if f.attrs.get("format") != FORMAT:
-                return None
-            g = f.get("summary")
-            return "running" if g is None else str(g.attrs.get("status", "running"))
-    except OSError:
+        return inspect_results(path)[0]
+    except UserInputError:
         return None
 
 
@@ -342,103 +272,103 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                  checkpoint_every_blocks: int = 1) -> dict:
     """Run a scenario into an HDF5 file; returns the summary attributes.
 
-    Raises UserInputError (bad scenario, file exists, cannot resume), SimulationError (after
-    writing status 'failed' and the message) or RunInterrupted (Ctrl-C, status 'interrupted').
+    Raises UserInputError (bad scenario, file exists, damaged, locked, cannot resume), SimulationError
+    (solver failure after writing status 'failed'; disk full) or RunInterrupted (Ctrl-C, status 'interrupted').
     """
     log = log or (lambda msg: None)
     out = Path(out)
     src = scenario if isinstance(scenario, ScenarioSource) else (
         read_scenario(scenario) if scenario is not None else None)
-    status = results_status(out)
-    if out.exists() and status is None and not overwrite:
-        raise UserInputError(f"{out}: exists and is not a readable hpsim results file (remove it or use --overwrite)")
-    if resume and status is not None:
-        return _resume(out, src, progress, log, checkpoint_every_blocks)
-    if out.exists() and not overwrite:
-        hint = "--resume to continue it or " if status != "complete" else ""
-        raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o another file")
-    if src is None:
-        raise UserInputError(f"{out}: not found and no scenario given")
-    if resume:
-        log(f"{out}: nothing to resume, starting")
-    prep = prepare(src)                            # every check before any work
-    model, drive = prep.drive(drive_class())
-    resolved = prep.resolved()
-    resolved["vehicle_derived"]["gas_masses_kg"] = drive.gas_masses.tolist()
-    resolved["vehicle_derived"]["charged_wheel_loads_N"] = model.charged_wheel_loads.tolist()
-    stations = list(model.station_names)
-    axles = [f"axle{k + 1}" for k in range(model.params.n_axles)]
-    before = drive.initial_equilibrium()
-    block, row, state = drive.describe()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".partial")
-    with h5py.File(tmp, "w", libver=LIBVER) as f:
-        f.attrs["format"] = FORMAT
-        f.attrs["format_version"] = FORMAT_VERSION
-        g = f.create_group("scenario")
-        g.attrs["yaml"] = src.text
-        g.attrs["source"] = src.name
-        g.attrs["base_dir"] = str(src.base_dir)
-        _write_json_attr(g, "resolved_json", resolved)
-        g.attrs["hpsim_version"] = code_version()
-        g.attrs["created"] = _now()
-        g.attrs["stations"] = stations
-        g.attrs["axles"] = axles
-        g.attrs["distance_m"] = prep.scenario.distance
-        g.attrs["total_time_s"] = drive.total_time_s
-        e = f.create_group("equilibrium")
-        c = e.create_group("charged")
-        c.create_dataset("wheel_loads_N", data=model.charged_wheel_loads)
-        c.create_dataset("axle_height_change_m", data=np.zeros(model.params.n_axles))
-        c.attrs["temperature_K"] = model.params.charging.temperature
-        write_equilibrium(e, "before", before, stations)
-        H5Results.create_layout(f, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
-                                chunk_rows(prep.scenario), stations, axles)
-        s = f.create_group("summary")
-        s.attrs["status"] = "running"
-        s.attrs["complete"] = False
-        s.attrs["build_s"] = drive.build_s
-    tmp.replace(out)
-    return _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+    if out.is_dir():
+        raise UserInputError(f"{out}: is a directory; give a file name with -o")
+    if out.exists() and not out.is_file():
+        raise UserInputError(f"{out}: is not a regular file")
+    if not out.parent.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+    with OutputLock(out):
+        if out.exists() and not overwrite:
+            try:
+                status, version = inspect_results(out)
+            except UserInputError as exc:
+                raise type(exc)(f"{exc}; the file was not touched: start again with --overwrite or -o another "
+                                "file") from None
+            if resume:
+                if status != "complete" and version < FORMAT_VERSION:
+                    raise UserInputError(f"{out}: written by an older hpsim (results format {version}); it can be "
+                                         "read (report, plot, compare) but not resumed: run it again with --overwrite")
+                return _resume(out, src, progress, log, checkpoint_every_blocks)
+            hint = "--resume to continue it or " if status != "complete" else ""
+            raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o "
+                                 "another file")
+        if src is None:
+            raise UserInputError(f"{out}: not found and no scenario given")
+        if resume:
+            log(f"{out}: nothing to resume, starting")
+        prep = prepare(src)                            # every check before any work
+        model, drive = prep.drive(drive_class())
+        info = run_info(src, prep, model, drive, drive.initial_equilibrium())
+        block, row, state = drive.describe()
+        tmp = out.with_name(out.name + ".partial")
+        try:
+            create_file(tmp, info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
+                        chunk_rows(prep.scenario))
+            sync_replace(tmp, out)
+        except (OSError, RuntimeError) as exc:
+            remove_stale(tmp)
+            if is_disk_full(exc):
+                raise _disk_full(out, exc, "before the drive started", "free some space and run again") from None
+            raise
+        return _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
 
 
 def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
     """Copy what the checkpoint covers into a fresh file (clears a killed writer's state) and replace."""
     tmp = path.with_name(path.name + ".resume")
-    with open_read(path) as src, h5py.File(tmp, "w", libver=LIBVER) as dst:
-        for k, v in src.attrs.items():
-            dst.attrs[k] = v
-        for name in ("scenario", "timeseries", "stats", "checkpoint"):
-            src.copy(src[name], dst, name=name)
-        e = dst.create_group("equilibrium")
-        for name in ("charged", "before"):
-            src.copy(src["equilibrium"][name], e, name=name)
-        for gname, n in (("timeseries", n_samples), ("stats", n_stats)):
-            for ds in dst[gname].values():
-                if ds.shape[0] < n:
-                    raise UserInputError(f"{path}: /{gname}/{ds.name.rsplit('/', 1)[-1]} has {ds.shape[0]} rows, "
-                                         f"fewer than the checkpoint's {n}: the file is damaged, start again with "
-                                         "--overwrite")
-                ds.resize(n, axis=0)
-        s = dst.create_group("summary")
-        for k, v in src["summary"].attrs.items() if "summary" in src else ():
-            s.attrs[k] = v
-        s.attrs["status"] = "running"
-        s.attrs["complete"] = False
-    os.replace(tmp, path)
+    try:
+        with open_read(path) as src, create_h5(tmp) as dst:
+            for k, v in src.attrs.items():
+                dst.attrs[k] = v
+            dst.attrs["history"] = str(src.attrs.get("history", "")) + f"\n{_now()}: resumed"
+            for gname, n in (("timeseries", n_samples), ("stats", n_stats)):
+                for ds in src[gname].values():
+                    if ds.maxshape and ds.maxshape[0] is None and ds.shape[0] < n:
+                        raise UserInputError(f"{path}: /{gname}/{ds.name.rsplit('/', 1)[-1]} has {ds.shape[0]} rows, "
+                                             f"fewer than the checkpoint's {n}: the file is damaged, start again "
+                                             "with --overwrite")
+            clone_group(src["scenario"], dst, "scenario")
+            e = dst.create_group("equilibrium")
+            for name in ("charged", "before"):
+                clone_group(src["equilibrium"][name], e, name)
+            clone_group(src["timeseries"], dst, "timeseries", n_samples)
+            clone_group(src["stats"], dst, "stats", n_stats)
+            clone_group(src["checkpoint"], dst, "checkpoint")
+            s = clone_group(src["summary"], dst, "summary", 0)
+            for k in ("error", "stopped_at_km"):
+                if k in s.attrs:
+                    del s.attrs[k]
+            s.attrs["status"] = "running"
+            s.attrs["complete"] = False
+        sync_replace(tmp, path)
+    except BaseException as exc:
+        remove_stale(tmp)
+        if isinstance(exc, (OSError, RuntimeError)) and is_disk_full(exc):
+            raise _disk_full(path, exc, "while preparing the resume (the file was not changed)",
+                             "free some space and resume again") from None
+        raise
 
 
 def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_every_blocks) -> dict:
     from vehicle.runs.drive import DriveState
 
-    with open_read(out) as f:
-        stored = _stored_source(f, out)
-        stored_version = str(f["scenario"].attrs.get("hpsim_version", ""))
-        status = str(f["summary"].attrs.get("status", "running")) if "summary" in f else "running"
-        if status == "complete":
+    with open_results(out, check=False) as r:
+        sc = r.scenario_attrs
+        stored = read_scenario_text(str(sc["yaml"]), str(sc.get("source", out)),
+                                    str(sc.get("base_dir", out.resolve().parent)))
+        stored_version = str(sc.get("hpsim_version", ""))
+        if r.status() == "complete":
             log(f"{out}: already complete, nothing to do")
-            return {k: (v.item() if hasattr(v, "item") else v) for k, v in f["summary"].attrs.items()}
-        ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
+            return {k: (v.item() if hasattr(v, "item") else v) for k, v in r.summary_attrs().items()}
+        ck = r._checkpoint()
     if src is not None and src.text != stored.text:
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
@@ -459,7 +389,7 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
     return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)
 
 
-def _catch_sigint(sink: H5Results):
+def _catch_sigint(sink: H5Sink):
     """First Ctrl-C: finish the current block and checkpoint, then stop (a KeyboardInterrupt raised at
     an arbitrary point can be swallowed by a weakref callback inside h5py); second: stop at once."""
     def handler(signum, frame):
@@ -488,8 +418,27 @@ def chunk_rows(scenario) -> int:
     return int(M * max(1, -(-scenario.output.chunk_samples // M)))
 
 
+def set_status(path: Path, status: str, **attrs) -> None:
+    """Record the run's status in /summary (after the SWMR writer closed; through a copy, see finish_file)."""
+    finish_file(path, {"summary": {"status": status, "complete": status == "complete", **attrs}})
+
+
+def _fault(point: str) -> None:
+    """Test hook: HPSIM_FAULT=<point> kills the process there (tests/test_results_robust.py)."""
+    if os.environ.get("HPSIM_FAULT") == point:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+def _close_quietly(f: h5py.File) -> None:
+    try:
+        f.close()
+    except Exception:          # e.g. a full disk: the file keeps what its last flush wrote
+        pass
+
+
 def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
     total_km = prep.scenario.distance / 1e3
+    resume_cmd = f"hpsim run {prep.source.name} -o {out} --resume"
     bar = cb = None
     if progress:
         from tqdm import tqdm
@@ -504,62 +453,89 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
             bar.update(round(min(s_m / 1e3, total_km), 3) - bar.n)
             bar.set_postfix_str(f"{v * 3.6:.1f} km/h, simulated {t_s / 3600:.2f} h", refresh=False)
 
+    def close_bar():
+        if bar is not None:
+            bar.close()
+
+    def km_done(sink):
+        return sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
+
     f = h5py.File(out, "r+", libver=LIBVER)
     sink = None
     old_handler = None
     try:
-        sink = H5Results(f, prep.scenario.output.stored(), counts[0], counts[1], counts[2])
+        sink = H5Sink(f, counts[0], counts[1], counts[2])
         f.swmr_mode = True
         old_handler = _catch_sigint(sink)
         res = drive.run(sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
         sink.flush()
     except SimulationError as exc:
-        if sink is not None:
-            sink.flush()             # the blocks before the failure, with their checkpoint
-        f.close()
-        if bar is not None:
-            bar.close()
-        where = sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
+        try:
+            if sink is not None:
+                sink.flush()             # the blocks before the failure, with their checkpoint
+        except (OSError, RuntimeError):
+            pass
+        _close_quietly(f)
+        close_bar()
+        where = km_done(sink)
         set_status(out, "failed", error=str(exc), wall_s=sink.wall_s() if sink else 0.0, stopped_at_km=float(where))
         raise SimulationError(f"{exc} (results up to {where:.3f} km kept in {out})") from None
     except KeyboardInterrupt:
-        f.close()
-        if bar is not None:
-            bar.close()
-        where = sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
+        _close_quietly(f)
+        close_bar()
+        where = km_done(sink)
         set_status(out, "interrupted", wall_s=sink.wall_s() if sink else 0.0, stopped_at_km=float(where))
         raise RunInterrupted(f"interrupted at {where:.3f} km of {total_km:.6g} km; {out} holds what was done. "
-                             f"Continue with: hpsim run {prep.source.name} -o {out} --resume", out) from None
+                             f"Continue with: {resume_cmd}", out) from None
+    except (OSError, RuntimeError) as exc:
+        _close_quietly(f)
+        close_bar()
+        if is_disk_full(exc):
+            raise _disk_full(out, exc, f"at {km_done(sink):.3f} km",
+                             f"the results up to the last checkpoint are kept; free some space and continue with: "
+                             f"{resume_cmd}") from None
+        raise
     except BaseException:
-        f.close()
-        if bar is not None:
-            bar.close()
+        _close_quietly(f)
+        close_bar()
         raise
     finally:
         _restore_sigint(old_handler)
-    f.close()
-    if bar is not None:
-        bar.close()
-    m = drive.model
-    x = res.state.x
-    summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
-               "wall_s": float(sink.wall_s()), "build_s": float(drive.build_s),
-               "integration_s": float(res.integration_s), "n_samples": sink.n_samples, "n_stats": sink.n_stats,
-               "finished_at": _now()}
-    with h5py.File(out, "r+", libver=LIBVER) as f:
-        write_equilibrium(f["equilibrium"], "after", res.after, m.station_names)
-        g = f["summary"]
-        for e, idx in m.energy_index.items():
-            g.create_dataset(f"energy_{e}_J", data=np.asarray(x[idx], float))
-        g.create_dataset("strut_temperature_end_K", data=np.asarray(x[drive.T_index], float))
-        for k, v in summary.items():
-            g.attrs[k] = v
-        g.attrs["status"] = "complete"
-        g.attrs["complete"] = True
-    return {"status": "complete", **summary}
+    try:
+        f.close()
+    except (OSError, RuntimeError) as exc:
+        if is_disk_full(exc):
+            raise _disk_full(out, exc, "at the end of the drive", f"free some space and continue with: {resume_cmd}") \
+                from None
+        raise
+    close_bar()
+    _fault("before_final_write")
+    final = final_info(drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
+    try:
+        _final_write(out, final)
+    except (OSError, RuntimeError) as exc:
+        if is_disk_full(exc):
+            raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \
+                from None
+        raise
+    return {k: v for k, v in final["summary"].items()}
 
 
-def valid_counts(f: h5py.File) -> tuple[int, int]:
+def _final_write(out: Path, final: dict) -> None:
+    if os.environ.get("HPSIM_FAULT") == "during_final_write":
+        import vehicle.runs.sinks as sinks
+
+        real = sinks.write_static_group
+
+        def dying(parent, name, *a, **kw):          # test hook: killed with the copy half written
+            real(parent, name, *a, **kw)
+            os.kill(os.getpid(), signal.SIGKILL)
+
+        sinks.write_static_group = dying
+    finish_file(out, final)
+
+
+def valid_counts(f) -> tuple[int, int]:
     """(samples, statistics rows) covered by the last checkpoint: the rows to trust in a file
     whose writer may have been stopped between appending data and checkpointing."""
     ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
@@ -568,7 +544,7 @@ def valid_counts(f: h5py.File) -> tuple[int, int]:
     return 0, 0
 
 
-def read_state(f: h5py.File) -> dict | None:
+def read_state(f) -> dict | None:
     """The last checkpointed DriveState dict (t_s, s_m, x, ...) or None."""
     ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
     return None if ck is None else ck[0]

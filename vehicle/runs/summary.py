@@ -1,4 +1,5 @@
-"""Per-axle summaries of drive results (what `hpsim report` and `hpsim compare` print), read with plain h5py.
+"""Per-axle summaries of drive results (what `hpsim report` and `hpsim compare` print), from any
+results (a file through vehicle.runs.reader.open_results, or a MemorySink).
 
 Per axle, values are the mean of the left and right station:
   T_start_C / T_end_C    strut temperature before / after the drive
@@ -20,26 +21,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from hpsim.errors import UserInputError
 
-from vehicle.runs.results import DISSIPATION, FORMAT, open_read, read_state, valid_counts
+from vehicle.runs.reader import ResultsView, open_results  # noqa: F401  (re-exported)
 
-
-def open_results(path: str | Path) -> h5py.File:
-    path = Path(path)
-    if not path.exists():
-        raise UserInputError(f"{path}: file not found")
-    try:
-        f = open_read(path)
-    except OSError as exc:
-        raise UserInputError(f"{path}: cannot open as HDF5 ({exc})") from None
-    if f.attrs.get("format") != FORMAT:
-        f.close()
-        raise UserInputError(f"{path}: not an hpsim results file (written by `hpsim run`)")
-    return f
+DISSIPATION = ("valve", "friction", "gas", "end_stop")
 
 
 def _axle_mean(a) -> np.ndarray:
@@ -47,23 +35,19 @@ def _axle_mean(a) -> np.ndarray:
     return 0.5 * (a[0::2] + a[1::2])
 
 
-def _last_row(f: h5py.File, name: str):
-    ds = f.get(f"timeseries/{name}")
-    n = valid_counts(f)[0]
-    if ds is None or min(n, ds.shape[0]) == 0:
-        return None
-    return np.asarray(ds[min(n, ds.shape[0]) - 1], float)
+def _last_row(r: ResultsView, name: str):
+    a = r.series(name)
+    return None if a is None or len(a) == 0 else a[-1]
 
 
-def dissipated_energy_J(f: h5py.File) -> np.ndarray | None:
+def dissipated_energy_J(r: ResultsView) -> np.ndarray | None:
     """Per station: valve + friction + gas + end-stop energy at the end (or the last sample)."""
     total = None
+    final = r.summary_values()
     for e in DISSIPATION:
-        key = f"energy_{e}_J"
-        if "summary" in f and key in f["summary"]:
-            v = np.asarray(f["summary"][key], float)
-        else:
-            v = _last_row(f, key)
+        v = final.get(f"energy_{e}")
+        if v is None:
+            v = _last_row(r, f"energy_{e}")
         if v is None:
             return None
         total = v if total is None else total + v
@@ -71,42 +55,41 @@ def dissipated_energy_J(f: h5py.File) -> np.ndarray | None:
 
 
 def report(path: str | Path) -> dict:
-    with open_results(path) as f:
-        return report_from(f, str(path))
+    with open_results(path) as r:
+        return report_from(r, str(path))
 
 
-def report_from(f: h5py.File, name: str) -> dict:
-    sc = f["scenario"]
-    summ = dict(f["summary"].attrs) if "summary" in f else {}
-    status = str(summ.get("status", "running"))
-    axles = [str(a) for a in sc.attrs["axles"]]
-    eq = f.get("equilibrium", {})
-    before = eq.get("before") if eq else None
-    after = eq.get("after") if eq else None
+def report_from(r: ResultsView, name: str) -> dict:
+    sc = r.scenario_attrs
+    summ = r.summary_attrs()
+    status = r.status()
+    axles = r.axles
+    before = r.equilibrium("before")
+    after = r.equilibrium("after")
     if before is None:
         raise UserInputError(f"{name}: no before-drive equilibrium (the run stopped before it started)")
-    charged = eq.get("charged") if eq else None
-    Nc = _axle_mean(charged["wheel_loads_N"][()]) if charged is not None else np.full(len(axles), np.nan)
-    T0 = _axle_mean(before["temperatures_K"][()]) - 273.15
-    N0 = _axle_mean(before["wheel_loads_N"][()])
-    h0 = np.asarray(before["axle_height_change_m"][()], float)
+    charged = r.equilibrium("charged")
+    Nc = _axle_mean(charged["wheel_load"]) if charged is not None else np.full(len(axles), np.nan)
+    T0 = _axle_mean(before["strut_temperature"]) - 273.15
+    N0 = _axle_mean(before["wheel_load"])
+    h0 = np.asarray(before["axle_height_change"], float)
     if after is not None:
-        T1 = _axle_mean(after["temperatures_K"][()]) - 273.15
-        N1 = _axle_mean(after["wheel_loads_N"][()])
-        h1 = np.asarray(after["axle_height_change_m"][()], float)
+        T1 = _axle_mean(after["strut_temperature"]) - 273.15
+        N1 = _axle_mean(after["wheel_load"])
+        h1 = np.asarray(after["axle_height_change"], float)
     else:
-        last_T = _last_row(f, "strut_temperature_K")
+        last_T = _last_row(r, "strut_temperature")
         T1 = _axle_mean(last_T) - 273.15 if last_T is not None else np.full(len(axles), np.nan)
         N1 = np.full(len(axles), np.nan)
         h1 = np.full(len(axles), np.nan)
-    E = dissipated_energy_J(f)
+    E = dissipated_energy_J(r)
     E_ax = _axle_mean(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
-    bands = weighing_difference_bands(eq, len(axles))
-    n_done = valid_counts(f)[0]
+    bands = weighing_difference_bands({k: r.equilibrium(k) for k in ("before_band", "after_band")}, len(axles))
+    n_done = r.counts()[0]
     if "distance_km" in summ and status == "complete":
         dist_km, sim_s = float(summ["distance_km"]), float(summ["simulated_s"])
     else:
-        st = read_state(f)
+        st = r.state()
         dist_km = st["s_m"] / 1e3 if st is not None else 0.0
         sim_s = st["t_s"] if st is not None else 0.0
     wall = float(summ.get("wall_s", 0.0))
@@ -124,10 +107,14 @@ def report_from(f: h5py.File, name: str) -> dict:
                      "dN_band_pct": bands["dN_band_pct"][k], "dh_band_mm": bands["dh_band_mm"][k]})
     shift = 100.0 * np.sum(np.abs(N1 - N0)) / np.sum(N0)
     shift_charged = 100.0 * np.sum(np.abs(N1 - Nc)) / np.sum(Nc)
-    resolved = json.loads(sc.attrs["resolved_json"])
-    S = resolved["scenario"]
+    try:
+        S = json.loads(sc["resolved_json"])["scenario"]
+        compensation, ambient_C = bool(S["compensation"]["enabled"]), S["ambient_temperature"] - 273.15
+    except (ValueError, KeyError, TypeError):
+        raise UserInputError(f"{name}: damaged results file: /scenario attribute 'resolved_json' is not the "
+                             "resolved scenario") from None
     out = {"file": name, "status": status, "complete": status == "complete",
-           "distance_km": dist_km, "planned_distance_km": float(sc.attrs["distance_m"]) / 1e3,
+           "distance_km": dist_km, "planned_distance_km": float(sc["distance_m"]) / 1e3,
            "simulated_s": sim_s, "wall_s": wall, "n_samples": n_done,
            "axles": rows,
            "load_shift_pct": num(shift),
@@ -135,9 +122,9 @@ def report_from(f: h5py.File, name: str) -> dict:
            "load_shift_vs_charged_pct": num(shift_charged),
            "mean_temperature_rise_K": num(np.mean(T1 - T0)),
            "energy_dissipated_MJ": num(np.sum(E) / 1e6) if E is not None else None,
-           "compensation": bool(S["compensation"]["enabled"]),
-           "ambient_C": S["ambient_temperature"] - 273.15,
-           "hpsim_version": str(sc.attrs.get("hpsim_version", ""))}
+           "compensation": compensation,
+           "ambient_C": ambient_C,
+           "hpsim_version": str(sc.get("hpsim_version", ""))}
     if "error" in summ:
         out["error"] = str(summ["error"])
     return out
@@ -150,7 +137,7 @@ def weighing_difference_bands(eq, n_axles: int) -> dict:
     from vehicle.physics.weighing import difference_bands
 
     none = {"dN_band_pct": [None] * n_axles, "dh_band_mm": [None] * n_axles}
-    if not eq or "before_band" not in eq or "after_band" not in eq:
+    if not eq or eq.get("before_band") is None or eq.get("after_band") is None:
         return none
     try:
         d = difference_bands(eq["before_band"], eq["after_band"])

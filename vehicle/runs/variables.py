@@ -1,0 +1,221 @@
+"""The one table of results variables: what each key a drive hands to its sink is called in a
+results file (and in `to_xarray()`), its dimensions, CF/UDUNITS units and long name.
+
+A drive (vehicle.runs.drive) hands its sink dicts keyed by *drive keys* (`strut_temperature_K`,
+`wheel_load`, `hull_acceleration`, ...): blocks of time series, arrays (n,) or (width, n);
+statistics rows, scalars or (width,); equilibria (vehicle.physics.equilibrium.Equilibrium
+fields). The file and the xarray datasets use *variable names* from this table: CF-style, no unit
+suffix, one quantity per variable (the hull accelerations, m s-2 and rad s-2, are split into
+heave/pitch/roll variables), the same name for the same quantity in every group.
+
+Adding a drive key is one line in VARIABLES. Its extra dimension (after `time` or `km`) follows
+from its width unless given: n_stations -> `station`, n_axles -> `axle`, no width -> none.
+Keys whose width could be ambiguous (3 hull degrees of freedom on a 3-axle vehicle) are split
+explicitly. A key missing from the table raises UnknownDriveKey when the file layout is made,
+before the drive starts.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# the groups of a results file (docs/hdf5.md) and their record dimension
+RECORD_DIM = {"timeseries": "time", "stats": "km"}
+EQUILIBRIA = ("charged", "before", "after")
+STATIC_GROUPS = tuple(f"equilibrium/{e}" for e in EQUILIBRIA) + ("summary",)
+DATA_GROUPS = ("timeseries", "stats") + STATIC_GROUPS
+LABEL_DIMS = ("station", "axle")
+
+AUTO = "auto"
+
+
+@dataclass(frozen=True)
+class Var:
+    """A results variable. dim: "station", "axle", None (no extra dimension) or AUTO (from the width).
+    role: "data", "record" (the group's record coordinate: time, km) or "coord" (a coordinate along
+    the record dimension: distance). scale multiplies the drive's SI value (km = m * 1e-3)."""
+
+    name: str
+    units: str
+    long_name: str
+    dim: str | None = AUTO
+    role: str = "data"
+    scale: float = 1.0
+    standard_name: str | None = None
+
+    def attrs(self) -> dict:
+        out = {"units": self.units, "long_name": self.long_name}
+        if self.standard_name:
+            out["standard_name"] = self.standard_name
+        return out
+
+
+@dataclass(frozen=True)
+class Split:
+    """A (k, n) drive array whose rows are different quantities: one variable per row."""
+
+    parts: tuple[Var, ...]
+
+
+_HULL = (("heave", "m s-2", "vertical acceleration of the hull at its centre of gravity"),
+         ("pitch", "rad s-2", "pitch acceleration of the hull"),
+         ("roll", "rad s-2", "roll acceleration of the hull"))
+_ENERGY = {"valve": "energy dissipated in the damping valves of the strut since the start",
+           "friction": "energy dissipated by seal friction in the strut since the start",
+           "gas": "heat from the gas to the strut body since the start",
+           "end_stop": "energy dissipated in the end stops of the strut since the start",
+           "strut_work": "work done on the strut since the start",
+           "tyre_work": "work done on the tyre since the start",
+           "road_work": "work done by the road on the tyre since the start"}
+_POWER = {"valve": "power dissipated in the damping valves of the strut",
+          "friction": "power dissipated by seal friction in the strut",
+          "gas": "heat flow from the gas to the strut body",
+          "end_stop": "power dissipated in the end stops of the strut"}
+
+# drive key -> variable. Keys of blocks, statistics rows, equilibria and the summary in one table.
+VARIABLES: dict[str, Var | Split] = {
+    # time series (block keys)
+    "t_s": Var("time", "s", "time since the start of the drive", None, "record", standard_name="time"),
+    "distance_m": Var("distance", "m", "distance driven since the start", None, "coord"),
+    "speed_m_per_s": Var("speed", "m s-1", "vehicle speed", None),
+    "strut_temperature_K": Var("strut_temperature", "K", "strut temperature (lumped heat node)", "station"),
+    "axle_height_change_m": Var("axle_height_change", "m",
+                                "hull height change at the axle against the charged state", "axle"),
+    "hull_acceleration": Split(tuple(Var(f"{d}_acceleration", u, t, None) for d, u, t in _HULL)),
+    "heave_m": Var("heave", "m", "hull heave (up) against the charged state", None),
+    "pitch_rad": Var("pitch", "rad", "hull pitch against the charged state", None),
+    "roll_rad": Var("roll", "rad", "hull roll against the charged state", None),
+    "oil_added_m3": Var("oil_added_volume", "m3", "oil volume added to the strut by the levelling system", "station"),
+    "strut_force": Var("strut_force", "N", "force of the strut (positive pushing its ends apart)", "station"),
+    "strut_deflection": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station"),
+    "gas_pressure": Var("gas_pressure", "Pa", "absolute gas pressure in the strut", "station"),
+    "gas_temperature": Var("gas_temperature", "K", "gas temperature in the strut", "station"),
+    "wheel_load": Var("wheel_load", "N", "vertical tyre force on the road", "station"),
+    **{f"energy_{e}_J": Var(f"energy_{e}", "J", text, "station") for e, text in _ENERGY.items()},
+    # statistics rows (one per output.stats_interval of distance)
+    "distance_end_m": Var("km", "km", "distance at the end of the statistics interval", None, "record", 1e-3),
+    "duration_s": Var("duration", "s", "duration of the statistics interval", None),
+    **{f"power_{e}_W": Var(f"power_{e}", "W", f"mean {text} over the interval", "station") for e, text in _POWER.items()},
+    "rms_strut_velocity_m_per_s": Var("rms_strut_velocity", "m s-1", "RMS strut velocity over the interval",
+                                      "station"),
+    "rms_hull_acceleration": Split(tuple(Var(f"rms_{d}_acceleration", u, f"RMS {t} over the interval", None)
+                                         for d, u, t in _HULL)),
+    # equilibria (vehicle.physics.equilibrium.Equilibrium fields; heave_m, pitch_rad, roll_rad as above)
+    "wheel_displacement_m": Var("wheel_displacement", "m", "wheel displacement (up) against the charged state",
+                                "station"),
+    "wheel_loads_N": Var("wheel_load", "N", "vertical tyre force on the road", "station"),
+    "strut_forces_N": Var("strut_force", "N", "force of the strut (positive pushing its ends apart)", "station"),
+    "strut_deflections_m": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station"),
+    "gas_pressures_Pa": Var("gas_pressure", "Pa", "absolute gas pressure in the strut", "station"),
+    "temperatures_K": Var("strut_temperature", "K", "strut temperature (lumped heat node)", "station"),
+}
+
+
+class UnknownDriveKey(KeyError):
+    """A drive key that VARIABLES does not know (a programming error: add the key to the table)."""
+
+    def __str__(self):
+        return str(self.args[0])
+
+
+def lookup(key: str) -> Var | Split:
+    try:
+        return VARIABLES[key]
+    except KeyError:
+        raise UnknownDriveKey(
+            f"results variable table (vehicle/runs/variables.py VARIABLES) has no entry for the drive key {key!r}: "
+            f"add one line, e.g. {key!r}: Var(\"<cf_name>\", \"<udunits>\", \"<long name>\")") from None
+
+
+@dataclass(frozen=True)
+class FileVariable:
+    """One variable as stored: where it comes from (drive key, row of a split, scale) and how it is laid out."""
+
+    name: str
+    key: str
+    dims: tuple[str, ...]
+    attrs: dict = field(hash=False, compare=False)
+    role: str = "data"
+    row: int | None = None
+    scale: float = 1.0
+
+    def take(self, value, record: bool) -> np.ndarray:
+        """The drive's array (..., n) or (width,)/scalar -> the stored layout ((n, width) record-major)."""
+        a = np.asarray(value, float)
+        if self.row is not None:
+            a = a[self.row]
+        if record and a.ndim == 2:
+            a = a.T
+        return a * self.scale if self.scale != 1.0 else a
+
+
+def _width_dim(key: str, var: Var, shape: tuple, n_stations: int, n_axles: int) -> tuple[str, ...]:
+    if not shape:
+        if var.dim not in (None, AUTO):
+            raise ValueError(f"drive key {key!r}: the table gives dim {var.dim!r} but the value has no width")
+        return ()
+    if len(shape) > 1:
+        raise ValueError(f"drive key {key!r}: values of shape {shape} are not supported (at most one width axis)")
+    width = shape[0]
+    sizes = {"station": n_stations, "axle": n_axles}
+    if var.dim == AUTO:
+        dims = [d for d, n in sizes.items() if n == width]
+        if len(dims) != 1:
+            raise ValueError(f"drive key {key!r}: width {width} is neither the {n_stations} stations nor the "
+                             f"{n_axles} axles; give its dim in vehicle/runs/variables.py VARIABLES")
+        return (dims[0],)
+    if var.dim is None or sizes.get(var.dim) != width:
+        raise ValueError(f"drive key {key!r}: width {width} does not match the table's dim {var.dim!r}")
+    return (var.dim,)
+
+
+def file_variables(key: str, width_shape: tuple, group: str, n_stations: int, n_axles: int) -> list[FileVariable]:
+    """The stored variables of one drive key. width_shape: the value's shape without the sample axis
+    ((), (width,) or (k,) for a split)."""
+    entry = lookup(key)
+    record = RECORD_DIM.get(group)
+    lead = (record,) if record else ()
+    if isinstance(entry, Split):
+        if tuple(width_shape) != (len(entry.parts),):
+            raise ValueError(f"drive key {key!r}: expected {len(entry.parts)} rows, got shape {width_shape}")
+        return [FileVariable(v.name, key, lead, v.attrs(), v.role, j, v.scale) for j, v in enumerate(entry.parts)]
+    dims = lead if entry.role == "record" else lead + _width_dim(key, entry, tuple(width_shape), n_stations, n_axles)
+    return [FileVariable(entry.name, key, dims, entry.attrs(), entry.role, None, entry.scale)]
+
+
+def label_attrs(dim: str) -> dict:
+    return {"station": {"long_name": "wheel station (axle-major, left first)"},
+            "axle": {"long_name": "axle (front first)"}}[dim]
+
+
+def group_dataset(group: str, arrays: dict, stations, axles, attrs: dict | None = None):
+    """An xarray.Dataset of one group from drive-keyed arrays (record groups: drive-shaped (..., n)
+    arrays; static groups: (width,) or scalars) -- the same names, dims, coordinates and attributes
+    that the HDF5 file holds (tests/test_results_xarray.py checks both)."""
+    xr = require_xarray()
+    record = RECORD_DIM.get(group)
+    n_st, n_ax = len(stations), len(axles)
+    data_vars, coords = {}, {}
+    for key, value in arrays.items():
+        a = np.asarray(value, float)
+        width_shape = a.shape[:-1] if record else a.shape
+        for v in file_variables(key, width_shape, group, n_st, n_ax):
+            arr = v.take(a, bool(record))
+            if v.role == "record":
+                coords[v.name] = ((v.name,), arr, v.attrs)
+            elif v.role == "coord":
+                coords[v.name] = (v.dims, arr, v.attrs)
+            else:
+                data_vars[v.name] = (v.dims, arr, v.attrs)
+    coords["station"] = (("station",), np.array([str(s) for s in stations]), label_attrs("station"))
+    coords["axle"] = (("axle",), np.array([str(a) for a in axles]), label_attrs("axle"))
+    return xr.Dataset(data_vars, coords=coords, attrs=dict(attrs or {}))
+
+
+def require_xarray():
+    try:
+        import xarray
+    except ImportError:
+        raise ImportError("to_xarray() needs xarray and h5netcdf: pip install xarray h5netcdf") from None
+    return xarray
