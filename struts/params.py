@@ -140,6 +140,18 @@ class EndStops(Model):
     smoothing: m = 0.5e-3
 
 
+class Limits(Model):
+    """Temperature limits of the strut's materials, for validity warnings (vehicle.runs.warnings).
+
+    None: not known (no warning). The oil data's own range is that of the viscosity datasheet
+    points (oil.viscosity_T1 .. viscosity_T2): beyond it the viscosity law extrapolates.
+    """
+
+    seal_max_temperature: K | None = None    # maximum continuous service temperature of the seals
+    seal_min_temperature: K | None = None    # below it the seals stiffen and may leak
+    oil_max_temperature: K | None = None     # maximum service temperature of the oil
+
+
 class Emulsion(Model):
     """Gas-oil emulsion of the integrated strut (seed 001 eq. 8-11)."""
 
@@ -158,6 +170,7 @@ class StrutParams(Model):
     friction: Friction
     end_stops: EndStops = EndStops()
     emulsion: Emulsion = Emulsion()
+    limits: Limits = Limits()
     calibration: dict = {}      # free text: what was fitted to what
 
     def with_overrides(self, overrides: dict) -> "StrutParams":

@@ -1,0 +1,280 @@
+"""Validity warnings of a drive's results: what makes a result suspect, with the strut and the km.
+
+`check(view)` reads a results view (vehicle.runs.reader: a file or memory) and returns a list of
+warnings, each a dict:
+
+    code       what was found (one of CODES)
+    severity   "warning" (the result may be wrong or the hardware out of its rating) or "note"
+               (the model extrapolates its data)
+    struts     the stations concerned (axle1_left, ...); where: the same as text ("all struts", "axle1")
+    km         where it first happened (distance at the end of the first statistics interval that
+               shows it, or of the first sample; None for the equilibria)
+    value, limit, unit   the worst value and the limit it crossed
+    message    one line for a person
+
+A flagged result stays written: the warnings go into the report (`hpsim report`, `run`, `compare`)
+and the sweep's summary CSV. Thresholds are in `Thresholds` (defaults documented there); strut
+temperature limits come from the strut files (`limits:`, struts.params.Limits) as resolved with
+the run.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+CODES = ("end_stop_time", "end_stop_energy", "equilibrium_on_stop", "seal_temperature", "oil_temperature",
+         "oil_data_range", "tyre_lift_off", "solver_error")
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """When a warning is raised (defaults: engineering judgement, stated so).
+
+    end_stop_time_share     time on an end stop / interval duration: 0.1 %
+    end_stop_energy_share   end-stop energy / energy the strut dissipated: 1 %
+    lift_off_share          time a tyre is off the ground / interval duration: 1 %
+    stop_margin_m           an equilibrium deflection within this of a stroke end rests on the stop
+                            (None: the strut's end-stop smoothing width, where its force starts)
+    solver_error            relative error estimate of the solver when the summary gives no
+                            tolerance: 1e-3
+    """
+
+    end_stop_time_share: float = 1e-3
+    end_stop_energy_share: float = 1e-2
+    lift_off_share: float = 1e-2
+    stop_margin_m: float | None = None
+    solver_error: float = 1e-3
+
+
+def check(view, thresholds: Thresholds | None = None) -> list[dict]:
+    """All warnings of a results view (vehicle.runs.reader.ResultsView)."""
+    th = thresholds or Thresholds()
+    data = _Data(view)
+    out = []
+    for fn in (_end_stop_time, _end_stop_energy, _equilibria, _temperatures, _lift_off, _solver):
+        out.extend(fn(data, th))
+    for w in out:
+        w["where"] = struts_text(w["struts"], data.stations)
+    return out
+
+
+def format_warnings(warnings: list[dict]) -> list[str]:
+    return [f"{w['severity']}: {w['message']}" for w in warnings]
+
+
+def summary_cell(warnings: list[dict]) -> str:
+    """The sweep CSV cell: code(struts@km); ... ('' when none)."""
+    parts = []
+    for w in warnings:
+        where = w.get("where") or ",".join(w["struts"])
+        at = f"@{w['km']:.3f}km" if w.get("km") is not None else ""
+        parts.append(f"{w['code']}({where}{at})" if where or at else w["code"])
+    return "; ".join(parts)
+
+
+# --- reading ----------------------------------------------------------------------------------------
+def _name(drive_key: str) -> str:
+    """The results variable name of a drive key (vehicle.runs.variables), or the key itself."""
+    try:
+        from vehicle.runs.variables import VARIABLES
+    except ImportError:        # pragma: no cover - older layout
+        return drive_key
+    entry = VARIABLES.get(drive_key)
+    return getattr(entry, "name", drive_key)
+
+
+class _Data:
+    """What the checks need from a view, read once."""
+
+    def __init__(self, view):
+        self.view = view
+        self.stations = list(view.stations)
+        resolved = json.loads(view.scenario_attrs["resolved_json"])
+        self.struts = [resolved["struts"][f"axle{k // 2 + 1}"] for k in range(len(self.stations))]
+        self.km = self._stats("distance_end_m")
+        self.duration = self._stats("duration_s")
+
+    def _stats(self, key):
+        a = self.view.stats_series(_name(key))
+        return None if a is None or len(a) == 0 else np.asarray(a, float)
+
+    def stats(self, key):
+        return self._stats(key) if self.km is not None else None
+
+    def series(self, key):
+        a = self.view.series(_name(key))
+        return None if a is None or len(a) == 0 else np.asarray(a, float)
+
+    def summary_value(self, key):
+        attrs = self.view.summary_attrs()
+        if key in attrs:
+            return attrs[key]
+        return self.view.summary_values().get(_name(key))
+
+
+def _warning(code, severity, struts, km, value, limit, unit, message) -> dict:
+    return {"code": code, "severity": severity, "struts": list(struts), "km": None if km is None else float(km),
+            "value": None if value is None else float(value), "limit": None if limit is None else float(limit),
+            "unit": unit, "message": message}
+
+
+def _first_km(km, flags) -> float | None:
+    """Distance at the end of the first interval (row) where any station is flagged."""
+    rows = np.flatnonzero(np.any(flags, axis=1))
+    return None if len(rows) == 0 else float(km[rows[0]])
+
+
+def _names(data, mask) -> list[str]:
+    return [s for s, m in zip(data.stations, mask) if m]
+
+
+def struts_text(names: list[str], stations: list[str]) -> str:
+    """'all struts', or axles where both struts are named ('axle1, axle3_left')."""
+    if set(names) == set(stations):
+        return "all struts"
+    out = []
+    for k in range(0, len(stations), 2):
+        pair = [s for s in stations[k:k + 2] if s in names]
+        if len(pair) == 2:
+            out.append(pair[0].rsplit("_", 1)[0])
+        else:
+            out.extend(pair)
+    return ", ".join(out)
+
+
+def _share_check(data, th_share, key, code, what) -> list[dict]:
+    """A per-station time share per interval (key: seconds or a share) above a threshold."""
+    raw = data.stats(key)
+    if raw is None or data.duration is None:
+        return []
+    share = raw if key.endswith("share") else raw / np.maximum(data.duration, 1e-12)[:, None]
+    flags = share > th_share
+    if not flags.any():
+        return []
+    total = (share * data.duration[:, None]).sum(axis=0) / data.duration.sum()
+    struts = _names(data, flags.any(axis=0))
+    km = _first_km(data.km, flags)
+    worst = float(share.max())
+    return [_warning(code, "warning", struts, km, 100 * worst, 100 * th_share, "%",
+                     f"{what} {100 * worst:.2g} % of an interval (limit {100 * th_share:.2g} %; "
+                     f"{100 * total.max():.2g} % over the drive) at {struts_text(struts, data.stations)}, first by {km:.3f} km")]
+
+
+def _end_stop_time(data, th):
+    return _share_check(data, th.end_stop_time_share, "end_stop_time_s", "end_stop_time",
+                        "struts on an end stop for")
+
+
+def _lift_off(data, th):
+    return _share_check(data, th.lift_off_share, "lift_off_share", "tyre_lift_off", "tyres off the ground for")
+
+
+def _end_stop_energy(data, th):
+    """End-stop energy as a share of what the strut dissipated, per interval."""
+    p_stop = data.stats("power_end_stop_W")
+    if p_stop is None:
+        return []
+    p_all = p_stop.copy()
+    for key in ("power_valve_W", "power_friction_W", "power_gas_W"):
+        p = data.stats(key)
+        if p is not None:
+            p_all = p_all + np.abs(p)
+    share = p_stop / np.maximum(p_all, 1e-12)
+    flags = share > th.end_stop_energy_share
+    if not flags.any():
+        return []
+    E_stop = (p_stop * data.duration[:, None]).sum(axis=0)
+    E_all = (p_all * data.duration[:, None]).sum(axis=0)
+    struts = _names(data, flags.any(axis=0))
+    km = _first_km(data.km, flags)
+    worst = float(share.max())
+    return [_warning("end_stop_energy", "warning", struts, km, 100 * worst, 100 * th.end_stop_energy_share, "%",
+                     f"end stops take {100 * worst:.2g} % of the dissipated energy in an interval (limit "
+                     f"{100 * th.end_stop_energy_share:.2g} %; {np.max(E_stop) / 1e3:.3g} kJ, "
+                     f"{100 * np.max(E_stop / np.maximum(E_all, 1e-12)):.2g} % over the drive) at "
+                     f"{struts_text(struts, data.stations)}, first by {km:.3f} km")]
+
+
+def _equilibria(data, th):
+    out = []
+    for which, when in (("before", "before the drive"), ("after", "after the drive")):
+        eq = data.view.equilibrium(which)
+        if not eq or _name("strut_deflections_m") not in eq:
+            continue
+        x = np.asarray(eq[_name("strut_deflections_m")], float)
+        rebound, bump = [], []
+        for s, xs, st in zip(data.stations, x, data.struts):
+            margin = th.stop_margin_m if th.stop_margin_m is not None else st["end_stops"]["smoothing"]
+            if xs <= margin:
+                rebound.append((s, xs))
+            elif xs >= st["geometry"]["stroke"] - margin:
+                bump.append((s, xs))
+        km = 0.0 if which == "before" else (float(data.km[-1]) if data.km is not None else None)
+        for found, stop in ((rebound, "the rebound stop (full extension)"), (bump, "the bump stop (full compression)")):
+            if not found:
+                continue
+            names = [s for s, _ in found]
+            lo, hi = min(v for _, v in found), max(v for _, v in found)
+            out.append(_warning("equilibrium_on_stop", "warning", names, km, 1e3 * (lo if found is rebound else hi),
+                                None, "mm",
+                                f"the standing equilibrium {when} rests on {stop} at {struts_text(names, data.stations)} (deflection "
+                                f"{1e3 * lo:.1f}..{1e3 * hi:.1f} mm): its heights and wheel loads are set by the stop, "
+                                "not by the gas springs"))
+    return out
+
+
+def _temperatures(data, th):
+    """Strut temperatures against the seal and oil limits and the oil data's range."""
+    T, km_of = data.series("strut_temperature_K"), data.series("distance_m")
+    if T is None or km_of is None:             # time series not stored: the statistics rows
+        T, km_of = data.stats("strut_temperature_K"), data.km
+    else:
+        km_of = km_of / 1e3
+    if T is None:
+        return []
+    checks = []
+    for st in data.struts:
+        lim, oil = st.get("limits") or {}, st["oil"]
+        lo_data, hi_data = sorted((oil["viscosity_T1"], oil["viscosity_T2"]))
+        checks.append({"seal_temperature": (lim.get("seal_min_temperature"), lim.get("seal_max_temperature")),
+                       "oil_temperature": (None, lim.get("oil_max_temperature")),
+                       "oil_data_range": (lo_data, hi_data)})
+    out = []
+    for code, severity, what in (("seal_temperature", "warning", "the seal limits"),
+                                 ("oil_temperature", "warning", "the oil's service limit"),
+                                 ("oil_data_range", "note", "the range of the oil data (viscosity extrapolated)")):
+        lo = np.array([np.nan if c[code][0] is None else c[code][0] for c in checks])
+        hi = np.array([np.nan if c[code][1] is None else c[code][1] for c in checks])
+        with np.errstate(invalid="ignore"):
+            above, below = T > hi, T < lo
+        for flags, side, limit in ((above, "above", hi), (below, "below", lo)):
+            if not flags.any():
+                continue
+            rows = np.flatnonzero(flags.any(axis=1))
+            struts = _names(data, flags.any(axis=0))
+            cols = flags.any(axis=0)
+            worst = float(np.max(T[:, cols]) if side == "above" else np.min(T[:, cols]))
+            lim = float(np.nanmin(limit[cols]) if side == "above" else np.nanmax(limit[cols]))
+            km = float(km_of[rows[0]])
+            out.append(_warning(code, severity, struts, km, worst - 273.15, lim - 273.15, "degC",
+                                f"strut temperature {worst - 273.15:.1f} degC is {side} {what} ({lim - 273.15:.0f} degC) "
+                                f"at {struts_text(struts, data.stations)}, first at {km:.3f} km"))
+    return out
+
+
+def _solver(data, th):
+    err = data.summary_value("solver_error_estimate")
+    if err is None:
+        return []
+    err = float(np.max(np.asarray(err, float)))
+    tol = data.summary_value("solver_tolerance")
+    tol = th.solver_error if tol is None else float(tol)
+    if not err > tol:
+        return []
+    hint = data.summary_value("solver_advice")
+    return [_warning("solver_error", "warning", [], None, err, tol, "",
+                     f"solver error estimate {err:.2g} exceeds the tolerance {tol:.2g}"
+                     + (f": {hint}" if hint else ": reduce solver.dt"))]
+
