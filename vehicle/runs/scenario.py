@@ -192,7 +192,9 @@ class Scenario(Model):
     vehicle: VehicleChoice
     struts: dict[str, StrutChoice] = {}      # keys: "all" or "axle1", "axle2", ...
     road: dict[str, Any]                     # terrain.RoadSpec fields (validated in prepare())
-    speed: float | SpeedProfileSpec          # "20 km/h" or {profile: [[0 km, 20 km/h], ...]}
+    # "20 km/h", {profile: [[0 km, 20 km/h], ...]}, {csv: ..., by: ...}, {stop_go: {...}} or {random: {...}}
+    # (the last three: vehicle.runs.speed specs; every form becomes a speed table in prepare())
+    speed: float | SpeedProfileSpec | Any
     distance: float
     ambient_temperature: float
     initial_temperatures: float | list[float] | None = None   # default: ambient
@@ -203,10 +205,14 @@ class Scenario(Model):
     @field_validator("speed", mode="before")
     @classmethod
     def _speed(cls, v):
-        if isinstance(v, SpeedProfileSpec):
+        if isinstance(v, Model):
             return v
         if isinstance(v, dict):
-            return _speed_profile(v)
+            if "profile" in v:
+                return _speed_profile(v)
+            from vehicle.runs.speed import parse_speed_spec
+
+            return parse_speed_spec(v)
         return _in_range(_quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
 
     @field_validator("distance", mode="before")
@@ -352,16 +358,14 @@ class Prepared:
     vehicle: Any                 # vehicle.physics.params.VehicleParams
     road_spec: Any               # terrain.RoadSpec
     initial_temperatures_K: np.ndarray
+    speed_profile: Any = None    # vehicle.runs.speed.SpeedTable (built and checked in prepare())
 
     def settings(self):
-        from vehicle.runs.drive import DriveSettings, SpeedProfile
+        from vehicle.runs.drive import DriveSettings
+        from vehicle.runs.speed import build_speed_profile
 
         S = self.scenario
-        if isinstance(S.speed, SpeedProfileSpec):
-            d, v = zip(*S.speed.profile)
-            speed = SpeedProfile(np.array(d), np.array(v))
-        else:
-            speed = SpeedProfile.constant(S.speed)
+        speed = self.speed_profile or build_speed_profile(S.speed, S.distance, self.source.base_dir)
         return DriveSettings(distance_m=S.distance, speed=speed, ambient_K=S.ambient_temperature,
                              initial_temperatures_K=self.initial_temperatures_K.copy(),
                              compensation=S.compensation.enabled, dt_s=S.solver.dt,
@@ -495,7 +499,15 @@ def prepare(src: ScenarioSource) -> Prepared:
     T = vehicle.per_station(T, f"{src.name}: initial_temperatures")
     # road
     road_spec = road_spec_from(S, vehicle, src)
-    return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T)
+    # speed: every form as the drive's distance -> speed table (a recorded drive is read here)
+    from vehicle.runs.speed import build_speed_profile
+
+    try:
+        speed = build_speed_profile(S.speed, S.distance, src.base_dir)
+    except UserInputError as exc:
+        raise UserInputError(f"{src.name}: {exc}") from None
+    return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T,
+                    speed_profile=speed)
 
 
 def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
