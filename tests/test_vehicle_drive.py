@@ -7,8 +7,9 @@ from terrain import RoadSpec, build_road
 from vehicle.physics import thermal
 from vehicle.physics.model import ENERGY_TERMS
 from vehicle.physics.params import GRAVITY, load_vehicle
+from vehicle.runs.sinks import MemorySink
 
-from .vehicle_helpers import Recorder, make_drive
+from .vehicle_helpers import make_drive
 
 
 def _mechanical_energy(drive, x):
@@ -37,7 +38,7 @@ def _gas_internal_energy(drive, x):
 @pytest.fixture(scope="module")
 def drive_d():
     d = make_drive(distance_m=300.0)
-    rec = Recorder()
+    rec = MemorySink()
     x0 = d.initial_state().x.copy()
     res = d.run(rec)
     return d, rec, x0, res
@@ -83,7 +84,7 @@ def test_energy_balance_road_work_equals_dissipated_plus_stored(drive_d):
 
 def test_wheel_loads_sum_to_weight_on_average(drive_d):
     d, rec, x0, res = drive_d
-    loads = rec.series("wheel_load")
+    loads = rec.drive_series("wheel_load")
     W = d.model.params.total_weight()
     # instantaneous sums oscillate with the hull's vertical acceleration; their mean is the weight
     assert np.mean(np.sum(loads, axis=0)) == pytest.approx(W, rel=5e-3)
@@ -98,12 +99,12 @@ def test_symmetric_vehicle_on_identical_tracks_never_rolls():
     road = build_road(RoadSpec(iso_class="D", length=260.0, seed=5, coherence="identical"))
     for dt, limit in ((0.001, 1e-12), (0.004, 1e-4)):
         d = make_drive(distance_m=200.0, road=road, dt_s=dt)
-        rec = Recorder()
+        rec = MemorySink()
         d.run(rec)
-        assert np.max(np.abs(rec.series("roll_rad"))) < limit
-        T = rec.series("strut_temperature_K")
+        assert np.max(np.abs(rec.drive_series("roll_rad"))) < limit
+        T = rec.drive_series("strut_temperature_K")
         assert np.max(np.abs(T[0::2] - T[1::2])) < 1e3 * limit   # left = right, axle by axle
-        assert np.max(np.abs(rec.series("heave_m"))) > 1e-4      # while the hull does move
+        assert np.max(np.abs(rec.drive_series("heave_m"))) > 1e-4      # while the hull does move
 
 
 def test_per_km_statistics_are_consistent_with_the_energy_quadratures(drive_d):
@@ -121,7 +122,7 @@ def test_compensation_holds_the_nominal_deflection_after_heating():
     for on in (False, True):
         d = make_drive(distance_m=800.0, road=road, compensation=on, initial_temperatures_K=298.15 + 45.0,
                        ambient_K=298.15 + 45.0)
-        rec = Recorder()
+        rec = MemorySink()
         res = d.run(rec)
         results[on] = (d, rec, res)
     x_nom = results[True][0].model.x_charged

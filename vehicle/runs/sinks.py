@@ -268,12 +268,13 @@ def finish_file(path: Path, final: dict) -> None:
 
 
 # --- the sinks -------------------------------------------------------------------------------------
-def _sink_hooks():
-    """Called by the sinks at every checkpoint (e.g. a sweep worker that stops when its parent died)."""
-    return _HOOKS
-
-
 _HOOKS: list = []
+
+
+def add_checkpoint_hook(hook) -> None:
+    """hook() -> bool is called by the sinks at every checkpoint; True stops the drive there as Ctrl-C
+    does (the file stays resumable). Used by sweep workers to stop when their parent died."""
+    _HOOKS.append(hook)
 
 
 class H5Sink:

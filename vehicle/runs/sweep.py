@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import csv
 import itertools
+import os
 import re
+import signal
+import sys
 import time
 import traceback
 from pathlib import Path
@@ -106,7 +109,7 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
 
 def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
     """One case in a worker process: never raises, returns status and message."""
-    from vehicle.runs.results import run_scenario
+    from vehicle.runs.results import RunInterrupted, run_scenario
 
     t0 = time.perf_counter()
     try:
@@ -115,8 +118,9 @@ def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
         return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
         return {"status": "failed", "error": str(exc), "seconds": time.perf_counter() - t0}
-    except KeyboardInterrupt:
-        return {"status": "failed", "error": "interrupted", "seconds": time.perf_counter() - t0}
+    except (KeyboardInterrupt, RunInterrupted):
+        # the case's file is closed and resumable: re-running the sweep continues it
+        return {"status": "interrupted", "error": "interrupted", "seconds": time.perf_counter() - t0}
     except Exception as exc:  # a bug: report it with its traceback's last lines, keep the others going
         tb = traceback.format_exc().strip().splitlines()[-3:]
         return {"status": "failed", "error": f"{type(exc).__name__}: {exc} ({' | '.join(tb)})",
@@ -135,10 +139,87 @@ def _dask_client(address: str):
         raise UserInputError(f"--scheduler: cannot connect to the Dask scheduler at {address!r} ({exc})") from None
 
 
-def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
-              scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: int | None = None, client=None,
+            finished: Callable[[str, dict], None], key_prefix: str = "hpsim") -> None:
+    """Run fn(*args) for every (tag, args) in `jobs`; call finished(tag, result) as each ends.
+
+    In this process (workers == 1), in local processes (ProcessPoolExecutor, default: one per CPU)
+    or on a Dask distributed `client`. `fn` must be picklable and return a dict without raising;
+    an exception escaping a worker (e.g. a process killed by the OS) becomes a failed result.
+    Used by `hpsim sweep` and `hpsim uq` (vehicle.runs.uq).
+    """
     import os
 
+    def failed(exc):
+        return {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "seconds": 0.0}
+
+    if not jobs:
+        return
+    if client is not None:
+        from distributed import as_completed as dask_completed
+
+        futs = {client.submit(fn, *args, pure=False, key=f"{key_prefix}-{tag}"): tag for tag, args in jobs}
+        for fut in dask_completed(futs):
+            try:
+                r = fut.result()
+            except Exception as exc:
+                r = failed(exc)
+            finished(futs[fut], r)
+        return
+    workers = workers or min(len(jobs), os.cpu_count() or 1)
+    if workers == 1:
+        for tag, args in jobs:
+            finished(tag, fn(*args))
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), initializer=worker_init,
+                             initargs=(os.getpid(),)) as pool:
+        futs = {pool.submit(fn, *args): tag for tag, args in jobs}
+        try:
+            for fut in as_completed(futs):
+                try:
+                    r = fut.result()
+                except Exception as exc:   # e.g. a worker killed by the OS
+                    r = failed(exc)
+                finished(futs[fut], r)
+        except KeyboardInterrupt:
+            # Ctrl-C: cases not started are dropped; running ones stop at their next checkpoint (their
+            # files stay resumable), also when only this process got the signal
+            for fut in futs:
+                fut.cancel()
+            for proc in list(getattr(pool, "_processes", {}).values()):
+                try:
+                    os.kill(proc.pid, signal.SIGINT)
+                except OSError:
+                    pass
+            raise
+
+
+def worker_init(parent_pid: int) -> None:
+    """In each local worker process: die with the parent (a sweep killed with kill -9 leaves no
+    workers running): the kernel kills the worker when its parent dies (Linux prctl
+    PR_SET_PDEATHSIG), and elsewhere the worker's results sink stops the drive at the next block
+    once the parent is gone. Ctrl-C is ignored between cases (a running case handles it itself)."""
+    import ctypes
+
+    from vehicle.runs.sinks import add_checkpoint_hook
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            PR_SET_PDEATHSIG = 1
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:          # the parent died before prctl took effect
+        os._exit(1)
+    add_checkpoint_hook(lambda: os.getppid() != parent_pid)
+
+
+def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
+              scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
     from vehicle.runs.results import results_status
 
     log = log or (lambda m: None)
@@ -168,43 +249,30 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
         rows[c["name"]] = r
         if r["status"] == "done":
             log(f"[{done}/{n}] {c['name']}: done in {r['seconds']:.1f} s")
+        elif r["status"] == "interrupted":
+            log(f"[{done}/{n}] {c['name']}: interrupted (resumable)")
         else:
             log(f"[{done}/{n}] {c['name']}: FAILED: {r['error']}")
 
-    if n and client is not None:
-        from distributed import as_completed
-
-        try:
-            futs = {client.submit(run_case, c["source"].text, c["source"].name, str(c["source"].base_dir),
-                                  str(c["file"].resolve()), pure=False, key=f"hpsim-{path.stem}-{c['name']}"): c
-                    for c in todo}
-            for fut in as_completed(futs):
-                try:
-                    r = fut.result()
-                except Exception as exc:
-                    r = {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "seconds": 0.0}
-                finished(futs[fut], r)
-        finally:
+    by_name = {c["name"]: c for c in todo}
+    jobs = [(c["name"], (c["source"].text, c["source"].name, str(c["source"].base_dir), str(c["file"].resolve())))
+            for c in todo]
+    resume_cmd = f"hpsim sweep {path} -o {out_dir}"
+    try:
+        execute(run_case, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",
+                finished=lambda name, r: finished(by_name[name], r))
+    except KeyboardInterrupt:
+        interrupted = True
+    else:
+        interrupted = any(r.get("status") == "interrupted" for r in rows.values())
+    finally:
+        if client is not None:
             client.close()
-    elif n:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        workers = workers or min(n, os.cpu_count() or 1)
-        if workers == 1:
-            for c in todo:
-                finished(c, run_case(c["source"].text, c["source"].name, str(c["source"].base_dir), str(c["file"])))
-        else:
-            with ProcessPoolExecutor(max_workers=min(workers, n)) as pool:
-                futs = {pool.submit(run_case, c["source"].text, c["source"].name, str(c["source"].base_dir),
-                                    str(c["file"])): c for c in todo}
-                for fut in as_completed(futs):
-                    try:
-                        r = fut.result()
-                    except Exception as exc:   # e.g. a worker killed by the OS
-                        r = {"status": "failed", "error": f"{type(exc).__name__}: {exc}", "seconds": 0.0}
-                    finished(futs[fut], r)
-    if client is not None and not n:
-        client.close()
+    if interrupted:
+        n_done = sum(r.get("status") in ("done", "skipped") for r in rows.values())
+        log(f"{path}: interrupted, {n_done} of {len(cases)} cases complete in {out_dir}/ (an interrupted case "
+            f"resumes, complete ones are skipped). Continue with: {resume_cmd}")
+        raise KeyboardInterrupt
     result = summarise(path, out_dir, cases, rows)
     result["wall_s"] = time.perf_counter() - t0
     return result
@@ -239,6 +307,9 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
                 for a in rep["axles"]:
                     for q in ("dN_pct", "dN_charged_pct", "dh_mm", "T_end_C"):
                         row[f"{q}_axle{a['axle']}"] = a[q]
+                warnings = rep.get("warnings")          # the report's plausibility warnings, when it gives them
+                if warnings:
+                    row["warnings"] = warnings if isinstance(warnings, str) else "; ".join(map(str, warnings))
                 ok_files.append(c["file"])
                 ok_labels.append(c["name"])
         table.append(row)
