@@ -127,11 +127,11 @@ def test_compensation_holds_the_nominal_deflection_after_heating():
         results[on] = (d, rec, res)
     x_nom = results[True][0].model.x_charged
     band = results[True][0].model.params.compensation.dead_band
-    defl_off = results[False][1].series("strut_deflection")[:, -1]
-    defl_on = results[True][1].series("strut_deflection")[:, -1]
+    defl_off = results[False][1].drive_series("strut_deflection")[:, -1]
+    defl_on = results[True][1].drive_series("strut_deflection")[:, -1]
     assert np.all(np.abs(defl_off - x_nom) > 2 * band)        # hot sealed struts extend a lot
     assert np.all(np.abs(defl_on - x_nom) < band + 2e-3)      # levelling brings them back
-    assert np.all(results[True][1].series("oil_added_m3")[:, -1] < 0)   # by draining oil
+    assert np.all(results[True][1].drive_series("oil_added_m3")[:, -1] < 0)   # by draining oil
     # and the after-drive heights stay near the charged heights
     assert np.max(np.abs(results[True][2].after.axle_height_change_m)) < np.max(
         np.abs(results[False][2].after.axle_height_change_m)) / 3
