@@ -33,7 +33,74 @@ def format_report(rep: dict) -> str:
         tail.append(f"mean strut temperature rise {rep['mean_temperature_rise_K']:.1f} K")
     if rep.get("error"):
         tail.append(f"stopped: {rep['error']}")
+    ride = format_ride(rep.get("ride") or {}, len(rep["axles"]))
+    if ride:
+        tail.append("")
+        tail.append(ride)
+    if rep.get("warnings"):
+        tail.append("")
+        tail += format_warnings(rep["warnings"])
     return "\n".join([head, table] + tail)
+
+
+def format_warnings(warnings) -> list[str]:
+    from vehicle.runs.warnings import format_warnings as lines
+
+    return lines(warnings)
+
+
+# (key, header, scale, format) of the ride tables; a column shows when any row has the key
+SEAT_COLUMNS = (("weighted_rms_acceleration_m_s2", "a_w Wk [m/s^2]", 1.0, ".3f"),
+                ("comfort", "ISO 2631-1 Annex C", None, "s"),
+                ("weighted_rms_lateral_acceleration_m_s2", "a_w Wd lat. [m/s^2]", 1.0, ".3f"),
+                ("vdv_m_s175", "VDV [m/s^1.75]", 1.0, ".3g"),
+                ("absorbed_power_W", "abs. power [W]", 1.0, ".3g"))
+AXLE_COLUMNS = (("dynamic_load_coefficient", "DLC", 1.0, ".3f"),
+                ("lift_off_share", "lift-off [%]", 100.0, ".2f"),
+                ("end_stop_time_s", "on stops [s]", 1.0, ".3g"),
+                ("end_stop_energy_J", "stop energy [kJ]", 1e-3, ".3g"),
+                ("strut_travel_min_m", "travel min [mm]", 1e3, ".1f"),
+                ("strut_travel_max_m", "travel max [mm]", 1e3, ".1f"),
+                ("strut_travel_p1_m", "p1 [mm]", 1e3, ".1f"),
+                ("strut_travel_p99_m", "p99 [mm]", 1e3, ".1f"),
+                ("rms_strut_velocity_m_per_s", "RMS v [mm/s]", 1e3, ".0f"))
+
+
+def _ride_table(rows, columns, first):
+    from hpsim.tables import format_table
+
+    cols = [c for c in columns if any(r.get(c[0]) is not None for r in rows)]
+    if not cols:
+        return ""
+
+    def cell(v, scale, fmt):
+        if v is None:
+            return "-"
+        return str(v) if scale is None else format(v * scale, fmt)
+
+    return format_table([first[1]] + [c[1] for c in cols],
+                        [[r[first[0]]] + [cell(r.get(k), sc, f) for k, _, sc, f in cols] for r in rows])
+
+
+def format_ride(ride: dict, n_axles: int) -> str:
+    """The ride (per seat) and road-holding (per axle, worst of left and right) tables of a drive."""
+    from vehicle.runs.ride_metrics import axle_rows
+
+    parts = []
+    if ride.get("seats"):
+        parts.append("ride comfort over the drive (ISO 2631-1 weighted RMS, VDV; absorbed power)")
+        parts.append(_ride_table(ride["seats"], SEAT_COLUMNS, ("seat", "seat")))
+    rows = axle_rows(ride, [None] * n_axles)
+    table = _ride_table(rows, AXLE_COLUMNS, ("axle", "axle")) if rows else ""
+    if table:
+        parts.append("road holding and strut travel (worst of left and right)")
+        parts.append(table)
+    hull = ride.get("hull")
+    if hull:
+        parts.append(f"hull RMS acceleration: heave {hull['rms_heave_acceleration_m_s2']:.3g} m/s^2, "
+                     f"pitch {hull['rms_pitch_acceleration_rad_s2']:.3g} rad/s^2, "
+                     f"roll {hull['rms_roll_acceleration_rad_s2']:.3g} rad/s^2")
+    return "\n".join(parts)
 
 
 def format_compare(cmp: dict, labels=None) -> str:
@@ -56,7 +123,19 @@ def format_compare(cmp: dict, labels=None) -> str:
                                    for r in runs],
             ["distance [km]"] + [f"{r['distance_km']:.3f}" for r in runs],
             ["compensation"] + ["on" if r["compensation"] else "off" for r in runs]]
+    seats = {s["seat"] for r in runs for s in (r.get("ride") or {}).get("seats", [])}
+    for seat in sorted(seats):
+        vals = []
+        for r in runs:
+            found = [s for s in (r.get("ride") or {}).get("seats", []) if s["seat"] == seat]
+            a = found[0].get("weighted_rms_acceleration_m_s2") if found else None
+            vals.append("-" if a is None else f"{a:.3f}")
+        rows.append([f"a_w {seat} [m/s^2]"] + vals)
+    rows.append(["warnings"] + [str(len(r.get("warnings") or [])) for r in runs])
     blocks.append(format_table([""] + labels, rows))
+    notes = [f"{lab}: {w['severity']}: {w['message']}" for lab, r in zip(labels, runs) for w in r.get("warnings") or []]
+    if notes:
+        blocks.append("\n".join(notes))
     return "\n\n".join(blocks)
 
 

@@ -513,6 +513,9 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
     final = final_info(drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     try:
         _final_write(out, final)
+        from vehicle.runs.warnings import record
+
+        record(out)                     # the validity warnings, in the file (/summary attrs)
     except (OSError, RuntimeError) as exc:
         if is_disk_full(exc):
             raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \

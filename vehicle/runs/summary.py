@@ -127,6 +127,10 @@ def report_from(r: ResultsView, name: str) -> dict:
            "hpsim_version": str(sc.get("hpsim_version", ""))}
     if "error" in summ:
         out["error"] = str(summ["error"])
+    from vehicle.runs import ride_metrics, warnings as validity
+
+    out["ride"] = ride_metrics.summarise(r)
+    out["warnings"] = validity.check(r)
     return out
 
 
@@ -155,4 +159,5 @@ def compare(paths) -> dict:
     return {"runs": [{"file": r["file"], "status": r["status"], "distance_km": r["distance_km"],
                       "compensation": r["compensation"], "load_shift_pct": r["load_shift_pct"],
                       "load_shift_vs_charged_pct": r["load_shift_vs_charged_pct"],
-                      "mean_temperature_rise_K": r["mean_temperature_rise_K"], "axles": r["axles"]} for r in reps]}
+                      "mean_temperature_rise_K": r["mean_temperature_rise_K"], "axles": r["axles"],
+                      "ride": r.get("ride", {}), "warnings": r.get("warnings", [])} for r in reps]}

@@ -60,18 +60,27 @@ def check(view, thresholds: Thresholds | None = None) -> list[dict]:
     return out
 
 
+def record(path) -> list[dict]:
+    """Check a finished results file and write the warnings into it: /summary attributes
+    `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list)."""
+    from pathlib import Path
+
+    from vehicle.runs.reader import open_results
+    from vehicle.runs.sinks import finish_file
+
+    with open_results(path, check=False) as r:
+        found = check(r)
+    finish_file(Path(path), {"summary": {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}})
+    return found
+
+
 def format_warnings(warnings: list[dict]) -> list[str]:
     return [f"{w['severity']}: {w['message']}" for w in warnings]
 
 
 def summary_cell(warnings: list[dict]) -> str:
     """The sweep CSV cell: code(struts@km); ... ('' when none)."""
-    parts = []
-    for w in warnings:
-        where = w.get("where") or ",".join(w["struts"])
-        at = f"@{w['km']:.3f}km" if w.get("km") is not None else ""
-        parts.append(f"{w['code']}({where}{at})" if where or at else w["code"])
-    return "; ".join(parts)
+    return "; ".join(str(w if isinstance(w, ValidityWarning) else ValidityWarning(w)) for w in warnings)
 
 
 # --- reading ----------------------------------------------------------------------------------------
@@ -114,10 +123,19 @@ class _Data:
         return self.view.summary_values().get(_name(key))
 
 
-def _warning(code, severity, struts, km, value, limit, unit, message) -> dict:
-    return {"code": code, "severity": severity, "struts": list(struts), "km": None if km is None else float(km),
-            "value": None if value is None else float(value), "limit": None if limit is None else float(limit),
-            "unit": unit, "message": message}
+class ValidityWarning(dict):
+    """A warning (a plain dict, JSON-ready) whose str() is its short form: code(where@km)."""
+
+    def __str__(self):
+        where = self.get("where") or ",".join(self["struts"])
+        at = f"@{self['km']:.3f}km" if self.get("km") is not None else ""
+        return f"{self['code']}({where}{at})" if where or at else self["code"]
+
+
+def _warning(code, severity, struts, km, value, limit, unit, message) -> ValidityWarning:
+    return ValidityWarning(code=code, severity=severity, struts=list(struts), km=None if km is None else float(km),
+                           value=None if value is None else float(value),
+                           limit=None if limit is None else float(limit), unit=unit, message=message)
 
 
 def _first_km(km, flags) -> float | None:
@@ -242,7 +260,7 @@ def _temperatures(data, th):
                        "oil_temperature": (None, lim.get("oil_max_temperature")),
                        "oil_data_range": (lo_data, hi_data)})
     out = []
-    for code, severity, what in (("seal_temperature", "warning", "the seal limits"),
+    for code, severity, what in (("seal_temperature", "warning", "the seal limit"),
                                  ("oil_temperature", "warning", "the oil's service limit"),
                                  ("oil_data_range", "note", "the range of the oil data (viscosity extrapolated)")):
         lo = np.array([np.nan if c[code][0] is None else c[code][0] for c in checks])
