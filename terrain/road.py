@@ -10,6 +10,10 @@ the same spline.
 
 Axle k reads the same track at its own distance behind axle 1: s_k = s_1 - a_k
 (`evaluate_axles`).
+
+Passes (`terrain.passes`): the k-th wheel over the same ground may meet a compacted, smoother
+surface; `evaluate(s, track, pass_index=k)` reads pass k's surface (built once per distinct pass
+transform and cached; pass_index 0 and the default pass list give the road as built).
 """
 from __future__ import annotations
 
@@ -23,6 +27,7 @@ from scipy.linalg import solve_banded
 from hpsim.errors import UserInputError
 
 from .envelope import envelope_profile
+from .passes import PassSpec, pass_profile, pass_spec
 from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
 
 TRACKS = ("left", "right")
@@ -58,8 +63,13 @@ def clamped_spline_slopes(z: np.ndarray, spacing_m: float) -> np.ndarray:
 class Road:
     """Left/right track heights [m] at distances i·spacing_m, i = 0..n-1 (distance starts at 0)."""
 
-    def __init__(self, spacing_m: float, left_m, right_m, *, info: dict | None = None, copy: bool = True):
-        """copy=False takes over float64 arrays without copying (they become read-only)."""
+    def __init__(self, spacing_m: float, left_m, right_m, *, info: dict | None = None, copy: bool = True,
+                 passes: list[PassSpec] | None = None, level_m: tuple | None = None):
+        """copy=False takes over float64 arrays without copying (they become read-only).
+
+        passes: the surface of pass 0, 1, ... (`terrain.passes`; default: the same for every pass);
+        level_m: (left, right) persistent level changes inside the profile that the passes leave alone.
+        """
         left = np.array(left_m, dtype=float, copy=copy or None)
         right = np.array(right_m, dtype=float, copy=copy or None)
         if left.ndim != 1 or left.shape != right.shape or left.size < 2:
@@ -72,6 +82,13 @@ class Road:
         self._z = (left, right)
         self._slopes: list[np.ndarray | None] = [None, None]
         self.info = dict(info or {})
+        self.passes = [p if isinstance(p, PassSpec) else PassSpec.model_validate(p) for p in (passes or [])]
+        if level_m is not None:
+            level_m = tuple(np.asarray(a, dtype=float) for a in level_m)
+            if len(level_m) != 2 or any(a.shape != left.shape for a in level_m):
+                raise ValueError("level_m must be (left, right) arrays of the profile's length")
+        self._level = level_m
+        self._pass_cache: dict = {}     # (PassSpec, track) -> (heights, knot slopes)
 
     # -- grid -----------------------------------------------------------------
     @property
@@ -100,23 +117,50 @@ class Road:
     def right_m(self) -> np.ndarray:
         return self._z[1]
 
-    def heights(self, track) -> np.ndarray:
-        return self._z[track_index(track)]
-
-    def knot_slopes(self, track) -> np.ndarray:
-        """Spline slopes at the grid points (computed once per track, O(N))."""
+    def heights(self, track, pass_index: int = 0) -> np.ndarray:
+        """Grid heights [m] of `track` under pass `pass_index` (0: the first wheel over the ground)."""
         k = track_index(track)
+        spec = pass_spec(self.passes, pass_index)
+        if spec.identity:
+            return self._z[k]
+        return self._pass_arrays(spec, k)[0]
+
+    def knot_slopes(self, track, pass_index: int = 0) -> np.ndarray:
+        """Spline slopes at the grid points (computed once per track and pass surface, O(N))."""
+        k = track_index(track)
+        spec = pass_spec(self.passes, pass_index)
+        if not spec.identity:
+            return self._pass_arrays(spec, k)[1]
         if self._slopes[k] is None:
             m = clamped_spline_slopes(self._z[k], self._spacing)
             m.setflags(write=False)
             self._slopes[k] = m
         return self._slopes[k]
 
+    def _pass_arrays(self, spec: PassSpec, k: int):
+        key = (spec.factor, spec.smoothing_length, k)
+        if key not in self._pass_cache:
+            level = None if self._level is None else self._level[k]
+            z = pass_profile(self._z[k], self._spacing, spec, level)
+            z.setflags(write=False)
+            m = clamped_spline_slopes(z, self._spacing)
+            m.setflags(write=False)
+            self._pass_cache[key] = (z, m)
+        return self._pass_cache[key]
+
+    @property
+    def n_pass_surfaces(self) -> int:
+        """Number of distinct entries in the pass list (passes beyond it repeat the last one)."""
+        return max(1, len(self.passes))
+
     # -- evaluation -------------------------------------------------------------
-    def evaluate(self, s_m, track) -> tuple[np.ndarray, np.ndarray]:
-        """(height [m], slope dz/ds [-]) of `track` at distances `s_m` (any shape), clamped to [0, length]."""
-        z = self.heights(track)
-        m = self.knot_slopes(track)
+    def evaluate(self, s_m, track, pass_index: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(height [m], slope dz/ds [-]) of `track` at distances `s_m` (any shape), clamped to [0, length].
+
+        pass_index k: the surface the k-th wheel over this ground meets (`terrain.passes`).
+        """
+        z = self.heights(track, pass_index)
+        m = self.knot_slopes(track, pass_index)
         s = np.asarray(s_m, dtype=float)
         x = np.clip(s, 0.0, self.length_m) / self._spacing
         i = np.clip(x.astype(np.intp), 0, self.n_points - 2)  # NaN in -> NaN out, never a bad index
@@ -129,13 +173,20 @@ class Road:
         slope = (m0 + 2.0 * (3.0 * dz - 2.0 * m0 - m1) * t + 3.0 * (m0 + m1 - 2.0 * dz) * t2) / self._spacing
         return height, slope
 
-    def evaluate_axles(self, s_m, offsets_m: Iterable[float], track):
-        """(height, slope) arrays of shape (n_axles, *shape(s_m)) for axles at s_m - offsets_m[k]."""
-        s = np.asarray(s_m, dtype=float)
-        off = np.asarray(list(offsets_m), dtype=float).reshape((-1,) + (1,) * s.ndim)
-        return self.evaluate(s[None, ...] - off, track)
+    def evaluate_axles(self, s_m, offsets_m: Iterable[float], track, passes: bool = False):
+        """(height, slope) arrays of shape (n_axles, *shape(s_m)) for axles at s_m - offsets_m[k].
 
-    def casadi_function(self, track, window_m: tuple[float, float] | None = None):
+        passes=True: the k-th offset (in the order given) reads pass k's surface.
+        """
+        s = np.asarray(s_m, dtype=float)
+        offsets = list(offsets_m)
+        if not passes:
+            off = np.asarray(offsets, dtype=float).reshape((-1,) + (1,) * s.ndim)
+            return self.evaluate(s[None, ...] - off, track)
+        out = [self.evaluate(s - a, track, pass_index=k) for k, a in enumerate(offsets)]
+        return np.stack([h for h, _ in out]), np.stack([d for _, d in out])
+
+    def casadi_function(self, track, window_m: tuple[float, float] | None = None, pass_index: int = 0):
         """CasADi Function `s -> (height, slope)` (B-spline node, same spline as `evaluate`).
 
         With `window_m = (start, end)` only that stretch is put in the function (cheaper to
@@ -146,7 +197,7 @@ class Road:
         from scipy.interpolate import make_interp_spline
 
         k = track_index(track)
-        z = self._z[k]
+        z = self.heights(k, pass_index)
         lo, hi = 0, self.n_points - 1
         if window_m is not None:
             lo = max(0, int(np.floor(window_m[0] / self._spacing)))
@@ -154,7 +205,7 @@ class Road:
             if hi - lo < 3:
                 raise UserInputError(f"window {window_m} m: must span at least 3 grid steps inside "
                                      f"[0, {self.length_m}] m")
-        m = self.knot_slopes(k)
+        m = self.knot_slopes(k, pass_index)
         x = np.arange(lo, hi + 1) * self._spacing
         spl = make_interp_spline(x, z[lo:hi + 1], k=3, bc_type=([(1, m[lo])], [(1, m[hi])]))
         dspl = spl.derivative()  # exact derivative (quadratic B-spline): cheaper than ca.jacobian of the node
@@ -182,9 +233,12 @@ class Road:
         if not contact_length_m > 0:
             raise UserInputError(f"contact length: must be > 0 m (got {contact_length_m} m)")
         info = dict(self.info, contact_length_m=float(contact_length_m))
+        level = None if self._level is None else \
+            tuple(envelope_profile(a, contact_length_m, self._spacing) for a in self._level)
         return Road(self._spacing,
                     envelope_profile(self._z[0], contact_length_m, self._spacing),
-                    envelope_profile(self._z[1], contact_length_m, self._spacing), info=info, copy=False)
+                    envelope_profile(self._z[1], contact_length_m, self._spacing), info=info, copy=False,
+                    passes=self.passes, level_m=level)
 
     # -- files ---------------------------------------------------------------------
     def to_csv(self, path: str | Path) -> None:

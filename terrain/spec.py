@@ -10,7 +10,12 @@ Exactly one source of the profile:
 Random roads are generated on a grid of `spacing` over `length` (n = floor(length/spacing) + 1
 points; the road ends at the last grid point). For `csv`, `spacing` resamples the file only if
 given explicitly (else the file's own spacing is kept) and `length` keeps the first metres of it.
-`events` are added on top of any source.
+`events` are added on top of any source, and so are the events of random `populations` (potholes
+or bumps with a density per km and distributions of size, `terrain.events.EventPopulation`).
+`passes` give the surface the 2nd, 3rd, ... wheel over the same ground meets (a factor and a
+smoothing length each, `terrain.passes`; default: the same surface for every pass). Long-wave
+content: `waviness` (w in Gd(n) ~ n^-w, 0.5..4) and `band` (its lower edge sets the longest
+wavelength, 1/n_min) reach every random road.
 """
 from __future__ import annotations
 
@@ -26,7 +31,8 @@ from hpsim.errors import UserInputError
 
 from . import iso8608
 from .coherence import coherence_model
-from .events import EventSpec, apply_events
+from .events import LEVEL_EVENTS, EventPopulation, EventSpec, apply_events, population_rng
+from .passes import PassSpec
 from .road import Road
 
 MAX_LENGTH_M = 5.0e6  # 5000 km: beyond this the arrays no longer fit comfortably in memory
@@ -48,6 +54,8 @@ class RoadSpec(Model):
     track_width: Quantity("m") = 2.5
     coherence: Literal["isotropic", "independent", "identical"] = "isotropic"
     events: list[EventSpec] = []
+    populations: list[EventPopulation] = []
+    passes: list[PassSpec] = []
 
     @field_validator("iso_class", mode="before")
     @classmethod
@@ -164,8 +172,9 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
             path = Path(base_dir or Path.cwd()) / path
         spacing = spec.spacing if "spacing" in spec.model_fields_set else None
         road = Road.from_csv(path, spacing_m=spacing, length_m=spec.length)
-        if not spec.events:
-            return Road(road.spacing_m, road.left_m, road.right_m, info={**info, **road.info}, copy=False)
+        if not spec.events and not spec.populations:
+            return Road(road.spacing_m, road.left_m, road.right_m, info={**info, **road.info}, copy=False,
+                        passes=spec.passes)
         left, right = road.left_m.copy(), road.right_m.copy()
         info.update(road.info)
         step = road.spacing_m
@@ -189,5 +198,18 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
         if ev.position > road_length:
             raise UserInputError(f"events.{i}: {ev.type} at {ev.position:g} m is beyond the road "
                                  f"length {road_length:g} m")
-    apply_events(step, left, right, spec.events)
-    return Road(step, left, right, info=info, copy=False)
+    events = list(spec.events)
+    counts = []
+    for j, pop in enumerate(spec.populations):
+        drawn = pop.realise(road_length, population_rng(spec.seed, j, pop.seed))
+        counts.append(len(drawn))
+        events += drawn
+    if counts:
+        info["population_counts"] = counts
+    apply_events(step, left, right, events)
+    level = None
+    if any(not p.identity for p in spec.passes) and any(isinstance(ev, LEVEL_EVENTS) for ev in events):
+        # steps and ramps change the level for good: the passes compact the roughness, not the grade
+        level = (np.zeros_like(left), np.zeros_like(right))
+        apply_events(step, level[0], level[1], [ev for ev in events if isinstance(ev, LEVEL_EVENTS)])
+    return Road(step, left, right, info=info, copy=False, passes=spec.passes, level_m=level)
