@@ -77,70 +77,140 @@ def dashboard(path: str | Path, out: str | Path) -> Path:
             power_x = s_km
             power_how = "from the energy time series"
 
-    fig, ax = plt.subplots(2, 2, figsize=(13, 8.5), constrained_layout=True)
+        T_stats = f.stats_series("strut_temperature")
+        charged = f.equilibrium("charged")
+        N_charged = None if charged is None else np.asarray(charged["wheel_load"], float)
+        ride_rows = _ride_rows(f)
+
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    title = (f"{Path(path).name}: {rep['distance_km']:.2f} km, compensation "
-             f"{'on' if rep['compensation'] else 'off'}, {rep['status']}")
-    fig.suptitle(title)
-    # temperatures
-    a = ax[0, 0]
-    if T is not None and s_km is not None:
-        Tax = 0.5 * (T[:, 0::2] + T[:, 1::2]) - 273.15
+    panels = []            # (title, draw(ax)) of the panels that have data: no empty panels
+
+    def temperatures(a):
+        if T is not None and s_km is not None:
+            x, Ts = s_km, T
+        else:                      # time series not stored: the start and the statistics rows
+            x = np.concatenate([[0.0], s_stats])
+            Ts = np.vstack([np.asarray(before["strut_temperature"], float)[None, :], T_stats])
+        Tax = 0.5 * (Ts[:, 0::2] + Ts[:, 1::2]) - 273.15
         for k, name in enumerate(axles):
-            a.plot(s_km, Tax[:, k], color=colors[k % len(colors)], label=name)
-    a.set(xlabel="distance [km]", ylabel="strut temperature [degC]", title="strut temperature (mean of left/right)")
-    a.grid(alpha=0.3)
-    a.legend(fontsize=8)
-    # height change
-    a = ax[0, 1]
-    window_s = None
-    if h is not None and s_km is not None and len(s_km) > 1:
+            a.plot(x, Tax[:, k], color=colors[k % len(colors)], label=name, marker="o" if len(x) < 30 else None, ms=3)
+        a.axhline(rep["ambient_C"], color="0.45", ls="--", lw=1.0)
+        a.annotate(f"ambient {rep['ambient_C']:.0f} degC", (x[0], rep["ambient_C"]), textcoords="offset points",
+                   xytext=(2, 3), fontsize=7, color="0.35")
+        a.set(xlabel="distance [km]", ylabel="strut temperature [degC]", title="strut temperature (mean of left/right)")
+
+    if (T is not None and s_km is not None and len(s_km)) or (T_stats is not None and len(T_stats)):
+        panels.append(temperatures)
+
+    def heights(a):
+        window = int(np.clip(len(s_km) // 10, 1, 600))
         # the drift (heating) is slow, the road's bumps fast: a centred moving mean over about a
         # tenth of the drive (at most 600 samples) shows the drift
-        window = int(np.clip(len(s_km) // 10, 1, 600))
         hs = _moving_mean(h, window)
-        window_s = window * sample_dt
         for k, name in enumerate(axles):
             a.plot(s_km, (hs[:, k] - h_before[k]) * 1e3, color=colors[k % len(colors)], label=name)
-    for k, r in enumerate(rep["axles"]):
-        if r["dh_mm"] is not None and s_km is not None and len(s_km):
-            a.plot([s_km[-1]], [r["dh_mm"]], marker="o", color=colors[k % len(colors)], ms=6)
-    a.set(xlabel="distance [km]", ylabel="hull height change at the axle [mm]",
-          title="height change vs before-drive equilibrium\n"
-                + (f"(moving mean over {window_s:.0f} s; " if window_s else "(")
-                + "dots: after-drive equilibrium)")
-    a.title.set_fontsize(9)
-    a.grid(alpha=0.3)
-    a.legend(fontsize=8)
-    # wheel loads
-    a = ax[1, 0]
-    x = np.arange(len(stations))
-    w = 0.38
-    a.bar(x - w / 2, N_before / 10.0, w, label="before drive")
-    if N_after is not None:
-        a.bar(x + w / 2, N_after / 10.0, w, label="after drive")
-        for xi, nb, na in zip(x, N_before, N_after):
-            a.annotate(f"{100 * (na - nb) / nb:+.1f}%", (xi + w / 2, na / 10.0), ha="center", va="bottom", fontsize=7)
-    a.set_xticks(x, [s.replace("axle", "A").replace("_left", " L").replace("_right", " R") for s in stations])
-    lo = min(N_before.min(), N_after.min() if N_after is not None else np.inf) / 10.0
-    hi = max(N_before.max(), N_after.max() if N_after is not None else -np.inf) / 10.0
-    a.set_ylim(lo - 0.15 * (hi - lo + 50), hi + 0.25 * (hi - lo + 50))
-    a.set(ylabel="wheel load [daN]", title="wheel loads, static equilibrium before / after the drive")
-    a.grid(alpha=0.3, axis="y")
-    a.legend(fontsize=8)
-    # dissipated power
-    a = ax[1, 1]
-    if power and power_x is not None:
+        for k, r in enumerate(rep["axles"]):
+            if r["dh_mm"] is not None:
+                a.plot([s_km[-1]], [r["dh_mm"]], marker="o", color=colors[k % len(colors)], ms=6)
+        a.axhline(0, color="k", lw=0.6)
+        a.set(xlabel="distance [km]", ylabel="hull height change at the axle [mm]",
+              title=f"height change vs before-drive equilibrium\n(moving mean over {window * sample_dt:.0f} s; "
+                    "dots: after-drive equilibrium)")
+        a.title.set_fontsize(9)
+
+    if h is not None and s_km is not None and len(s_km) > 1:
+        panels.append(heights)
+
+    def wheel_loads(a):
+        x = np.arange(len(stations))
+        if N_after is not None:
+            dN, what = N_after - N_before, "after - before the drive"
+            base = N_before
+        else:
+            dN, what = N_before - N_charged, "before the drive - charged"
+            base = N_charged
+        bars = a.bar(x, dN / 10.0, 0.6, color=[colors[(k // 2) % len(colors)] for k in range(len(stations))])
+        for b, d, n0 in zip(bars, dN, base):
+            y = b.get_height()
+            a.annotate(f"{100 * d / n0:+.2f}%", (b.get_x() + b.get_width() / 2, y), ha="center",
+                       va="bottom" if y >= 0 else "top", fontsize=7, xytext=(0, 2 if y >= 0 else -2),
+                       textcoords="offset points")
+        a.axhline(0, color="k", lw=0.6)
+        span = max(np.max(np.abs(dN)) / 10.0, 1.0)
+        a.set_ylim(-1.35 * span, 1.35 * span)
+        a.set_xticks(x, [s.replace("axle", "A").replace("_left", " L").replace("_right", " R") for s in stations])
+        a.set(ylabel="wheel load change [daN]", title=f"static wheel loads: {what}\n"
+              f"(loads {base.min() / 10:.0f}-{base.max() / 10:.0f} daN)")
+        a.title.set_fontsize(9)
+
+    if N_after is not None or N_charged is not None:
+        panels.append(wheel_loads)
+
+    def powers(a):
         for key, label in MECHANISMS:
             if key in power:
                 y = power[key] / 1e3
                 if power_how.startswith("from"):
                     y = _moving_mean(y, max(1, min(60, len(y) // 20)))
                 a.plot(power_x, y, label=label, marker="o" if len(power_x) < 30 else None, ms=3)
-    a.set(xlabel="distance [km]", ylabel="dissipated power, all struts [kW]",
-          title=f"dissipated power by mechanism ({power_how})")
-    a.grid(alpha=0.3)
-    a.legend(fontsize=8)
+        a.set(xlabel="distance [km]", ylabel="dissipated power, all struts [kW]",
+              title=f"dissipated power by mechanism ({power_how})")
+        a.legend(fontsize=8, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+
+    if power and power_x is not None and len(power_x):
+        panels.append(powers)
+
+    def comfort(a):
+        km, names, aw = ride_rows["km"], ride_rows["seats"], ride_rows["weighted_rms_acceleration_m_s2"]
+        for k, name in enumerate(names):
+            a.plot(km, aw[:, k], marker="o" if len(km) < 30 else None, ms=3, label=name)
+        for lim, text in ((0.315, "not uncomfortable"), (0.63, "a little unc."), (1.0, "fairly unc.")):
+            if lim < 1.6 * max(float(np.max(aw)), 0.3):
+                a.axhline(lim, color="0.6", lw=0.7, ls=":")
+                a.annotate(text, (km[0], lim), fontsize=7, color="0.4", va="bottom")
+        a.set(xlabel="distance [km]", ylabel="weighted RMS acceleration a_w [m/s$^2$]",
+              title="ride: ISO 2631-1 Wk at the seats, per statistics interval", ylim=(0, None))
+        a.legend(fontsize=8, ncol=len(names), loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+
+    if ride_rows.get("weighted_rms_acceleration_m_s2") is not None:
+        panels.append(comfort)
+
+    def travel(a):
+        km = ride_rows["km"]
+        lo, hi = ride_rows["strut_travel_min_m"], ride_rows["strut_travel_max_m"]
+        for k, name in enumerate(axles):
+            c = colors[k % len(colors)]
+            a.fill_between(km, 1e3 * np.min(lo[:, 2 * k:2 * k + 2], axis=1), 1e3 * np.max(hi[:, 2 * k:2 * k + 2], axis=1),
+                           color=c, alpha=0.25, step="mid")
+        stroke = ride_rows.get("stroke_m")
+        if stroke:
+            for y in (0.0, 1e3 * stroke):
+                a.axhline(y, color="k", lw=0.8)
+        a.set(xlabel="distance [km]", ylabel="strut deflection [mm]",
+              title="strut travel range per interval (0 and the stroke: the end stops)")
+        a.title.set_fontsize(9)
+
+    if ride_rows.get("strut_travel_min_m") is not None and ride_rows.get("strut_travel_max_m") is not None:
+        panels.append(travel)
+
+    n = len(panels)
+    ncol = 2 if n <= 4 else 3
+    nrow = max(1, -(-n // ncol))
+    fig, axs = plt.subplots(nrow, ncol, figsize=(6.5 * ncol if ncol == 2 else 6.0 * ncol, 4.3 * nrow),
+                            constrained_layout=True, squeeze=False)
+    title = (f"{Path(path).name}: {rep['distance_km']:.2f} km, compensation "
+             f"{'on' if rep['compensation'] else 'off'}, {rep['status']}")
+    if rep.get("warnings"):
+        title += f" - {len(rep['warnings'])} validity warning{'s' if len(rep['warnings']) > 1 else ''} (hpsim report)"
+    fig.suptitle(title)
+    for a, draw in zip(axs.flat, panels):
+        draw(a)
+        a.grid(alpha=0.3)
+    for a in list(axs.flat)[n:]:
+        a.remove()
+    if any(d in panels for d in (temperatures, heights)):       # one legend for the axle colours, below the panels
+        handles = [plt.Line2D([], [], color=colors[k % len(colors)]) for k in range(len(axles))]
+        fig.legend(handles, axles, loc="outside lower center", ncol=len(axles), fontsize=8, frameon=False)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     plt.close(fig)
@@ -148,28 +218,51 @@ def dashboard(path: str | Path, out: str | Path) -> Path:
 
 
 def compare_plot(paths, out: str | Path, labels=None) -> Path:
-    """Grouped bars per axle: wheel-load change, height change and end temperature of each run."""
+    """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs
+    distance) over grouped bars per axle (wheel-load change, height change, temperature rise)."""
     plt = _plt()
     cmp = compare(paths)
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
     n_ax = len(runs[0]["axles"])
-    fig, ax = plt.subplots(1, 3, figsize=(max(12, 3 + 1.2 * n_ax * len(runs)), 4.5), constrained_layout=True)
+    hist = [_history(p) for p in paths]
+    tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig = plt.figure(figsize=(max(13, 3 + 1.2 * n_ax * len(runs)), 8.5 if tops else 4.8), constrained_layout=True)
+    grid = fig.add_gridspec(2 if tops else 1, 6)
+    for j, key in enumerate(tops):
+        a = fig.add_subplot(grid[0, j * (6 // len(tops)):(j + 1) * (6 // len(tops))])
+        for i, hh in enumerate(hist):
+            if key in hh:
+                a.plot(*hh[key], color=colors[i % len(colors)], marker="o" if len(hh[key][0]) < 30 else None, ms=3)
+        a.axhline(0, color="k", lw=0.6)
+        a.set(xlabel="distance [km]", **({"ylabel": "strut temperature rise [K]",
+                                          "title": "mean strut temperature rise (all struts)"} if key == "T" else
+                                         {"ylabel": "hull height change [mm]",
+                                          "title": "mean hull height change vs before-drive equilibrium (moving mean)"}))
+        a.grid(alpha=0.3)
     x = np.arange(n_ax)
     w = 0.8 / max(len(runs), 1)
-    for panel, (key, ylabel) in zip(ax, (("dN_pct", "wheel load change dN [%]"), ("dh_mm", "height change dh [mm]"),
-                                         ("T_end_C", "strut temperature at the end [degC]"))):
-        for j, (r, lab) in enumerate(zip(runs, labels)):
-            y = [np.nan if a[key] is None else a[key] for a in r["axles"]]
-            panel.bar(x - 0.4 + w * (j + 0.5), y, w, label=lab)
+    row = 1 if tops else 0
+    for c, (key, ylabel, title) in enumerate((("dN_pct", "wheel load change dN [%]", "load redistribution (after vs before)"),
+                                              ("dh_mm", "height change dh [mm]", "height change (after vs before)"),
+                                              ("rise_K", "strut temperature rise [K]", "temperature rise over the drive"))):
+        panel = fig.add_subplot(grid[row, 2 * c:2 * c + 2])
+        for j, r in enumerate(runs):
+            if key == "rise_K":
+                y = [np.nan if a["T_end_C"] is None or a["T_start_C"] is None else a["T_end_C"] - a["T_start_C"]
+                     for a in r["axles"]]
+            else:
+                y = [np.nan if a[key] is None else a[key] for a in r["axles"]]
+            panel.bar(x - 0.4 + w * (j + 0.5), y, w, color=colors[j % len(colors)])
         panel.set_xticks(x, [f"axle {k + 1}" for k in range(n_ax)])
-        panel.set_ylabel(ylabel)
+        panel.set(ylabel=ylabel, title=title)
         panel.axhline(0, color="k", lw=0.6)
         panel.grid(alpha=0.3, axis="y")
-    ax[0].set_title("load redistribution (after vs before drive)")
-    ax[1].set_title("height change")
-    ax[2].set_title("temperatures")
-    ax[0].legend(fontsize=8)
+    handles = [plt.Rectangle((0, 0), 1, 1, color=colors[j % len(colors)]) for j in range(len(runs))]
+    warned = [f"{lab} ({len(r['warnings'])} warning{'s' if len(r['warnings']) > 1 else ''})" if r.get("warnings") else lab
+              for lab, r in zip(labels, runs)]
+    fig.legend(handles, warned, loc="outside lower center", ncol=min(len(runs), 4), fontsize=8, frameon=False)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
