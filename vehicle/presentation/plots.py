@@ -224,6 +224,50 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     cmp = compare(paths)
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
+def _ride_rows(f) -> dict:
+    """Per-interval ride statistics of a results view, when the drive stored them."""
+    import json
+
+    from vehicle.runs.warnings import _name
+
+    out = {"km": f.stats_series("km")}
+    if out["km"] is None or len(out["km"]) == 0:
+        return {}
+    for key in ("weighted_rms_acceleration_m_s2", "strut_travel_min_m", "strut_travel_max_m"):
+        a = f.stats_series(_name(key))
+        out[key] = None if a is None or len(a) == 0 else np.asarray(a, float)
+    resolved = json.loads(f.scenario_attrs["resolved_json"])
+    seats = [s["name"] for s in resolved.get("vehicle", {}).get("seats", [])]
+    aw = out["weighted_rms_acceleration_m_s2"]
+    if aw is not None:
+        out["seats"] = seats if len(seats) == aw.shape[1] else [f"seat {k + 1}" for k in range(aw.shape[1])]
+    strokes = {s["geometry"]["stroke"] for s in resolved.get("struts", {}).values()}
+    out["stroke_m"] = strokes.pop() if len(strokes) == 1 else None
+    return out
+
+
+def _history(path) -> dict:
+    """Distance [km], mean strut temperature rise [K] and mean hull height change [mm] (moving mean
+    over a tenth of the drive) of one run, from its time series or, if not stored, its rows."""
+    with open_results(path) as f:
+        before = f.equilibrium("before")
+        T0 = np.asarray(before["strut_temperature"], float)
+        s = f.series("distance")
+        T = f.series("strut_temperature")
+        h = f.series("axle_height_change")
+        out = {}
+        if T is not None and s is not None and len(s):
+            out["T"] = (s / 1e3, np.mean(T - T0, axis=1))
+        else:
+            km, Ts = f.stats_series("km"), f.stats_series("strut_temperature")
+            if km is not None and len(km):
+                out["T"] = (np.concatenate([[0.0], km]), np.concatenate([[0.0], np.mean(Ts - T0, axis=1)]))
+        if h is not None and s is not None and len(s) > 1:
+            hm = np.mean(h - np.asarray(before["axle_height_change"], float), axis=1)
+            out["h"] = (s / 1e3, 1e3 * _moving_mean(hm, int(np.clip(len(s) // 10, 1, 600))))
+        return out
+
+
     n_ax = len(runs[0]["axles"])
     hist = [_history(p) for p in paths]
     tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
