@@ -217,13 +217,6 @@ def dashboard(path: str | Path, out: str | Path) -> Path:
     return out
 
 
-def compare_plot(paths, out: str | Path, labels=None) -> Path:
-    """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs
-    distance) over grouped bars per axle (wheel-load change, height change, temperature rise)."""
-    plt = _plt()
-    cmp = compare(paths)
-    runs = cmp["runs"]
-    labels = labels or [Path(r["file"]).stem for r in runs]
 def _ride_rows(f) -> dict:
     """Per-interval ride statistics of a results view, when the drive stored them."""
     import json
@@ -268,6 +261,13 @@ def _history(path) -> dict:
         return out
 
 
+def compare_plot(paths, out: str | Path, labels=None) -> Path:
+    """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs
+    distance) over grouped bars per axle (wheel-load change, height change, temperature rise)."""
+    plt = _plt()
+    cmp = compare(paths)
+    runs = cmp["runs"]
+    labels = labels or [Path(r["file"]).stem for r in runs]
     n_ax = len(runs[0]["axles"])
     hist = [_history(p) for p in paths]
     tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
