@@ -18,7 +18,7 @@ from .units import parse_quantity
 
 
 def _strip_source(value: Any) -> Any:
-    if isinstance(value, dict) and "value" in value and set(value) <= {"value", "source", "note"}:
+    if isinstance(value, dict) and "value" in value and set(value) <= {"value", "source", "note", "prior"}:
         return value["value"]
     return value
 
