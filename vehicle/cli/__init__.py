@@ -30,10 +30,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     strut.register(sub)
     road.register(sub)
-    from . import calibrate, drives
+    from . import calibrate, drives, uq
 
     drives.register(sub)
     calibrate.register(sub)
+    uq.register(sub)
     return parser
 
 

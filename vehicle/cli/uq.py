@@ -1,0 +1,159 @@
+"""`hpsim uq`: prediction bands and sensitivity indices over the parameter priors (docs/uq.md).
+
+    hpsim uq SCENARIO.yaml --samples N [--method sobol|lhs] [--workers K] [--scheduler ADDRESS]
+             [-o DIR] [--parameters a,b,c] [--seed S] [--distance D] [--groups none|section]
+             [--per-axle-struts] [--list] [--json]
+
+Exit codes: 0 done, 2 user error, 3 some cases failed (bands from the others; Sobol' indices
+need every case), 130 interrupted (re-run the same command to resume).
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from hpsim.errors import UserInputError
+
+
+def register(sub):
+    p = sub.add_parser("uq", help="uncertainty quantification: draw the parameter priors, run the drives, "
+                                  "report per-axle bands and Sobol' indices")
+    p.add_argument("scenario", help="scenario YAML file; the priors come from its vehicle and strut files")
+    p.add_argument("--samples", type=int, default=None,
+                   help="sobol: base sample N, a power of 2 (N x (parameters + 2) drives); lhs: the number of drives")
+    p.add_argument("--method", default="sobol", choices=["sobol", "lhs"],
+                   help="sobol: Saltelli design, first-order and total indices; lhs: Latin hypercube, rank "
+                        "correlations (default sobol)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the design (default 0)")
+    p.add_argument("-o", "--output-dir", default=None,
+                   help="study folder: samples.csv, cases/, bands.csv, sobol.csv, summary.json, plots "
+                        "(default <scenario name>_uq); a re-run with the same settings resumes")
+    p.add_argument("--parameters", default=None, metavar="A,B,...",
+                   help="draw only these priors: full names (see --list), endings such as tyre.stiffness, "
+                        "or globs such as 'struts.all.valve.*'; the others stay at their values")
+    p.add_argument("--distance", default=None, help="override the scenario's distance (e.g. 5km) for quick studies")
+    p.add_argument("--groups", default="none", choices=["none", "section"],
+                   help="section: Sobol' indices per file section (tyre, heat, valve, ...), N x (sections + 2) "
+                        "drives (default none)")
+    p.add_argument("--per-axle-struts", action="store_true",
+                   help="draw the strut priors for each axle separately (default: one draw for all struts "
+                        "of the same type)")
+    p.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the drives on an existing Dask distributed cluster (needs the 'dask' extra)")
+    p.add_argument("--list", action="store_true", help="list the priors and the number of drives, run nothing")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON only")
+    p.set_defaults(func=cmd_uq)
+
+
+def cmd_uq(args):
+    from hpsim.tables import print_json
+
+    from vehicle.runs.uq import run_scenario_study
+
+    if args.workers is not None and args.workers < 1:
+        raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
+    patterns = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
+    if args.distance is not None:
+        from hpsim.units import parse_quantity
+
+        parse_quantity(args.distance, "m", where="--distance")
+    if args.list:
+        return _list(args, patterns)
+    if args.samples is None:
+        raise UserInputError("--samples: give the sample size (e.g. --samples 16 for sobol), or --list to see the priors")
+    log = (lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True))
+    summary = run_scenario_study(args.scenario, samples=args.samples, method=args.method, seed=args.seed,
+                                 output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
+                                 parameters=patterns, distance=args.distance, groups=args.groups,
+                                 per_axle_struts=args.per_axle_struts, log=log)
+    from vehicle.presentation.uq_plots import study_plots
+
+    summary["files"].update(study_plots(summary, Path(summary["study"])))
+    if args.json:
+        print_json(summary)
+    else:
+        print(format_study(summary))
+    return 3 if summary["failed"] or not summary["nominal_done"] else 0
+
+
+def _list(args, patterns) -> int:
+    from hpsim.tables import format_table, print_json
+
+    from vehicle.runs.scenario import ScenarioSource, read_scenario
+    from vehicle.runs.uq import check_settings, n_cases, scenario_parameters, select
+
+    src = read_scenario(args.scenario)
+    if args.distance is not None:
+        src = ScenarioSource(text=src.text, name=src.name, base_dir=src.base_dir, data={**src.data, "distance": args.distance})
+    params, notes, _ = scenario_parameters(src, per_axle_struts=args.per_axle_struts)
+    params = select(params, patterns)
+    draws = len({p.section for p in params}) if args.groups == "section" else len(params)
+    runs = None
+    if args.samples is not None:
+        check_settings(args.method, args.samples, args.groups, len(params))
+        runs = n_cases(args.method, args.samples, draws) + 1
+    if args.json:
+        print_json({"parameters": [p.describe() for p in params], "notes": notes, "drives": runs})
+        return 0
+    grouped = args.groups == "section"
+    rows = [[p.name, f"{p.prior.to_unit(p.prior.value):.4g} {p.prior.unit}".strip(), p.prior.describe()]
+            + ([p.section] if grouped else []) for p in params]
+    print(format_table(["parameter", "value", "prior"] + (["group"] if grouped else []), rows))
+    for n in notes:
+        print(f"note: {n}")
+    if runs is not None:
+        print(f"{len(params)} parameters" + (f" in {draws} groups" if args.groups == "section" else "") +
+              f": {args.method} with --samples {args.samples} runs {runs} drives (nominal included)")
+    else:
+        print(f"{len(params)} parameters: sobol runs N x {draws + 2} + 1 drives, lhs N + 1")
+    return 0
+
+
+def format_study(s: dict) -> str:
+    from hpsim.tables import format_table
+
+    lines = []
+    b = s["bands"]
+    axles = sorted({int(k.split(".")[0][4:]) for k in b if k.startswith("axle")})
+    if axles:
+        def cell(k):
+            v = b.get(k)
+            return "-" if v is None else f"{v['p50']:+.2f} [{v['p5']:+.2f}, {v['p95']:+.2f}]"
+
+        def nom(k):
+            v = s["nominal"].get(k)
+            return "-" if v is None else f"{v:+.2f}"
+
+        rows = [[a, nom(f"axle{a}.rise_K"), cell(f"axle{a}.rise_K"), nom(f"axle{a}.dh_mm"), cell(f"axle{a}.dh_mm"),
+                 nom(f"axle{a}.dN_pct"), cell(f"axle{a}.dN_pct")] for a in axles]
+        lines.append(format_table(["axle", "rise nominal [K]", "rise 50 % [5 %, 95 %] [K]", "dh nominal [mm]",
+                                   "dh 50 % [5 %, 95 %] [mm]", "dN nominal [%]", "dN 50 % [5 %, 95 %] [%]"], rows))
+    rest = [k for k in b if not k.startswith("axle")]
+    if rest:
+        rows = [[k, s["units"].get(k, ""), "-" if s["nominal"].get(k) is None else f"{s['nominal'][k]:.4g}",
+                 f"{b[k]['p5']:.4g}", f"{b[k]['p50']:.4g}", f"{b[k]['p95']:.4g}"] for k in rest]
+        lines.append(format_table(["output", "unit", "nominal", "5 %", "50 %", "95 %"], rows))
+    lines.append(f"{s['done']} of {s['cases']} cases ({s['method']}, N = {s['samples']}, seed {s['seed']})"
+                 + (f"; FAILED: {', '.join(s['failed'][:5])}" + (" ..." if len(s["failed"]) > 5 else "")
+                    if s["failed"] else ""))
+    if "sensitivity" in s:
+        lines.append(f"sensitivity: {s['sensitivity']['skipped']}")
+    top = s.get("most_influential") or {}
+    key = "ST" if "sobol" in s else "PRCC"
+    if key == "PRCC" and not any(math.isfinite(r["prcc"]) for v in s["ranking"].values() for r in v["rows"]
+                                 if r["prcc"] is not None):
+        key = "Spearman"          # too few cases for partial correlations
+    for k in [k for k in ("mean_rise_K", "load_shift_pct") if k in top] or list(top)[:3]:
+        table = (s.get("sobol") or s.get("ranking"))[k]["rows"]
+        by = {r["parameter"]: r for r in table}
+        parts = []
+        for name in top[k]:
+            r = by[name]
+            parts.append(f"{name} ({r['ST']:.2f})" if key == "ST" else
+                         f"{name} ({r['prcc' if key == 'PRCC' else 'spearman']:+.2f})")
+        lines.append(f"most influential on {k} (by {key}): " + ", ".join(parts))
+    for name, path in s["files"].items():
+        lines.append(f"{name}: {path}")
+    return "\n".join(lines)

@@ -1,0 +1,143 @@
+"""Figures of an uncertainty study (`hpsim uq`, vehicle.runs.uq): prediction bands per axle and the
+sensitivity ranking (Sobol' indices or partial rank correlations). Drawn from the study summary."""
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from vehicle.presentation.plots import _plt
+
+AXLE_PANELS = (("rise_K", "strut temperature rise [K]"), ("dh_mm", "height change dh [mm]"),
+               ("dN_pct", "wheel load change dN [%]"))
+HEADLINE = ("mean_rise_K", "load_shift_pct")
+TOP = 12          # parameters shown per bar chart
+
+
+def _save(fig, out: Path) -> Path:
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    _plt().close(fig)
+    return out
+
+
+def _finite(v) -> bool:
+    return v is not None and math.isfinite(v)
+
+
+def bands_plot(summary: dict, out: str | Path) -> Path:
+    """Per axle: the 5-95 % band (bar), the median (dot) and the nominal case (cross) of each quantity;
+    for a study without axle outputs one panel per output."""
+    plt = _plt()
+    bands, nominal = summary["bands"], summary["nominal"]
+    axles = sorted({int(m.group(1)) for k in bands if (m := re.fullmatch(r"axle(\d+)\..+", k))})
+    if axles:
+        panels = [(q, label, [f"axle{a}.{q}" for a in axles], [f"axle {a}" for a in axles]) for q, label in AXLE_PANELS]
+    else:
+        panels = [(k, f"{k} [{summary['units'].get(k, '')}]".replace(" []", ""), [k], [k]) for k in bands]
+    panels = [p for p in panels if any(k in bands for k in p[2])]
+    fig, ax = plt.subplots(1, max(len(panels), 1), figsize=(4.3 * max(len(panels), 1), 4.3), constrained_layout=True,
+                           squeeze=False)
+    for panel, (q, label, keys, ticks) in zip(ax[0], panels):
+        x = np.arange(len(keys))
+        for i, k in enumerate(keys):
+            b = bands.get(k)
+            if b is None:
+                continue
+            panel.plot([x[i], x[i]], [b["p5"], b["p95"]], color="tab:blue", lw=10, alpha=0.35, solid_capstyle="butt",
+                       label="5-95 %" if i == 0 else None)
+            panel.plot(x[i], b["p50"], "o", color="tab:blue", label="median" if i == 0 else None)
+            if _finite(nominal.get(k)):
+                panel.plot(x[i], nominal[k], "x", color="k", ms=8, mew=2, label="nominal" if i == 0 else None)
+        panel.set_xticks(x, ticks)
+        panel.set_xlim(-0.6, len(keys) - 0.4)
+        panel.set_ylabel(label)
+        panel.grid(alpha=0.3, axis="y")
+        if q in ("dh_mm", "dN_pct"):
+            panel.axhline(0, color="k", lw=0.6)
+    if panels:
+        ax[0][0].legend(fontsize=8)
+    extra = [f"{k}: {bands[k]['p50']:.3g} [{bands[k]['p5']:.3g}, {bands[k]['p95']:.3g}] {summary['units'].get(k, '')}"
+             for k in HEADLINE if k in bands]
+    fig.suptitle(f"prediction bands over the priors: {summary['done']} drives ({summary['method']})"
+                 + ("\n" + ";  ".join(extra) if extra else ""), fontsize=10)
+    return _save(fig, Path(out))
+
+
+def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
+    """Sobol': first-order and total index bars with their 95 % intervals for the headline outputs, and
+    a map of the total indices over every output. Latin hypercube: PRCC tornado and map."""
+    table = summary.get("sobol") or summary.get("ranking")
+    if not table:
+        return None
+    plt = _plt()
+    sobol = "sobol" in summary
+    outputs = [k for k in table if not table[k]["constant"]]
+    if not outputs:
+        return None
+    bar_outputs = [k for k in HEADLINE if k in outputs] or outputs[:2]
+    params = [r["parameter"] for r in table[outputs[0]]["rows"]]
+    # too few Latin-hypercube cases for partial correlations (n < parameters + 3): Spearman's instead
+    value = "ST" if sobol else ("prcc" if any(_finite(r["prcc"]) for k in outputs for r in table[k]["rows"])
+                                else "spearman")
+    M = np.array([[r[value] if _finite(r[value]) else np.nan for r in table[k]["rows"]] for k in outputs]).T
+    strength = np.array([np.nanmax(np.abs(row)) if np.any(np.isfinite(row)) else -1.0 for row in M])
+    order = np.argsort(-strength)[:30]
+    n_bar = min(TOP, len(params))
+    width = max(10.0, 5.5 * len(bar_outputs))
+    bar_h = 0.9 + 0.3 * n_bar
+    map_h = 1.6 + 0.22 * len(order)
+    fig = plt.figure(figsize=(width, bar_h + map_h), constrained_layout=True)
+    sub = fig.subfigures(2, 1, height_ratios=[bar_h, map_h])
+    ax = sub[0].subplots(1, len(bar_outputs), squeeze=False)
+    for panel, k in zip(ax[0], bar_outputs):
+        rows = table[k]["rows"]
+        key = (lambda r: -(r[value] if _finite(r[value]) else -1)) if sobol else \
+            (lambda r: -(abs(r[value]) if _finite(r[value]) else -1))
+        rows = sorted(rows, key=key)[:n_bar][::-1]
+        y = np.arange(len(rows))
+        names = [r["parameter"] for r in rows]
+        if sobol:
+            panel.barh(y + 0.2, [r["ST"] for r in rows], 0.4, xerr=[r["ST_conf"] for r in rows], color="tab:orange",
+                       label="total ST", capsize=2)
+            panel.barh(y - 0.2, [r["S1"] for r in rows], 0.4, xerr=[r["S1_conf"] for r in rows], color="tab:blue",
+                       label="first order S1", capsize=2)
+            panel.set_xlabel("Sobol' index (whiskers: 95 % bootstrap interval)")
+            panel.set_xlim(-0.25, 1.25)
+        else:
+            v = [r[value] for r in rows]
+            panel.barh(y, v, 0.6, color=["tab:red" if _finite(t) and t > 0 else "tab:blue" for t in v])
+            panel.set_xlabel(("PRCC" if value == "prcc" else "Spearman") + " (red: the output rises with it)")
+            panel.set_xlim(-1, 1)
+        panel.axvline(0, color="k", lw=0.6)
+        panel.set_yticks(y, names, fontsize=7)
+        panel.set_title(f"{k} [{summary['units'].get(k, '')}]".replace(" []", ""), fontsize=10)
+        panel.grid(alpha=0.3, axis="x")
+    if sobol:
+        ax[0][0].legend(fontsize=8, loc="lower right")
+    hm = sub[1].subplots()
+    im = hm.imshow(M[order], aspect="auto", cmap="viridis" if sobol else "RdBu_r", vmin=0 if sobol else -1, vmax=1,
+                   interpolation="nearest")
+    hm.set_yticks(np.arange(len(order)), [params[i] for i in order], fontsize=7)
+    hm.set_xticks(np.arange(len(outputs)), outputs, rotation=60, ha="right", fontsize=7)
+    hm.set_title({"ST": "total index ST of every output", "prcc": "PRCC of every output",
+                  "spearman": "Spearman correlation of every output"}[value], fontsize=9)
+    sub[1].colorbar(im, ax=hm, shrink=0.8)
+    what = "Sobol' indices" if sobol else "rank correlations"
+    fig.suptitle(f"{what} over the priors ({summary['done']} drives, N = {summary['samples']})", fontsize=10)
+    return _save(fig, Path(out))
+
+
+def study_plots(summary: dict, out_dir: str | Path) -> dict:
+    """Both figures into the study folder; returns {name: path}."""
+    out_dir = Path(out_dir)
+    files = {}
+    if summary["bands"]:
+        files["bands_plot"] = str(bands_plot(summary, out_dir / "bands.png"))
+    name = "sobol.png" if "sobol" in summary else "ranking.png"
+    p = sensitivity_plot(summary, out_dir / name)
+    if p is not None:
+        files["sensitivity_plot"] = str(p)
+    return files
