@@ -53,7 +53,6 @@ force is p A_r.
 """
 from __future__ import annotations
 
-from functools import cached_property
 
 from hpsim import symbolic as sym
 from hpsim.errors import UserInputError
@@ -61,18 +60,20 @@ from hpsim.errors import UserInputError
 from . import gas as gaslaw
 from . import oil as oillaw
 from . import valves
-from .model import SeparatedStrut, StrutInputs
+from .base import StrutBase
+from .protocol import StrutInputs
 from .params import StrutParams
 
 _STATIC_NEWTON_ITERATIONS = 8   # quadratic convergence from the incompressible-liquid start
 _PI = 3.141592653589793
 
 
-class IntegratedStrut(SeparatedStrut):
-    """Seed 001 integrated strut: the SeparatedStrut interface with two emulsion chambers."""
+class IntegratedStrut(StrutBase):
+    """Seed 001 integrated strut: the `struts.protocol.Strut` contract with two emulsion chambers."""
 
-    def __init__(self, params: StrutParams, gas_properties=None):
-        super().__init__(params, gas_properties)
+    @staticmethod
+    def check_parameters(params: StrutParams) -> None:
+        """Geometry consistency of an integrated strut file (UserInputError naming the keys)."""
         g = params.geometry
         src = f"strut {params.name}"
         if not g.rod_area > 0 or not g.piston_area > g.rod_area:

@@ -15,12 +15,17 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_calibration_recovers_a_known_air_speed_ratio(tmp_path):
+    # a small heat capacity lets the struts reach their steady state within the short drive, where the
+    # rise is set by the heat transfer (~10 K per unit of the ratio); with the real 35 kJ/K the 1.5 km
+    # rise is almost all stored heat and the ratio would be identified only to about +-10 %
     text = (ROOT / "scenarios" / "mileage_106km.yaml").read_text().replace("distance: 106 km", "distance: 1.5 km")
+    text = text.replace("  overrides: {}", '  overrides: {heat.capacity: "2 kJ/K"}', 1)
+    assert "2 kJ/K" in text
     scenario = tmp_path / "short.yaml"
     scenario.write_text(text)
     known = 0.3
     target, _, _ = _run(read_scenario(scenario), "heat.air_speed_ratio", known)
-    assert target > 0.5   # the struts really heat up in 1.5 km
+    assert target > 5.0   # the struts really heat up in 1.5 km
     res = calibrate_heat(scenario, target, tol_K=2e-3, log=lambda m: None)
     assert res["value"] == pytest.approx(known, rel=0.03)
     assert abs(res["achieved_rise_K"] - target) < 2e-3

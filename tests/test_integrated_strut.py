@@ -229,3 +229,45 @@ def test_friction_asymmetric_with_hysteresis_band(loops, params):
     assert np.mean(Ff[fast & (v > 0)]) > np.mean(-Ff[fast & (v < 0)])
     f = params.friction
     assert np.max(Ff) == pytest.approx(f.breakaway_ratio * f.F0_compression, rel=0.1)
+
+
+def test_both_struts_implement_the_protocol_as_siblings():
+    """SeparatedStrut and IntegratedStrut implement struts.protocol.Strut; neither derives from the other."""
+    from struts.model import IntegratedStrut, SeparatedStrut, Strut
+    from struts.params import load_strut
+
+    for name in ("apc", "yin2023"):
+        s = make_strut(load_strut(name))
+        assert isinstance(s, Strut)
+        assert set(s.stiff_state_names) <= set(s.state_names)
+    assert not issubclass(IntegratedStrut, SeparatedStrut) and not issubclass(SeparatedStrut, IntegratedStrut)
+
+
+@pytest.mark.parametrize("name", ["apc", "yin2023"])
+def test_force_derivatives_match_finite_differences(name):
+    """The derivative information of the protocol (dF/dx, dF/dv) agrees with central differences of the force."""
+    import casadi as ca
+
+    from struts.params import load_strut
+
+    s = make_strut(load_strut(name))
+    T = 300.0
+    m = s.charge_gas_mass
+    x0, v0 = 0.5 * s.p.geometry.stroke, 0.07
+    states = s.initial_states(T, x=x0, m_gas=m)
+    xs, vs, dps = ca.SX.sym("x"), ca.SX.sym("v"), ca.SX.sym("dp")
+    dp = None if s.compressible else dps
+    k, c = s.force_derivatives(StrutInputs(x=xs, v=vs, T_wall=T, m_gas=m), states, dp)
+    F = s.equations(StrutInputs(x=xs, v=vs, T_wall=T, m_gas=m), states, dp)["force"]
+    if not s.compressible:   # dp follows v through the valve flow balance
+        dp_of_v = s.valve_pressure_drop(vs, T)
+        F = ca.substitute(F, dps, dp_of_v)
+        k, c = (ca.substitute(e, dps, dp_of_v) for e in (k, c))
+    fF = ca.Function("F", [xs, vs], [F])
+    fkc = ca.Function("kc", [xs, vs], [k, c])
+    h = 1e-6
+    k_fd = (float(fF(x0 + h, v0)) - float(fF(x0 - h, v0))) / (2 * h)
+    c_fd = (float(fF(x0, v0 + h)) - float(fF(x0, v0 - h))) / (2 * h)
+    k_an, c_an = (float(v) for v in fkc(x0, v0))
+    assert k_an == pytest.approx(k_fd, rel=1e-4)
+    assert c_an == pytest.approx(c_fd, rel=1e-3)

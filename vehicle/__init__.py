@@ -1,1 +1,23 @@
-"""The vehicle: assembles `struts` and `terrain` into a multi-axle hull DAE and runs scenarios."""
+"""The vehicle: assembles `struts` and `terrain` into a multi-axle hull DAE and runs scenarios.
+
+Python API (`vehicle.api`, docs/python.md):
+
+    import vehicle
+    res = vehicle.Simulation("scenarios/quick_demo.yaml").run()
+    res.report(); ds = res.to_xarray(); res.plot("dashboard.png")
+    vehicle.open_results("x.h5")
+
+Subpackages (one-way imports, tests/test_layers.py): physics <- numerics | runs <- presentation, cli.
+"""
+from __future__ import annotations
+
+__all__ = ["Simulation", "Results", "open_results"]
+
+
+def __getattr__(name):
+    # lazy: `import vehicle.physics...` stays light and free of the running layer
+    if name in __all__:
+        from vehicle import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'vehicle' has no attribute {name!r}")

@@ -1,6 +1,6 @@
 """Solvers for the vehicle DAE.
 
-`Ros2Stepper` (the production solver): a fixed-step linearly implicit Rosenbrock-W method,
+`Ros2` (the production solver): a fixed-step linearly implicit Rosenbrock-W method,
 ROS2 of Verwer, Spee, Blom & Hundsdorfer (1999, SIAM J. Sci. Comput. 20(4)):
     W = I - gamma h J,  gamma = 1 + 1/sqrt(2)
     W k1 = f(t_n, y_n)
@@ -17,8 +17,12 @@ Many steps are folded into one call and the whole loop is generated as C, compil
 system C compiler and cached (keyed by the hash of the generated code), so Python is touched
 once per output sample block, not per step.
 
-`IdasReference`: CasADi's IDAS on the DAE (algebraic valve pressure drops kept as algebraic
-variables) with tight tolerances: the reference the fast solver is checked against.
+`Idas`: CasADi's IDAS on the DAE (algebraic valve pressure drops kept as algebraic variables)
+with tight tolerances: the reference the fast solver is checked against.
+
+Both are solver objects with one interface (`bind(model, steps_per_sample, samples_per_call)`,
+`advance(x0, U, p)`, `get_state()`/`set_state()` for what they carry between calls), passed to a
+drive rather than chosen inside it.
 """
 from __future__ import annotations
 
@@ -80,27 +84,96 @@ def sparse_lu(A: ca.SX):
     return solve
 
 
-class Ros2Stepper:
-    """Compiled fixed-step ROS2 over blocks of steps.
+def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.Function:
+    """Same SX function, with every division by a parameter-only quantity written as a product with
+    its reciprocal (a / b -> a * (1 / b)).
 
-    `advance(x, U, p)`: U has shape (nu, K*M + 1): the inputs at every step boundary for M
-    output samples of K steps each. Returns the states at the M sample instants (nx, M).
+    With parameters as inputs a divisor such as a mass or a heat capacity is no longer a constant
+    the compiler can turn into a multiplication; as a reciprocal it becomes a parameter-only
+    subexpression that `extract_parametric` lifts out of the step, evaluated once per call.
+    Results differ from the plain division by rounding only. Replays the function's instructions.
+    """
+    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
+    work, fixed = {}, {}          # register -> SX value; register -> depends on parameters/constants only
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_INPUT:
+            work[i_out[0]] = inputs[i_in[0]].nz[i_in[1]]
+            fixed[i_out[0]] = i_in[0] in parameter_inputs
+        elif op == ca.OP_OUTPUT:
+            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
+        elif op == ca.OP_CONST:
+            work[i_out[0]] = ca.SX(fn.instruction_constant(k))
+            fixed[i_out[0]] = True
+        else:
+            args = [work[j] for j in i_in]
+            if op == ca.OP_DIV and fixed[i_in[1]] and not fixed[i_in[0]]:
+                value = args[0] * (1.0 / args[1])
+            elif len(args) == 2:
+                value = ca.SX.binary(op, args[0], args[1])
+            else:
+                value = ca.SX.unary(op, args[0])
+            work[i_out[0]] = value
+            fixed[i_out[0]] = all(fixed[j] for j in i_in)
+    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
+            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
+    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
+
+
+class Ros2:
+    """The production solver: compiled fixed-step ROS2 over blocks of steps (see the module docstring).
+
+    A solver object is passed to a drive (`vehicle.runs.drive.Drive(..., solver=Ros2(dt=0.004))`)
+    and bound to a model there (`bind`). It owns the warm-start memory of the eliminated valve
+    pressure drops (`memory`), which a checkpoint saves (`get_state`/`set_state`).
+
+    Parameters enter the compiled code as an input: the subexpressions that depend only on
+    parameters (viscosity law coefficients, reciprocals of masses, ...) are lifted out of the step
+    by `casadi.extract_parametric` and evaluated once per call, so a parameter change reuses the
+    compiled library and costs no speed per step.
     """
 
-    def __init__(self, f: ca.Function, nx: int, nu: int, np_: int, n_stiff: int, dt: float,
-                 steps_per_sample: int, samples_per_call: int, compile: bool = True,
-                 memory_index=(), jacobian: ca.Function | None = None):
-        self.dt, self.K, self.M = float(dt), int(steps_per_sample), int(samples_per_call)
-        self.nx, self.nu = nx, nu
+    name = "ros2"
+
+    def __init__(self, dt: float = 0.004, *, compile: bool = True):
+        self.dt = float(dt)
+        self.compile = compile
+        self.memory = None
+        self.build_s = 0.0
+
+    def describe(self) -> dict:
+        return {"solver": self.name, "dt_s": self.dt, "compiled": self.compile}
+
+    def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Ros2":
+        """Build (or fetch from the caches) the compiled block function for this model's structure."""
+        self.K, self.M = int(steps_per_sample), int(samples_per_call)
+        self.nx, self.nmem = model.nx, model.n_memory
+        key = (model.structure, self.dt, self.K, self.M, self.compile)
+        t0 = time.perf_counter()
+        fn = _BLOCK_FUNCTIONS.get(key)
+        if fn is None:
+            fn = self._build(model)
+            _BLOCK_FUNCTIONS[key] = fn
+        self.fn = fn
+        self.memory = model.initial_memory()
+        self.build_s = time.perf_counter() - t0
+        return self
+
+    def _build(self, model) -> ca.Function:
+        nx, nu, np_, ns, nm = model.nx, model.nu, model.np, model.n_stiff, model.n_memory
+        f = model.ode_function
+        jac = model.jacobian_function
         x = ca.SX.sym("x", nx)
+        mem = ca.SX.sym("mem", nm)
         u0 = ca.SX.sym("u0", nu)
         u1 = ca.SX.sym("u1", nu)
         p = ca.SX.sym("p", np_)
         h = self.dt
-        f0, mem0 = f(x, u0, p)
-        ns = n_stiff
-        # W only needs the stiff physics (any W keeps order 2): a structural Jacobian if given
-        J = jacobian(x, u0, p) if jacobian is not None else ca.jacobian(f0[:ns], x[:ns])
+        f0, _ = f(x, mem, u0, p)
+        # W only needs the stiff physics (any W keeps order 2)
+        J = jac(x, mem, u0, p)
         W = ca.SX.eye(ns) - GAMMA * h * J
         lu_solve = sparse_lu(W)
 
@@ -108,62 +181,109 @@ class Ros2Stepper:
             return ca.vertcat(lu_solve(b[:ns]), b[ns:])
 
         k1 = solve(f0)
-        f1, mem1 = f(x + h * k1, u1, p)
+        f1, mem1 = f(x + h * k1, mem, u1, p)
         k2 = solve(f1 - 2.0 * k1)
         x_next = x + 1.5 * h * k1 + 0.5 * h * k2
-        # warm starts of the eliminated algebraic variables: the last stage's solution
-        for j, k in enumerate(memory_index):
-            x_next[int(k)] = mem1[j]
-        step = ca.Function("ros2_step", [x, u0, u1, p], [x_next])
+        # the warm starts of the eliminated valves for the next step: this step's last stage
+        z = ca.vertcat(x, mem)
+        raw = ca.Function("ros2_step_raw", [z, u0, u1, p], [ca.vertcat(x_next, mem1)])
+        raw = divisions_as_reciprocals(raw, parameter_inputs={3})
+        z, u0, u1, p = raw.sx_in()
+        # lift what depends on the parameters only out of the step: computed once per call
+        z_ret, w_syms, w_exprs = ca.extract_parametric(raw(z, u0, u1, p), p)
+        w = ca.vertcat(*w_syms) if w_syms else ca.SX(0, 1)
+        # parameters ride along in the accumulator of the step loop (passed through unchanged), so
+        # they are neither copied into a (n_p, steps) matrix nor streamed from memory at every step
+        nz = nx + nm
+        acc = ca.vertcat(z, p, w)
+        step = ca.Function("ros2_step", [acc, u0, u1], [ca.vertcat(z_ret, p, w)])
+        parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(*w_exprs) if w_exprs else ca.SX(0, 1)])
         # K steps -> one sample (inputs per step as columns), then M samples per call
         sample = step.fold(self.K)
         block = sample.mapaccum("ros2_block", self.M)
-        Xs = ca.MX.sym("x0", nx)
+        Z0 = ca.MX.sym("z0", nz)
         U = ca.MX.sym("U", nu, self.K * self.M + 1)
         P = ca.MX.sym("p", np_)
-        U0 = U[:, : self.K * self.M]
-        U1 = U[:, 1:]
-        # regroup: sample m uses columns m*K .. m*K+K-1 of U0 and U1
-        out = block(Xs, U0, U1, ca.repmat(P, 1, self.K * self.M))
-        fn = ca.Function(f"hpsim_ros2_{nx}_{self.K}x{self.M}", [Xs, U, P], [out])
-        t0 = time.perf_counter()
-        self.fn = compile_function(fn) if compile else fn
-        self.build_s = time.perf_counter() - t0
+        n = self.K * self.M
+        out = block(ca.vertcat(Z0, P, parametric(P)), U[:, :n], U[:, 1:])[:nz, :]
+        fn = ca.Function(f"hpsim_ros2_{model.structure}_{self.K}x{self.M}", [Z0, U, P], [out])
+        return compile_function(fn) if self.compile else fn
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
-        return np.asarray(self.fn(x0, U, p))
+        """States at the M sample instants (nx, M) from x0 and the inputs U (nu, K*M+1) at every step."""
+        Z = np.asarray(self.fn(np.concatenate([x0, self.memory]), U, p))
+        self.memory_samples = Z[self.nx:]          # the memory at each sample (output evaluation)
+        self.memory = Z[self.nx:, -1].copy()
+        return Z[: self.nx]
+
+    def get_state(self) -> np.ndarray:
+        return np.asarray(self.memory, float).copy()
+
+    def set_state(self, memory) -> None:
+        self.memory = np.asarray(memory, float).reshape(self.nmem).copy()
 
 
-class IdasReference:
-    """Tight-tolerance reference: IDAS on the DAE with the valve pressure drops as algebraic
-    variables (no Newton elimination, no fixed step, no structural Jacobian).
+# compiled block functions of this process by (model structure, dt, K, M, compile): a sweep, a
+# calibration or a notebook that changes parameters reuses them (the compile cache on disk serves
+# other processes)
+_BLOCK_FUNCTIONS: dict = {}
 
-    Inputs (road under each tyre, speed, ambient) are given per chunk on a fine time grid and
-    interpolated linearly inside IDAS (a parametric CasADi interpolant), so one integrator object
-    serves the whole drive. Slow but independent of the production solver's choices.
+
+class Idas:
+    """Reference solver: IDAS on the DAE with the valve pressure drops as algebraic variables (no
+    Newton elimination, no fixed step, no structural Jacobian), tight tolerances.
+
+    Same interface as `Ros2` (`bind`, `advance`, `get_state`/`set_state`): the inputs are
+    interpolated linearly between the step-boundary columns of U inside IDAS (a parametric CasADi
+    interpolant), so a drive can run on it unchanged. Slow (about 10 s of wall time per simulated
+    second for the 8x8), meant for short checks of the production solver.
     """
 
-    def __init__(self, model, chunk_s: float, input_dt_s: float = 1e-3, rtol: float = 1e-8, atol: float = 1e-9,
-                 outputs_per_chunk: int = 1):
-        self.model = model
-        self.chunk_s = float(chunk_s)
-        self.n_in = int(round(chunk_s / input_dt_s)) + 1
-        self.grid = np.linspace(0.0, chunk_s, self.n_in)
-        x, z, u_unused, p = model.symbols
-        t = ca.SX.sym("t")
-        data = ca.SX.sym("U", model.nu * self.n_in)
-        interp = ca.interpolant("U", "linear", [self.grid], model.nu)
-        u = interp(t, data)
-        ode, alg, _ = model.equations(x, z, u, p)
-        # the warm-start memory of the fixed-step solver has no meaning here: hold it constant
-        dae = {"t": t, "x": x, "z": z, "p": ca.vertcat(p, data), "ode": ca.vertcat(*ode),
-               "alg": ca.vertcat(*alg) / 1e-4}
-        tout = np.linspace(0.0, chunk_s, outputs_per_chunk + 1)[1:]
-        self.integrator = ca.integrator("reference", "idas", dae, 0.0, tout,
-                                        {"reltol": rtol, "abstol": atol, "max_num_steps": 10 ** 7,
-                                         "calc_ic": True, "max_step_size": input_dt_s})
+    name = "idas"
 
-    def advance(self, x0, z0, U, p):
-        """U: (nu, n_in) inputs on the chunk's grid. Returns (X at the outputs, z at the end)."""
-        sol = self.integrator(x0=x0, z0=z0, p=np.concatenate([p, U.ravel(order="F")]))
-        return np.asarray(sol["xf"]), np.asarray(sol["zf"])[:, -1]
+    def __init__(self, dt: float = 0.004, *, rtol: float = 1e-8, atol: float = 1e-9):
+        self.dt, self.rtol, self.atol = float(dt), rtol, atol
+        self.memory = None
+        self.build_s = 0.0
+
+    def describe(self) -> dict:
+        return {"solver": self.name, "dt_s": self.dt, "rtol": self.rtol, "atol": self.atol}
+
+    def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Idas":
+        t0 = time.perf_counter()
+        self.K, self.M = int(steps_per_sample), int(samples_per_call)
+        self.model = model
+        n_in = self.K * self.M + 1
+        chunk_s = self.dt * self.K * self.M
+        grid = np.linspace(0.0, chunk_s, n_in)
+        x, z, _, p = model.symbols
+        t = ca.SX.sym("t")
+        data = ca.SX.sym("U", model.nu * n_in)
+        u = ca.interpolant("U", "linear", [grid], model.nu)(t, data)
+        ode, alg, _ = model.equations(x, z, u, p)
+        dae = {"t": t, "x": x, "z": z, "p": ca.vertcat(p, data), "ode": ca.vertcat(*ode),
+               "alg": ca.vertcat(*alg) / 1e-4 if alg else ca.SX(0, 1)}
+        tout = grid[self.K::self.K]
+        self.integrator = ca.integrator("reference", "idas", dae, 0.0, tout,
+                                        {"reltol": self.rtol, "abstol": self.atol, "max_num_steps": 10 ** 7,
+                                         "calc_ic": True, "max_step_size": self.dt})
+        self.memory = np.zeros(model.nz)
+        self.build_s = time.perf_counter() - t0
+        return self
+
+    def advance(self, x0, U, p):
+        sol = self.integrator(x0=x0, z0=self.memory, p=np.concatenate([p, np.asarray(U).ravel(order="F")]))
+        Z = np.asarray(sol["zf"]).reshape(self.model.nz, -1)
+        self.memory_samples = Z
+        if self.model.nz:
+            self.memory = Z[:, -1].copy()
+        return np.asarray(sol["xf"])
+
+    def get_state(self) -> np.ndarray:
+        return np.asarray(self.memory, float).copy()
+
+    def set_state(self, memory) -> None:
+        self.memory = np.asarray(memory, float).copy()
+
+
+SOLVERS = {"ros2": Ros2, "idas": Idas}

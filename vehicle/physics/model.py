@@ -16,17 +16,27 @@ States (per station i, stations axle-major, left first):
 Algebraic: dp_valve_i [Pa] (valve flow balance, incompressible oil: seed 000 eq. 2).
 Inputs u (time-varying): road height r_i [m] and rate dr_i [m/s] under each tyre (enveloped
   road at the wheel's own distance), vehicle speed V [m/s], ambient temperature [K].
-Run parameters p (constant during a run, so one compiled model serves every case): gas mass
-  per strut [kg], compensation on/off (0/1).
+Parameters p (constant during a run): the run parameters (gas mass per strut [kg], nominal
+  deflection per strut [m], compensation on/off) followed by the parameter vector theta: every
+  non-zero number of the vehicle and strut files (`hpsim.parameters`), so a sweep, a calibration
+  or a notebook that changes a number reuses one compiled model; only a change of structure
+  (number of axles, strut type, gas model, a mechanism switched on or off) builds a new one.
+  `model.parameters.names` lists theta; `model.structure` fingerprints the structure.
+
+The equations are built on a symbolic copy of the parameters (`self.sym`); the numeric
+parameters and kinematics (`self.params`, `self.a`, `self.struts`, ...) serve statics, checks
+and everything else evaluated in Python.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from functools import cached_property
 
 import casadi as ca
 import numpy as np
 
+from hpsim.parameters import ParameterVector, symbolic_copy
 from struts.model import StrutInputs, make_strut
 from struts.params import load_strut
 
@@ -64,27 +74,48 @@ class VehicleModel:
         self.n = params.n_stations
         self.station_names = params.station_names()
         # one strut model per distinct (file, overrides)
-        self.struts = []
-        cache = {}
+        strut_params, self.struts, cache = [], [], {}
         for i in range(self.n):
             axle = params.axles[params.station_axle(i)]
             key = (axle.strut, repr(sorted(axle.strut_overrides.items())))
             if key not in cache:
-                cache[key] = make_strut(load_strut(axle.strut, axle.strut_overrides or None))
-            self.struts.append(cache[key])
-        self.a = np.array([params.axles[params.station_axle(i)].position for i in range(self.n)])
-        self.y = np.array([params.station_y(i) for i in range(self.n)])
-        self.r = np.array([params.axles[params.station_axle(i)].motion_ratio for i in range(self.n)])
-        self.m_u = np.array([params.axles[params.station_axle(i)].unsprung_mass for i in range(self.n)])
-        self.a_cg = params.sprung_cg_x()
-        self.y_cg = params.hull.cg_y
-        self.M = params.sprung_mass()
-        self.x_charged = params.charging.strut_deflection
-        loads = np.repeat(np.asarray(params.charging.wheel_loads, float), 2)
-        self.charged_wheel_loads = loads
+                cache[key] = (len(cache), load_strut(axle.strut, axle.strut_overrides or None))
+                cache[key] = (*cache[key], make_strut(cache[key][1]))
+            strut_params.append(cache[key])
+            self.struts.append(cache[key][2])
+        K = self._kinematics(params)
+        self.a, self.y, self.r, self.m_u = (np.asarray(v, float) for v in (K.a, K.y, K.r, K.m_u))
+        self.a_cg, self.y_cg, self.M, self.x_charged = K.a_cg, K.y_cg, K.M, K.x_charged
+        self.charged_wheel_loads = np.asarray(K.charged_wheel_loads, float)
         # tyre deflection at the charged state carries the charged wheel load
-        self.tyre_static_deflection = loads / params.tyre.stiffness
+        self.tyre_static_deflection = np.asarray(K.tyre_static_deflection, float)
+        # the symbolic twin: the same parameters as CasADi symbols (theta), for the compiled equations
+        self.parameters = ParameterVector()
+        sym_params = symbolic_copy(params, self.parameters, "vehicle")
+        sym_struts = {}
+        for k, sp, _ in strut_params:
+            if k not in sym_struts:
+                sym_struts[k] = make_strut(symbolic_copy(sp, self.parameters, f"strut{k}"), check=False)
+        self.sym = self._kinematics(sym_params)
+        self.sym.struts = [sym_struts[k] for k, _, _ in strut_params]
         self._build_layout()
+
+    @staticmethod
+    def _kinematics(P) -> SimpleNamespace:
+        """Station positions, motion ratios, masses and the charged state from parameters P (numeric or symbolic)."""
+        n = P.n_stations
+        axle = [P.axles[P.station_axle(i)] for i in range(n)]
+        loads = [w for w in P.charging.wheel_loads for _ in (0, 1)]
+        return SimpleNamespace(
+            params=P, a=[ax.position for ax in axle], y=[P.station_y(i) for i in range(n)],
+            r=[ax.motion_ratio for ax in axle], m_u=[ax.unsprung_mass for ax in axle],
+            a_cg=P.sprung_cg_x(), y_cg=P.hull.cg_y, M=P.sprung_mass(), x_charged=P.charging.strut_deflection,
+            charged_wheel_loads=loads, tyre_static_deflection=[w / P.tyre.stiffness for w in loads])
+
+    @property
+    def structure(self) -> str:
+        """Fingerprint of the model's structure (a compiled model serves every model with the same one)."""
+        return f"s{self.n}_{self.parameters.structure}"
 
     # --- layout ----------------------------------------------------------------------------------
     def _build_layout(self):
@@ -108,12 +139,6 @@ class VehicleModel:
             L.add(f"T_strut[{i}]")
             L.add(f"xf[{i}]")
             L.add(f"V_oil[{i}]")
-        # last valve pressure drop of each incompressible strut: not a state of the physics but the
-        # warm start of the Newton elimination in the fixed-step solver (rate 0; the solver
-        # overwrites it after every step)
-        for i in range(self.n):
-            if not self.struts[i].compressible:
-                L.add(f"dp_memory[{i}]")
         self.n_dynamic = len(L)
         for i in range(self.n):
             for e in ENERGY_TERMS:
@@ -127,19 +152,20 @@ class VehicleModel:
         self.nx = len(L)
         self.nz = sum(len(st.algebraic_names) for st in self.struts)
         self.nu = 2 * self.n + 2
-        self.np = 2 * self.n + 1
+        self.n_run = 2 * self.n + 1          # run parameters ahead of theta in p
+        self.np = self.n_run + len(self.parameters)
 
-    def station_motion(self, X, i: int):
+    def station_motion(self, X, i: int, K=None):
         """(strut deflection [m], strut velocity [m/s]) of station i from named states X.
 
         The wheel's motion relative to the hull point above it, through the motion ratio
-        (hull.py); symbolic or numeric.
+        (hull.py). K: kinematics (default the numeric ones; `self.sym` in the equations).
         """
-        zs = hull_eq.station_displacement(X["z"], X["theta"], X["phi"], self.a[i], self.y[i], self.a_cg, self.y_cg)
-        dzs = hull_eq.station_displacement(X["dz"], X["dtheta"], X["dphi"], self.a[i], self.y[i],
-                                           self.a_cg, self.y_cg)
-        return (hull_eq.strut_deflection(self.x_charged, self.r[i], X[f"w[{i}]"], zs),
-                self.r[i] * (X[f"dw[{i}]"] - dzs))
+        K = K or self
+        zs = hull_eq.station_displacement(X["z"], X["theta"], X["phi"], K.a[i], K.y[i], K.a_cg, K.y_cg)
+        dzs = hull_eq.station_displacement(X["dz"], X["dtheta"], X["dphi"], K.a[i], K.y[i], K.a_cg, K.y_cg)
+        return (hull_eq.strut_deflection(K.x_charged, K.r[i], X[f"w[{i}]"], zs),
+                K.r[i] * (X[f"dw[{i}]"] - dzs))
 
     def strut_deflections(self, X) -> np.ndarray:
         """Strut deflections [m] from state vectors X (nx, ...) -> (n_stations, ...)."""
@@ -165,17 +191,22 @@ class VehicleModel:
 
     # --- parameters of a run -------------------------------------------------------------------
     def run_parameters(self, gas_mass_kg, compensation_enabled: bool, nominal_deflection_m=None) -> np.ndarray:
+        """p: gas masses, nominal deflections, compensation on/off, then the parameter vector theta."""
         xn = np.full(self.n, self.x_charged) if nominal_deflection_m is None else np.asarray(nominal_deflection_m, float)
-        return np.concatenate([np.asarray(gas_mass_kg, float), xn, [1.0 if compensation_enabled else 0.0]])
+        return np.concatenate([np.asarray(gas_mass_kg, float), xn, [1.0 if compensation_enabled else 0.0],
+                               self.parameters.numeric()])
 
     # --- equations -------------------------------------------------------------------------------
     def equations(self, x, z, u, p, dp_override=None):
-        """Symbolic (or numeric) rates, residuals and outputs.
+        """Symbolic rates, residuals and outputs.
 
+        p must be the model's parameter symbol (`self.symbols[3]`, or a vector whose tail is
+        theta's symbols): the parameters enter through the symbolic twin `self.sym`.
         dp_override: if given (list per station), the valve pressure drops are taken from it
         instead of the algebraic variables z (used when a solver eliminates z by Newton).
         """
-        P = self.params
+        K = self.sym
+        P = K.params
         n = self.n
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
         road = [u[i] for i in range(n)]
@@ -197,10 +228,10 @@ class VehicleModel:
                                "power_end_stop", "oil_flow")}
         hull_forces = []
         for i in range(n):
-            strut = self.struts[i]
+            strut = K.struts[i]
             w, dw = X[f"w[{i}]"], X[f"dw[{i}]"]
             Ts = X[f"T_strut[{i}]"]
-            xs, vs = self.station_motion(X, i)
+            xs, vs = self.station_motion(X, i, K)
             # levelling
             xf = X[f"xf[{i}]"]
             V_oil = X[f"V_oil[{i}]"]
@@ -209,7 +240,7 @@ class VehicleModel:
                                             P.compensation.smoothing)
             # strut
             internal = {nm: X[f"{nm}[{i}]"] for nm in strut.state_names}
-            if self.struts[i].compressible:
+            if strut.compressible:
                 dp = None
             else:
                 dp = dp_override[i] if dp_override is not None else z[self._z_index[i]]
@@ -226,17 +257,15 @@ class VehicleModel:
                                            P.heat.capacity)
             Fs = eq["force"]
             # tyre on the enveloped road
-            defl = self.tyre_static_deflection[i] + road[i] - w
+            defl = K.tyre_static_deflection[i] + road[i] - w
             ddefl = droad[i] - dw
             Ft = tyre_force(defl, ddefl, P.tyre.stiffness, P.tyre.damping, P.tyre.lift_off_smoothing)
             # wheel station
             rates[f"w[{i}]"] = dw
-            rates[f"dw[{i}]"] = (Ft - self.r[i] * Fs) / self.m_u[i] - GRAVITY
+            rates[f"dw[{i}]"] = (Ft - K.r[i] * Fs) / K.m_u[i] - GRAVITY
             for nm in strut.state_names:
                 rates[f"{nm}[{i}]"] = eq["rates"][nm]
             rates[f"T_strut[{i}]"] = dTs
-            if not strut.compressible:
-                rates[f"dp_memory[{i}]"] = 0.0 * dTs
             rates[f"xf[{i}]"] = comp.filtered_deflection_rate(xf, xs, P.compensation.filter_time_constant)
             rates[f"V_oil[{i}]"] = q_oil
             rates[f"E_valve[{i}]"] = eq["power_valve"]
@@ -249,7 +278,7 @@ class VehicleModel:
             rates[f"I_v2[{i}]"] = vs * vs
             if eq["residual"] is not None:
                 residuals.append(eq["residual"])
-            hull_forces.append(self.r[i] * Fs)
+            hull_forces.append(K.r[i] * Fs)
             out["strut_force"].append(Fs)
             out["strut_deflection"].append(xs)
             out["strut_velocity"].append(vs)
@@ -262,22 +291,23 @@ class VehicleModel:
             out["heat_gas"].append(eq["heat_gas"])
             out["power_end_stop"].append(eq["power_end_stop"])
             out["oil_flow"].append(q_oil)
-        Qz, Qt, Qp = hull_eq.generalised_forces(hull_forces, self.a, self.y, self.a_cg, self.y_cg)
-        ddz, ddt, ddp = hull_eq.hull_accelerations(Qz, Qt, Qp, self.M, P.hull.pitch_inertia, P.hull.roll_inertia,
+        Qz, Qt, Qp = hull_eq.generalised_forces(hull_forces, K.a, K.y, K.a_cg, K.y_cg)
+        ddz, ddt, ddp = hull_eq.hull_accelerations(Qz, Qt, Qp, K.M, P.hull.pitch_inertia, P.hull.roll_inertia,
                                                    GRAVITY)
         rates.update({"z": dzc, "theta": dth, "phi": dph, "dz": ddz, "dtheta": ddt, "dphi": ddp})
         # hull accelerations about equilibrium: gravity is balanced by the static strut forces
         for nm, acc in zip(HULL_ACCELERATIONS, (ddz, ddt, ddp)):
             rates[f"I_{nm}2"] = acc * acc
         out["hull_acc"] = [ddz, ddt, ddp]
-        out["axle_height"] = [hull_eq.axle_height_change(zc, th, ax.position, self.a_cg) for ax in P.axles]
+        out["axle_height"] = [hull_eq.axle_height_change(zc, th, ax.position, K.a_cg) for ax in P.axles]
         ode = [rates[nm] for nm in self.layout.names]
         return ode, residuals, out
 
     # --- CasADi functions ------------------------------------------------------------------------
     @cached_property
     def symbols(self):
-        return (ca.SX.sym("x", self.nx), ca.SX.sym("z", self.nz), ca.SX.sym("u", self.nu), ca.SX.sym("p", self.np))
+        p = ca.vertcat(ca.SX.sym("p_run", self.n_run), self.parameters.symbols)
+        return ca.SX.sym("x", self.nx), ca.SX.sym("z", self.nz), ca.SX.sym("u", self.nu), p
 
     OUTPUT_NAMES = ("strut_force", "strut_deflection", "strut_velocity", "gas_pressure", "gas_temperature",
                     "wheel_load", "power_valve", "power_friction", "heat_gas", "power_end_stop", "oil_flow")
@@ -293,61 +323,72 @@ class VehicleModel:
                                            ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
         return f, g, y
 
-    def eliminate_valves(self, x, iterations: int = 1):
-        """Valve pressure drops of incompressible struts by warm-started Newton (explicit-ODE form)."""
+    def eliminate_valves(self, x, memory, iterations: int = 1):
+        """Valve pressure drops of incompressible struts by warm-started Newton (explicit-ODE form).
+
+        memory: the previous step's pressure drops (one per incompressible strut, in station order),
+        held by the solver between steps (`n_memory`, `initial_memory`).
+        """
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
-        dps = []
+        dps, k = [], 0
         for i in range(self.n):
-            strut = self.struts[i]
+            strut = self.sym.struts[i]
             if strut.compressible:
                 dps.append(None)
                 continue
-            _, vs = self.station_motion(X, i)
-            dps.append(strut.valve_pressure_drop(vs, X[f"T_strut[{i}]"], dp_guess=X[f"dp_memory[{i}]"],
+            _, vs = self.station_motion(X, i, self.sym)
+            dps.append(strut.valve_pressure_drop(vs, X[f"T_strut[{i}]"], dp_guess=memory[k],
                                                  newton_iterations=iterations, warm=True))
+            k += 1
         return dps
 
+    @property
+    def n_memory(self) -> int:
+        """Warm-start values a fixed-step solver carries between steps (valve pressure drops)."""
+        return sum(1 for st in self.struts if not st.compressible)
+
+    def initial_memory(self) -> np.ndarray:
+        return np.zeros(self.n_memory)
+
     @cached_property
-    def memory_index(self) -> np.ndarray:
-        return np.array([self.idx(f"dp_memory[{i}]") for i in range(self.n) if not self.struts[i].compressible],
-                        dtype=int)
+    def memory_symbol(self):
+        return ca.SX.sym("memory", self.n_memory)
 
     @cached_property
     def ode_function(self):
-        """f(x, u, p) -> (dx/dt, valve dp of the incompressible struts): the explicit-ODE form."""
+        """f(x, memory, u, p) -> (dx/dt, new memory): the explicit-ODE form (valves eliminated)."""
         x, _, u, p = self.symbols
-        dps = self.eliminate_valves(x)
+        mem = self.memory_symbol
+        dps = self.eliminate_valves(x, mem)
         ode, _, out = self.equations(x, None, u, p, dp_override=dps)
-        mem = ca.vertcat(*[d for d in dps if d is not None]) if len(self.memory_index) else ca.SX(0, 1)
-        return ca.Function("f_ode", [x, u, p], [ca.vertcat(*ode), mem]), dps
+        new_mem = ca.vertcat(*[d for d in dps if d is not None]) if self.n_memory else ca.SX(0, 1)
+        return ca.Function("f_ode", [x, mem, u, p], [ca.vertcat(*ode), new_mem])
+
+    @property
+    def has_stiff_strut_states(self) -> bool:
+        return any(st.stiff_state_names for st in self.struts)
 
     @cached_property
-    def _strut_derivative_functions(self) -> list:
-        """Per distinct strut: (x, v, T_wall, m_gas, dV_oil, internal..., dp) -> (dF/dx, dF/dv [N/m, N s/m]).
-
-        The valve part of dF/dv goes through the implicit-function theorem of the flow balance,
-        A_v^2 / (d q_valve / d dp), instead of differentiating the Newton iterations.
-        """
+    def _strut_derivative_functions(self) -> dict:
+        """Per distinct strut: (x, v, T_wall, m_gas, dV_oil, dp, internal states...) -> (dF/dx, dF/dv) from the
+        strut protocol's `force_derivatives` (theta enters as free symbols)."""
         out = {}
-        for strut in self.struts:
+        for strut in self.sym.struts:
             if id(strut) in out:
                 continue
             xs, vs, T, m, dV, dp = (ca.SX.sym(n) for n in ("x", "v", "T", "m", "dV", "dp"))
             internal = {nm: ca.SX.sym(nm) for nm in strut.state_names}
-            eq = strut.equations(StrutInputs(x=xs, v=vs, T_wall=T, m_gas=m, dV_oil=dV), internal,
-                                 None if strut.compressible else dp)
-            F = eq["force"]
-            k = ca.jacobian(F, xs)
-            c = ca.jacobian(F, vs)
-            if not strut.compressible:
-                from struts import valves
-
-                q = valves.valve_flow(dp, **strut.valve_arguments(T))
-                Av = strut.p.geometry.valve_area
-                c = c + ca.jacobian(F, dp) * Av / ca.jacobian(q, dp)
+            k, c = strut.force_derivatives(StrutInputs(x=xs, v=vs, T_wall=T, m_gas=m, dV_oil=dV), internal,
+                                           None if strut.compressible else dp)
             args = [xs, vs, T, m, dV, dp] + [internal[nm] for nm in strut.state_names]
-            out[id(strut)] = ca.Function("strut_kc", args, [k, c])
-        return [out[id(s)] for s in self.struts]
+            out[id(strut)] = (ca.vertcat(*args), ca.vertcat(k, c))
+        return out
+
+    def _strut_stiffness_damping(self, i, xs, vs, T, m_gas, dV_oil, dp, internal):
+        args, kc = self._strut_derivative_functions[id(self.sym.struts[i])]
+        values = ca.vertcat(xs, vs, T, m_gas, dV_oil, 0.0 if dp is None else dp, *internal)
+        kc = ca.substitute(kc, args, values)
+        return kc[0], kc[1]
 
     def stiff_jacobian(self, x, p, dps):
         """Approximate Jacobian of the stiff block (stations' w, dw, stiff strut states; hull).
@@ -356,7 +397,8 @@ class VehicleModel:
         constant kinematics (hull.py): the structural-dynamics form of d f / d x. Exact for the
         mechanics with frozen slow states, which is all a W-method needs.
         """
-        P = self.params
+        K = self.sym
+        P = K.params
         n = self.n
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
         ns = self.n_stiff
@@ -365,22 +407,18 @@ class VehicleModel:
         dhull = [self.idx(nm) for nm in ("dz", "dtheta", "dphi")]
         for a, b in zip(hull, dhull):
             J[a, b] = 1.0
-        inertia = [self.M, P.hull.pitch_inertia, P.hull.roll_inertia]
+        inertia = [K.M, P.hull.pitch_inertia, P.hull.roll_inertia]
         kt, ct = P.tyre.stiffness, P.tyre.damping
         KK = [[0.0] * 3 for _ in range(3)]
         CC = [[0.0] * 3 for _ in range(3)]
-        fns = self._strut_derivative_functions
         for i in range(n):
-            strut = self.struts[i]
             w, dw = self.idx(f"w[{i}]"), self.idx(f"dw[{i}]")
-            B = [1.0, -(self.a[i] - self.a_cg), self.y[i] - self.y_cg]   # d z_station / d (z, theta, phi)
-            xs, vs = self.station_motion(X, i)
-            dp = 0.0 if dps[i] is None else dps[i]
-            args = [xs, vs, X[f"T_strut[{i}]"], p[i], X[f"V_oil[{i}]"], dp] + \
-                [X[f"{nm}[{i}]"] for nm in strut.state_names]
-            ks, cs = fns[i](*args)
-            r2 = self.r[i] ** 2
-            mu = self.m_u[i]
+            B = [1.0, -(K.a[i] - K.a_cg), K.y[i] - K.y_cg]   # d z_station / d (z, theta, phi)
+            xs, vs = self.station_motion(X, i, K)
+            ks, cs = self._strut_stiffness_damping(i, xs, vs, X[f"T_strut[{i}]"], p[i], X[f"V_oil[{i}]"], dps[i],
+                                                   [X[f"{nm}[{i}]"] for nm in self.struts[i].state_names])
+            r2 = K.r[i] ** 2
+            mu = K.m_u[i]
             J[w, dw] = 1.0
             J[dw, w] = (-kt - r2 * ks) / mu
             J[dw, dw] = (-ct - r2 * cs) / mu
@@ -400,17 +438,37 @@ class VehicleModel:
 
     @cached_property
     def jacobian_function(self):
-        """J(x, u, p): the stiff-block Jacobian for the Rosenbrock-W solver."""
+        """J(x, memory, u, p): the stiff-block Jacobian for the Rosenbrock-W solver.
+
+        Structural (hand-written from the struts' stiffness and damping through the hull
+        kinematics, `stiff_jacobian`) when the struts have no stiff internal states; the exact
+        CasADi Jacobian of the stiff block otherwise (an integrated strut's chamber pressures and
+        gas volume are stiff states whose rows the structural form does not have).
+        tests/test_vehicle_jacobian.py checks the structural form against the exact one.
+        """
         x, _, u, p = self.symbols
-        dps = self.eliminate_valves(x)
-        return ca.Function("J_stiff", [x, u, p], [self.stiff_jacobian(x, p, dps)])
+        mem = self.memory_symbol
+        if self.has_stiff_strut_states:
+            return self.exact_stiff_jacobian_function
+        J = self.stiff_jacobian(x, p, self.eliminate_valves(x, mem))
+        return ca.Function("J_stiff", [x, mem, u, p], [J])
+
+    @cached_property
+    def exact_stiff_jacobian_function(self):
+        """J(x, memory, u, p) by CasADi AD through the eliminated (one Newton step) valves."""
+        x, _, u, p = self.symbols
+        mem = self.memory_symbol
+        f, _ = self.ode_function(x, mem, u, p)
+        return ca.Function("J_exact", [x, mem, u, p], [ca.jacobian(f[:self.n_stiff], x[:self.n_stiff])])
 
     def output_function_ode(self):
+        """y(x, memory, u, p) -> (outputs, hull accelerations, axle heights)."""
         x, _, u, p = self.symbols
-        dps = self.eliminate_valves(x, iterations=4)
+        mem = self.memory_symbol
+        dps = self.eliminate_valves(x, mem, iterations=4)
         _, _, out = self.equations(x, None, u, p, dp_override=dps)
-        return ca.Function("y_ode", [x, u, p], [ca.vertcat(*[ca.vertcat(*out[k]) for k in self.OUTPUT_NAMES]),
-                                                ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
+        return ca.Function("y_ode", [x, mem, u, p], [ca.vertcat(*[ca.vertcat(*out[k]) for k in self.OUTPUT_NAMES]),
+                                                     ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
 
     def split_outputs(self, Y: np.ndarray) -> dict:
         """Rows of the first output of y() -> dict name -> (n_stations, ...) arrays."""

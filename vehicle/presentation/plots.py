@@ -39,12 +39,19 @@ def _series(r, name):
     return r.series(name)
 
 
-def dashboard(path: str | Path, out: str | Path) -> Path:
-    """2 x 2 figure: strut temperature and height change per axle vs distance, wheel loads
-    before/after, dissipated power by mechanism vs distance."""
+def dashboard(path, out: str | Path) -> Path:
+    """The dashboard of one run, a panel for each thing the run stored: strut temperatures per axle
+    vs distance (with the ambient), hull height change per axle, the change of the static wheel
+    loads over the drive, dissipated power by mechanism, and, when the drive's statistics rows
+    carry them, ride comfort at the seats and strut travel per interval. `path`: a results file or any
+    `vehicle.runs.reader.ResultsView` (e.g. in-memory results)."""
+    import contextlib
+
     plt = _plt()
     out = Path(out)
-    with open_results(path) as f:
+    view = path if hasattr(path, "series") else None
+    with (contextlib.nullcontext(view) if view is not None else open_results(path)) as f:
+        path = f.name if view is not None else path
         rep = report_from(f, str(path))
         axles, stations = f.axles, f.stations
         s_km = _series(f, "distance")

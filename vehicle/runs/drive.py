@@ -21,7 +21,7 @@ from hpsim.errors import SimulationError, UserInputError
 
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
-from vehicle.numerics.solvers import Ros2Stepper
+from vehicle.numerics.solvers import Ros2
 
 
 @dataclass
@@ -95,22 +95,29 @@ class DriveState:
     next_stats_m: float
     last_stats: dict               # quadratures and time at the last km boundary
     sample_index: int = 0
+    solver_memory: np.ndarray = field(default_factory=lambda: np.zeros(0))   # what the solver carries
 
     def as_dict(self) -> dict:
         return {"t_s": self.t_s, "s_m": self.s_m, "x": self.x.copy(), "next_stats_m": self.next_stats_m,
                 "last_stats_t_s": self.last_stats["t_s"], "last_stats_q": self.last_stats["q"].copy(),
-                "sample_index": self.sample_index}
+                "sample_index": self.sample_index, "solver_memory": np.asarray(self.solver_memory, float).copy()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "DriveState":
         return cls(t_s=float(d["t_s"]), s_m=float(d["s_m"]), x=np.asarray(d["x"], float),
                    next_stats_m=float(d["next_stats_m"]),
                    last_stats={"t_s": float(d["last_stats_t_s"]), "q": np.asarray(d["last_stats_q"], float)},
-                   sample_index=int(d["sample_index"]))
+                   sample_index=int(d["sample_index"]),
+                   solver_memory=np.atleast_1d(np.asarray(d.get("solver_memory", []), float)))
 
 
 class Drive:
-    def __init__(self, model: VehicleModel, road, settings: DriveSettings, *, gas_masses=None):
+    """A drive of `model` over `road` with `settings`, integrated by `solver` (default: the compiled
+    ROS2 at settings.dt_s); `run(sink)` hands samples, statistics and checkpoints to a sink."""
+
+    def __init__(self, model: VehicleModel, road, settings: DriveSettings, *, gas_masses=None, solver=None):
+        if solver is not None:
+            settings.dt_s = solver.dt
         settings.validate()
         self.model = model
         self.settings = settings
@@ -121,10 +128,7 @@ class Drive:
         self.p = model.run_parameters(self.gas_masses, settings.compensation)
         self.K = int(round(settings.output_interval_s / settings.dt_s))
         self.M = int(settings.samples_per_block)
-        f, _ = model.ode_function
-        self.stepper = Ros2Stepper(f, model.nx, model.nu, model.np, model.n_stiff, settings.dt_s, self.K, self.M,
-                                   memory_index=model.memory_index,
-                                   jacobian=model.jacobian_function)
+        self.solver = (solver or Ros2(settings.dt_s)).bind(model, self.K, self.M)
         self.outputs = model.output_function_ode()
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
@@ -153,7 +157,17 @@ class Drive:
                                                     m_gas=self.gas_masses[i]).items():
                 x[m.idx(f"{nm}[{i}]")] = v
         return DriveState(t_s=0.0, s_m=0.0, x=x, next_stats_m=self.settings.stats_interval_m,
-                          last_stats={"t_s": 0.0, "q": x[self.quad_index].copy()})
+                          last_stats={"t_s": 0.0, "q": x[self.quad_index].copy()},
+                          solver_memory=self.solver.get_state() * 0.0)
+
+    def describe(self):
+        """(one block of samples, one statistics row, one state dict) with the keys and shapes the drive
+        will hand to a sink, so a sink can lay out its storage before the drive starts."""
+        st = self.initial_state()
+        t = np.array([0.0])
+        block = self._block_outputs(st.x[:, None], self.inputs(t), t, t, st.solver_memory[:, None])
+        row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x[self.T_index])
+        return block, row, st.as_dict()
 
     # --- inputs -----------------------------------------------------------------------------------
     def distance_at(self, t):
@@ -180,6 +194,7 @@ class Drive:
             checkpoint_every_blocks: int = 6) -> "DriveResult":
         m, S = self.model, self.settings
         st = self.initial_state() if state is None else state
+        self.solver.set_state(st.solver_memory)
         dt = S.dt_s
         wall0 = time.perf_counter()
         integ_s = 0.0
@@ -190,21 +205,22 @@ class Drive:
             t_cols = st.t_s + dt * np.arange(self.K * self.M + 1)
             U = self.inputs(t_cols)
             ti = time.perf_counter()
-            X = self.stepper.advance(st.x, U, self.p)
+            X = self.solver.advance(st.x, U, self.p)
+            memory = self.solver.memory_samples
             integ_s += time.perf_counter() - ti
             t_samples = st.t_s + dt * self.K * np.arange(1, self.M + 1)
             s_samples = self.distance_at(t_samples)
-            self._check(X, t_samples, s_samples)
+            self._check(X, t_samples, s_samples, st.x)
             # keep only samples within the drive
             keep = t_samples <= self.total_time_s + 1e-9
             if not np.all(keep):
-                X, t_samples, s_samples = X[:, keep], t_samples[keep], s_samples[keep]
+                X, t_samples, s_samples, memory = X[:, keep], t_samples[keep], s_samples[keep], memory[:, keep]
             U_samples = U[:, self.K * np.arange(1, X.shape[1] + 1)]
-            block = self._block_outputs(X, U_samples, t_samples, s_samples)
+            block = self._block_outputs(X, U_samples, t_samples, s_samples, memory)
             rows = self._stats(st, X, t_samples, s_samples)
             st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=X[:, -1].copy(),
                             next_stats_m=st.next_stats_m, last_stats=st.last_stats,
-                            sample_index=st.sample_index + X.shape[1])
+                            sample_index=st.sample_index + X.shape[1], solver_memory=memory[:, -1].copy())
             if sink is not None:
                 sink.samples(block)
                 if rows:
@@ -223,27 +239,68 @@ class Drive:
         after = self.equilibrium_solver.solve(final_T, self.gas_masses, V_oil)
         return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s)
 
-    def _check(self, X, t, s):
+    # a state this far outside physics means the integration has failed, whatever the solver says
+    PHYSICAL_TEMPERATURE_K = (150.0, 273.15 + 400.0)
+    STROKE_MARGIN_M = 0.02
+
+    def _advice(self) -> str:
+        S = self.settings
+        v_max = float(np.max(S.speed.speeds_m_per_s)) * 3.6
+        return (f"scenario extremes: speed up to {v_max:.4g} km/h, solver.dt {S.dt_s * 1e3:.4g} ms; "
+                f"try a smaller solver.dt (e.g. {S.dt_s * 500:.3g} ms) or a lower speed / smoother road")
+
+    def _check(self, X, t, s, x_before=None):
+        """Stop with a SimulationError naming the strut, the state and what to change when the solution
+        is non-finite or outside physical bounds (deflection beyond the end stops, temperatures)."""
         m = self.model
-        if not np.all(np.isfinite(X)):
-            col = int(np.argmax(~np.all(np.isfinite(X), axis=0)))
-            raise SimulationError(f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s)")
+        finite = np.isfinite(X)
+        if not np.all(finite):
+            col = int(np.argmax(~np.all(finite, axis=0)))
+            bad = [m.layout.names[k] for k in np.flatnonzero(~finite[:, col])]
+            first = bad[0]
+            station = None
+            if "[" in first:
+                k = int(first[first.index("[") + 1:-1])
+                station = m.station_names[k] if k < m.n else None
+            where = f"strut {station}, state {first.split('[')[0]}" if station else f"state {first}"
+            last = ""
+            if station is not None:
+                prev = X[:, col - 1] if col > 0 else x_before
+                if prev is not None and np.all(np.isfinite(prev)):
+                    k = m.station_names.index(station)
+                    x_def = float(m.strut_deflections(prev[:, None])[k, 0])
+                    last = (f"; last finite sample: deflection {x_def * 1e3:.1f} mm, strut temperature "
+                            f"{prev[m.idx(f'T_strut[{k}]')] - 273.15:.1f} degC")
+            raise SimulationError(
+                f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s), first in {where} "
+                f"({len(bad)} states non-finite){last}; {self._advice()}")
         deflections = m.strut_deflections(X)
         for i in range(m.n):
             stroke = m.struts[i].p.geometry.stroke
             xs = deflections[i]
-            bad = (xs < -0.02) | (xs > stroke + 0.02)
+            bad = (xs < -self.STROKE_MARGIN_M) | (xs > stroke + self.STROKE_MARGIN_M)
             if np.any(bad):
                 col = int(np.argmax(bad))
                 where = "bottomed out (beyond the bump stop)" if xs[col] > stroke else "over-extended (beyond the rebound stop)"
                 raise SimulationError(
                     f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
                     f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
-                    f"{X[m.idx(f'T_strut[{i}]'), col] - 273.15:.1f} degC")
+                    f"{X[m.idx(f'T_strut[{i}]'), col] - 273.15:.1f} degC; {self._advice()}")
+        T = X[self.T_index]
+        lo, hi = self.PHYSICAL_TEMPERATURE_K
+        bad = (T < lo) | (T > hi)
+        if np.any(bad):
+            i, col = (int(v[0]) for v in np.nonzero(bad))
+            raise SimulationError(
+                f"strut {m.station_names[i]} temperature {T[i, col] - 273.15:.1f} degC at {s[col] / 1e3:.3f} km "
+                f"(t = {t[col]:.1f} s) is outside any physical range ({lo - 273.15:.0f} to {hi - 273.15:.0f} degC): "
+                f"the heat balance has failed; {self._advice()}")
 
-    def _block_outputs(self, X, U, t, s) -> dict:
+    def _block_outputs(self, X, U, t, s, memory) -> dict:
         m = self.model
-        Y, acc, heights = self.outputs.map(X.shape[1])(X, U, np.repeat(self.p[:, None], X.shape[1], axis=1))
+        n = X.shape[1]
+        Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
+                                              np.repeat(self.p[:, None], n, axis=1))
         outs = m.split_outputs(np.asarray(Y))
         block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[2 * m.n],
                  "strut_temperature_K": X[self.T_index],

@@ -1,0 +1,143 @@
+"""What every strut model shares: parameters, gas, oil properties, seal friction, end stops.
+
+`StrutBase` implements the parts of the `struts.protocol.Strut` contract that do not depend on the
+strut's layout; `struts.separated.SeparatedStrut` (seed 000) and `struts.integrated.IntegratedStrut`
+(seed 001) are siblings that add their own chambers, states and equations.
+"""
+from __future__ import annotations
+
+from functools import cached_property
+
+from hpsim import symbolic as sym
+
+from . import friction as fr
+from . import gas as gaslaw
+from . import oil as oillaw
+from . import valves
+from .params import StrutParams
+
+
+class StrutBase:
+    """Shared strut physics; subclasses define the chambers (`equations`, states, statics)."""
+
+    def __init__(self, params: StrutParams, gas_properties=None):
+        self.p = params
+        self.gas = gas_properties or gaslaw.load_gas("nitrogen")
+
+    @staticmethod
+    def check_parameters(params: StrutParams) -> None:
+        """Consistency checks a layout needs beyond the parameter schema (UserInputError naming keys)."""
+
+    # --- charge -------------------------------------------------------------------------------
+
+    @cached_property
+    def charge_gas_mass(self) -> float:
+        """Gas mass [kg] from the charge: pressure at full extension at the charge temperature."""
+        g, c = self.p.geometry, self.p.charge
+        return float(gaslaw.gas_mass(c.pressure, c.temperature, g.gas_volume_extended, self.gas, self.p.gas.eos))
+
+    def gas_mass_for(self, pressure_Pa: float, temperature_K: float) -> float:
+        """Gas mass for another fill pressure at full extension and temperature."""
+        V_ext = float(self.extended_gas_volume(temperature_K))
+        return float(gaslaw.gas_mass(pressure_Pa, temperature_K, V_ext, self.gas, self.p.gas.eos))
+
+    def extended_gas_volume(self, T_wall, dV_oil=0.0):
+        """Gas volume at full extension [m^3]: oil thermal expansion eats gas space (seed 000 eq. 6)."""
+        g, o = self.p.geometry, self.p.oil
+        expansion = oillaw.thermal_expansion_into_gas(T_wall, g.oil_volume, self.p.charge.temperature, o.expansion)
+        return g.gas_volume_extended - expansion - dV_oil
+
+
+    # --- oil properties -----------------------------------------------------------------------
+
+    @cached_property
+    def _walther(self):
+        o = self.p.oil
+        return oillaw.walther_coefficients(o.viscosity_T1, o.viscosity_nu1, o.viscosity_T2, o.viscosity_nu2)
+
+    def oil_viscosity(self, T_wall):
+        A, B = self._walther
+        return oillaw.walther_kinematic_viscosity(T_wall, A, B)
+
+    def oil_density(self, T_wall):
+        o = self.p.oil
+        return oillaw.oil_density(T_wall, o.density, o.reference_temperature, o.expansion)
+
+
+    def oil_bulk_modulus(self, T_wall):
+        o = self.p.oil
+        return oillaw.oil_bulk_modulus(T_wall, o.bulk_modulus, o.reference_temperature, o.bulk_modulus_slope)
+
+    # --- valve ----------------------------------------------------------------------------------
+    def valve_flow_demand(self, v):
+        """Oil flow [m^3/s] the deflection rate v [m/s] forces through the valves (incompressible liquid)."""
+        raise NotImplementedError
+
+    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40, warm: bool = False):
+        """Eliminates the algebraic dp_valve: solves valve_flow(dp) = A_v v.
+
+        warm=True: a few plain Newton steps from dp_guess (the previous time step's value).
+        """
+        if warm:
+            return valves.valve_pressure_drop_warm(self.valve_flow_demand(v), dp_guess, newton_iterations,
+                                                   **self.valve_arguments(T_wall))
+        return valves.valve_pressure_drop(self.valve_flow_demand(v), newton_iterations=newton_iterations,
+                                          dp_guess=dp_guess, **self.valve_arguments(T_wall))
+
+
+    # --- friction -----------------------------------------------------------------------------
+
+    def friction_viscous(self, T_wall):
+        """Viscous seal friction scales with the oil film viscosity (relative to T_ref)."""
+        f = self.p.friction
+        return f.viscous * self.oil_viscosity(T_wall) / self.oil_viscosity(self.p.oil.reference_temperature)
+
+    def friction_force(self, v, x_rel, p_gas, T_wall, z_bristle=None):
+        f = self.p.friction
+        f_v = self.friction_viscous(T_wall)
+        if f.model == "lugre":
+            F_c = fr.coulomb_level(p_gas, 0.5 * (f.F0_compression + f.F0_rebound), f.pressure_coefficient)
+            F_s = F_c * f.breakaway_ratio
+            dz = fr.lugre_bristle_rate(z_bristle, v, F_c, F_s, f.stribeck_velocity, f.bristle_stiffness,
+                                       f.smoothing_velocity)
+            return fr.lugre_force(z_bristle, dz, v, f.bristle_stiffness, f.bristle_damping, f_v), dz
+        F = fr.seal_friction(
+            v, x_rel, p_gas, F0_comp=f.F0_compression, F0_reb=f.F0_rebound, f_p=f.pressure_coefficient,
+            K_brk=f.breakaway_ratio, v_s=f.stribeck_velocity, f_v=f_v, eps=f.smoothing_velocity,
+            v_h_comp=f.hysteresis_velocity_compression, v_h_reb=f.hysteresis_velocity_rebound,
+            eps_x=None if fr._is_zero(f.hysteresis_velocity_compression) and fr._is_zero(f.hysteresis_velocity_rebound)
+            else f.hysteresis_smoothing_displacement)
+        return F, None
+
+
+    # --- end stops ------------------------------------------------------------------------------
+
+    def end_stop_force(self, x, v):
+        """Elastic stops beyond full extension (x < 0) and full compression (x > stroke): (force, damping part)."""
+        e, stroke = self.p.end_stops, self.p.geometry.stroke
+        pen_c = sym.ramp(x - stroke, e.smoothing)
+        pen_r = sym.ramp(-x, e.smoothing)
+        engaged = sym.smooth_step(x - stroke, -e.smoothing, e.smoothing) + sym.smooth_step(-x, -e.smoothing, e.smoothing)
+        damping = e.damping * engaged * v
+        return e.stiffness * (pen_c - pen_r) + damping, damping
+
+
+    # --- derivative information (for implicit solvers and linearisation) -----------------------
+    def force_derivatives(self, u, states: dict, dp_valve=None):
+        """(dF/dx [N/m], dF/dv [N s/m]) of the strut force at one instant, symbolic.
+
+        For an incompressible strut the valve pressure drop follows the velocity through the flow
+        balance valve_flow(dp) = A_v v, so its part of dF/dv is A_v^2 / (d valve_flow / d dp)
+        (implicit-function theorem) rather than a derivative through Newton iterations.
+        """
+        import casadi as ca
+
+        eq = self.equations(u, states, dp_valve)
+        F = eq["force"]
+        k = ca.jacobian(F, u.x)
+        c = ca.jacobian(F, u.v)
+        if not self.compressible:
+            q = valves.valve_flow(dp_valve, **self.valve_arguments(u.T_wall))
+            Av = self.valve_flow_demand(1.0)
+            c = c + ca.jacobian(F, dp_valve) * Av / ca.jacobian(q, dp_valve)
+        return k, c
