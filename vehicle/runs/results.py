@@ -153,6 +153,10 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     res = drive.run(sink, progress=progress)
     n_samples, n_stats = sink.counts()
     sink.finish(final_info(drive, res, n_samples, n_stats, time.perf_counter() - t0))
+    from vehicle.runs.warnings import check, summary_cell
+
+    found = check(sink)                 # the validity warnings, as run_scenario records them in the file
+    sink.final["summary"].update(warnings=summary_cell(found), warnings_json=json.dumps(found))
     return sink
 
 
@@ -376,14 +380,14 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
     if stored_version and stored_version != code_version():
         log(f"{out}: warning: the run started with hpsim {stored_version}, resuming with {code_version()}; "
             "if the model changed in between, the result differs from an uninterrupted run")
-    model, drive = prep.drive(drive_class())
     if ck is None:
         state, counts = None, (0, 0, 0.0)
     else:
         d, meta = ck
         state = DriveState.from_dict(d)
         counts = (meta["n_samples"], meta["n_stats"], meta["wall_s"])
-    _copy_truncated(out, counts[0], counts[1])
+    _copy_truncated(out, counts[0], counts[1])      # first: a full disk is found before the model is built
+    model, drive = prep.drive(drive_class())
     if state is not None:
         log(f"{out}: resuming at {state.s_m / 1e3:.3f} km of {prep.scenario.distance / 1e3:.6g} km")
     return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)

@@ -307,9 +307,11 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
                 for a in rep["axles"]:
                     for q in ("dN_pct", "dN_charged_pct", "dh_mm", "T_end_C"):
                         row[f"{q}_axle{a['axle']}"] = a[q]
-                warnings = rep.get("warnings")          # the report's plausibility warnings, when it gives them
+                warnings = rep.get("warnings")          # the report's validity warnings (vehicle.runs.warnings)
                 if warnings:
-                    row["warnings"] = warnings if isinstance(warnings, str) else "; ".join(map(str, warnings))
+                    from vehicle.runs.warnings import summary_cell
+
+                    row["warnings"] = warnings if isinstance(warnings, str) else summary_cell(warnings)
                 ok_files.append(c["file"])
                 ok_labels.append(c["name"])
         table.append(row)
