@@ -172,6 +172,13 @@ def static_balance(model: VehicleModel, q, T, m, dV, strut_force_offset=None) ->
             "axle_heights": axle_heights}
 
 
+def statics_inputs(n: int, temperatures_K, gas_masses_kg, oil_volumes_m3=None):
+    """(T [K], m [kg], dV [m^3]) per strut as arrays of n: one temperature may serve all, no oil volumes = 0."""
+    T = np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
+    dV = np.zeros(n) if oil_volumes_m3 is None else np.asarray(oil_volumes_m3, float)
+    return T, np.asarray(gas_masses_kg, float), dV
+
+
 class EquilibriumSolver:
     """Newton solve of the static balances for given temperatures, gas masses and oil volumes."""
 
@@ -192,9 +199,7 @@ class EquilibriumSolver:
     def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None) -> Equilibrium:
         model = self.model
         n = model.n
-        T = np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
-        m = np.asarray(gas_masses_kg, float)
-        dV = np.zeros(n) if oil_volumes_m3 is None else np.asarray(oil_volumes_m3, float)
+        T, m, dV = statics_inputs(n, temperatures_K, gas_masses_kg, oil_volumes_m3)
         q = np.zeros(3 + n) if q0 is None else np.asarray(q0, float).copy()
         for it in range(100):
             r = np.asarray(self.F(q, T, m, dV)).ravel()

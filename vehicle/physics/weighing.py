@@ -51,7 +51,7 @@ from hpsim.errors import UserInputError
 from struts import friction as fr
 
 from vehicle.physics import hull as hull_eq
-from vehicle.physics.equilibrium import EquilibriumSolver, static_balance
+from vehicle.physics.equilibrium import EquilibriumSolver, static_balance, statics_inputs
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY
 from vehicle.physics.tyre import tyre_force
@@ -273,9 +273,7 @@ class WeighingSolver:
     def bands(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, temperatures_at_stop_K=None) -> dict:
         model = self.model
         n = model.n
-        T = np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
-        m = np.asarray(gas_masses_kg, float)
-        dV = np.zeros(n) if oil_volumes_m3 is None else np.asarray(oil_volumes_m3, float)
+        T, m, dV = statics_inputs(n, temperatures_K, gas_masses_kg, oil_volumes_m3)
         eq = self.frictionless.solve(T, m, dV)
         q0 = np.concatenate([[eq.heave_m, eq.pitch_rad, eq.roll_rad], eq.wheel_displacement_m])
         c = np.concatenate([T, m, dV])
