@@ -355,8 +355,8 @@ class DriveRunner:
         if results_status(out) != "complete":
             r = run_case(self.scenario_text(case, values), f"{self.name} case {case}", self.base_dir, str(out))
             if r["status"] != "done":
-                if r.get("error") == "interrupted":
-                    raise KeyboardInterrupt
+                if r["status"] == "interrupted" or r.get("error") == "interrupted":
+                    raise KeyboardInterrupt     # Ctrl-C: stop the study; the drive's file stays resumable
                 raise SimulationError(r["error"])
         return case_outputs(report(out))
 
