@@ -123,7 +123,9 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
         "equilibrium": {"charged": {"wheel_loads_N": np.asarray(model.charged_wheel_loads, float),
                                     "axle_height_change_m": np.zeros(len(axles)),
                                     "temperatures_K": np.full(len(stations), float(model.params.charging.temperature))},
-                        "before": dict(before.__dict__)},
+                        "before": dict(before.__dict__),
+                        # the weighing as a measurement: what seal friction lets a standing vehicle show
+                        "before_band": weighing_band_datasets(drive, before.temperatures_K)},
         "summary": {"status": "running", "complete": False, "build_s": float(drive.build_s)},
     }
 
@@ -138,8 +140,18 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
                "wall_s": float(wall_s), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),
                "finished_at": _now(), "status": "complete", "complete": True}
-    return {"equilibrium": {"after": dict(res.after.__dict__)}, "summary_values": values, "summary": summary,
-            "history": f"{_now()}: completed"}
+    after_band = weighing_band_datasets(drive, res.after.temperatures_K,
+                                        np.array([x[m.idx(f"V_oil[{i}]")] for i in range(m.n)]))
+    return {"equilibrium": {"after": dict(res.after.__dict__), "after_band": after_band},
+            "summary_values": values, "summary": summary, "history": f"{_now()}: completed"}
+
+
+def weighing_band_datasets(drive, temperatures_K, oil_volumes_m3=None) -> dict:
+    """The /equilibrium/*_band datasets: wheel loads and heights over all seal-friction states of the standing
+    vehicle (vehicle.physics.weighing)."""
+    from vehicle.physics.weighing import band_datasets, weighing_bands
+
+    return band_datasets(weighing_bands(drive.model, temperatures_K, drive.gas_masses, oil_volumes_m3))
 
 
 def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> MemorySink:

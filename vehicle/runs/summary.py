@@ -143,8 +143,16 @@ def weighing_difference_bands(eq, n_axles: int) -> dict:
     none = {"dN_band_pct": [None] * n_axles, "dh_band_mm": [None] * n_axles}
     if not eq or eq.get("before_band") is None or eq.get("after_band") is None:
         return none
+    from vehicle.runs.variables import VARIABLES
+
+    # the reader names variables as the file does (CF names): back to the drive's keys
+    by_name = {v.name: k for k, v in VARIABLES.items() if hasattr(v, "name")}
+
+    def drive_keys(group):
+        return {by_name.get(name, name): value for name, value in group.items()}
+
     try:
-        d = difference_bands(eq["before_band"], eq["after_band"])
+        d = difference_bands(drive_keys(eq["before_band"]), drive_keys(eq["after_band"]))
     except KeyError:
         return none
     return {k: [[float(x) if np.isfinite(x) else None for x in row] for row in v] for k, v in d.items()}

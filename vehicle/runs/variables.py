@@ -22,7 +22,7 @@ import numpy as np
 
 # the groups of a results file (docs/hdf5.md) and their record dimension
 RECORD_DIM = {"timeseries": "time", "stats": "km"}
-EQUILIBRIA = ("charged", "before", "after")
+EQUILIBRIA = ("charged", "before", "after", "before_band", "after_band")
 STATIC_GROUPS = tuple(f"equilibrium/{e}" for e in EQUILIBRIA) + ("summary",)
 DATA_GROUPS = ("timeseries", "stats") + STATIC_GROUPS
 LABEL_DIMS = ("station", "axle")
@@ -109,6 +109,20 @@ VARIABLES: dict[str, Var | Split] = {
     "strut_deflections_m": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station"),
     "gas_pressures_Pa": Var("gas_pressure", "Pa", "absolute gas pressure in the strut", "station"),
     "temperatures_K": Var("strut_temperature", "K", "strut temperature (lumped heat node)", "station"),
+    # the weighing bands (vehicle.physics.weighing): nominal = frictionless, low/high over all seal-friction states
+    **{f"wheel_loads_{e}_N": Var(f"wheel_load_{e}", "N", f"wheel load of the standing vehicle ({e})", "station")
+       for e in ("nominal", "low", "high")},
+    **{f"axle_loads_{e}_N": Var(f"axle_load_{e}", "N", f"axle load of the standing vehicle ({e})", "axle")
+       for e in ("nominal", "low", "high")},
+    **{f"station_height_change_{e}_m": Var(f"station_height_change_{e}", "m",
+                                           f"hull height change above the station ({e})", "station")
+       for e in ("nominal", "low", "high")},
+    **{f"axle_height_change_{e}_m": Var(f"axle_height_change_{e}", "m", f"hull height change at the axle ({e})", "axle")
+       for e in ("nominal", "low", "high")},
+    "static_friction_rebound_N": Var("static_friction_rebound", "N", "static seal friction holding the strut "
+                                     "against extension", "station"),
+    "static_friction_compression_N": Var("static_friction_compression", "N", "static seal friction holding the strut "
+                                         "against compression", "station"),
 }
 
 
