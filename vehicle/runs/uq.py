@@ -62,6 +62,12 @@ AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "dh_mm": ("mm", lambda a: a.get("dh_mm")),
     "dN_pct": ("%", lambda a: a.get("dN_pct")),
 }
+# optional per-axle outputs, kept when the results hold them (None otherwise): the [low, high] band
+# of the wheel-load change two weighings with seal friction can give (vehicle.runs.summary)
+OPTIONAL_AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
+    "dN_band_low_pct": ("%", lambda a: (a.get("dN_band_pct") or [None, None])[0]),
+    "dN_band_high_pct": ("%", lambda a: (a.get("dN_band_pct") or [None, None])[1]),
+}
 # name -> (unit, value from the whole report)
 VEHICLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "mean_rise_K": ("K", lambda r: r.get("mean_temperature_rise_K")),
@@ -75,6 +81,9 @@ def case_outputs(rep: dict) -> dict[str, float]:
     for a in rep["axles"]:
         for name, (_, get) in AXLE_OUTPUTS.items():
             out[f"axle{a['axle']}.{name}"] = get(a)
+        for name, (_, get) in OPTIONAL_AXLE_OUTPUTS.items():
+            if get(a) is not None:
+                out[f"axle{a['axle']}.{name}"] = get(a)
     for name, (_, get) in VEHICLE_OUTPUTS.items():
         out[name] = get(rep)
     missing = [k for k, v in out.items() if v is None or not math.isfinite(float(v))]
@@ -86,8 +95,8 @@ def case_outputs(rep: dict) -> dict[str, float]:
 
 def output_unit(name: str) -> str:
     m = re.fullmatch(r"axle\d+\.(.+)", name)
-    if m and m.group(1) in AXLE_OUTPUTS:
-        return AXLE_OUTPUTS[m.group(1)][0]
+    if m and m.group(1) in {**AXLE_OUTPUTS, **OPTIONAL_AXLE_OUTPUTS}:
+        return {**AXLE_OUTPUTS, **OPTIONAL_AXLE_OUTPUTS}[m.group(1)][0]
     return VEHICLE_OUTPUTS[name][0] if name in VEHICLE_OUTPUTS else ""
 
 
