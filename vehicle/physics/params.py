@@ -47,7 +47,7 @@ class Axle(Model):
     strut: str = "apc"              # built-in strut name or path
     unsprung_mass: kg               # per wheel station
     motion_ratio: Number            # strut travel / wheel travel
-    strut_overrides: dict = {}      # e.g. {"charge.pressure": "5 MPa"}
+    strut_overrides: dict = {}      # e.g. {"valve.bleed_area": "1.2e-5 m^2"} (charge.pressure: charging.method gas_pressure)
 
     @model_validator(mode="after")
     def _check(self):
