@@ -337,12 +337,17 @@ BAND_DATASETS = {"wheel_loads": "wheel_loads", "axle_loads": "axle_loads", "stat
                  "axle_heights": "axle_height_change"}
 
 
+# the edges written to files; "std_uniform" is also in every band (add it here and to the results
+# variables table, vehicle.runs.variables, to store it: difference_bands then adds dN_std_pct, dh_std_mm)
+BAND_EDGES = ("nominal", "low", "high")
+
+
 def band_datasets(bands: dict) -> dict:
     """Flat {dataset name: array} for an HDF5 group such as /equilibrium/before_band (SI units in names)."""
     out = {}
     for key, stem in BAND_DATASETS.items():
         unit = "N" if "load" in key else "m"
-        for edge in ("nominal", "low", "high"):
+        for edge in BAND_EDGES:
             out[f"{stem}_{edge}_{unit}"] = np.asarray(bands[key][edge], float)
     out["static_friction_rebound_N"] = np.asarray(bands["static_friction_N"]["rebound"], float)
     out["static_friction_compression_N"] = np.asarray(bands["static_friction_N"]["compression"], float)
@@ -365,7 +370,15 @@ def difference_bands(before: dict, after: dict) -> dict:
     ha_lo, ha_hi = (np.asarray(after[f"axle_height_change_{e}_m"], float) for e in ("low", "high"))
     dN_pct = 100.0 * np.stack([Na_lo - Nb_hi, Na_hi - Nb_lo], axis=1) / Nb0[:, None]
     dh_mm = 1e3 * np.stack([ha_lo - hb_hi, ha_hi - hb_lo], axis=1)
-    return {"dN_band_pct": dN_pct, "dh_band_mm": dh_mm}
+    out = {"dN_band_pct": dN_pct, "dh_band_mm": dh_mm}
+    if "axle_loads_std_uniform_N" in before and "axle_loads_std_uniform_N" in after:
+        # independent weighings: the variances add
+        sN = np.hypot(np.asarray(before["axle_loads_std_uniform_N"], float), np.asarray(after["axle_loads_std_uniform_N"], float))
+        sh = np.hypot(np.asarray(before["axle_height_change_std_uniform_m"], float),
+                      np.asarray(after["axle_height_change_std_uniform_m"], float))
+        out["dN_std_pct"] = 100.0 * sN / Nb0
+        out["dh_std_mm"] = 1e3 * sh
+    return out
 
 
 # --- one station: the hand-checkable case --------------------------------------------------------
