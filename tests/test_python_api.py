@@ -58,7 +58,10 @@ def test_open_results_and_report(runs, capsys):
 
 
 def test_example_script_runs(tmp_path):
+    import os
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     res = subprocess.run([sys.executable, str(ROOT / "examples" / "notebook_tour.py"), str(tmp_path)],
-                         capture_output=True, text=True, timeout=300)
+                         capture_output=True, text=True, timeout=300, env=env)
     assert res.returncode == 0, res.stderr[-2000:]
     assert (tmp_path / "tour.h5").exists() and (tmp_path / "tour_dashboard.png").stat().st_size > 10_000
