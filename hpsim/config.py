@@ -4,14 +4,20 @@ Parameter files hold quantities either as plain values ("4.8 MPa", 0.7) or with
 their provenance: {value: "4.8 MPa", source: "seed 000 §2"}. Models declare the
 SI unit of each field with `Quantity("Pa")`; validation errors are rewritten to
 name the file, the key path, the value and what is allowed.
+
+Every YAML text (files and scenario text) goes through `parse_yaml`: safe types only, no anchors
+or aliases (a "billion laughs" document cannot expand), at most MAX_YAML_DEPTH levels of nesting,
+duplicate keys are errors naming the key and both lines. Files are read by `read_text_file`:
+UTF-8 only, at most MAX_TEXT_FILE_BYTES, and errors never quote the file's content.
 """
 from __future__ import annotations
 
+import reprlib
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
 
 from .errors import UserInputError
 from .units import parse_quantity
@@ -51,34 +57,152 @@ def Plain():
 
 
 class Model(BaseModel):
-    """Base for parameter models: unknown keys are errors (typo safety)."""
+    """Base for parameter models: unknown keys are errors (typo safety).
+
+    Subclasses list the fields that must be physical: `_must_be_positive` (> 0), `_must_be_non_negative` (>= 0),
+    `_must_be_fraction` (in [0, 1]); None (an optional field left out) is not checked.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    _must_be_positive: ClassVar[tuple[str, ...]] = ()
+    _must_be_non_negative: ClassVar[tuple[str, ...]] = ()
+    _must_be_fraction: ClassVar[tuple[str, ...]] = ()
+
+    @model_validator(mode="after")
+    def _physical_ranges(self):
+        problems = []
+        for names, ok, allowed in ((self._must_be_positive, lambda v: v > 0, "> 0"),
+                                   (self._must_be_non_negative, lambda v: v >= 0, ">= 0"),
+                                   (self._must_be_fraction, lambda v: 0 <= v <= 1, "in [0, 1]")):
+            for name in names:
+                value = getattr(self, name)
+                if value is not None and not ok(value):
+                    problems.append(f"{name} must be {allowed}, got {value:g}")
+        if problems:
+            raise ValueError("; ".join(problems))
+        return self
 
 
-def load_yaml(path: str | Path) -> Any:
-    """Parse YAML safely (no object construction from tags); errors name the file and line."""
+# limits of what a parameter, scenario or sweep file may be (they are a few kB; these are generous)
+MAX_TEXT_FILE_BYTES = 4 * 1024 * 1024
+MAX_YAML_DEPTH = 40
+
+
+class _RefusedYAML(yaml.YAMLError):
+    def __init__(self, mark, problem: str):
+        super().__init__(problem)
+        self.problem_mark = mark
+        self.problem = problem
+
+
+class _StrictSafeLoader(yaml.SafeLoader):
+    """yaml.SafeLoader without anchors/aliases, with a nesting limit and duplicate keys as errors."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            # refused outright: expanding aliases is how a small file becomes a huge document
+            raise _RefusedYAML(event.start_mark, "YAML anchors and aliases (&name, *name) are not allowed here; "
+                                                 "write the values out")
+        self._depth += 1
+        if self._depth > MAX_YAML_DEPTH:
+            raise _RefusedYAML(event.start_mark, f"nested deeper than {MAX_YAML_DEPTH} levels")
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            self.flatten_mapping(node)
+            first_line: dict = {}
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    if key in first_line:
+                        raise _RefusedYAML(key_node.start_mark, f"duplicate key {short_repr(key)} "
+                                                                f"(first at line {first_line[key] + 1})")
+                    first_line[key] = key_node.start_mark.line
+                except TypeError:
+                    continue      # an unhashable key: SafeConstructor reports it
+        return super().construct_mapping(node, deep=deep)
+
+
+def parse_yaml(text: str, name: str) -> Any:
+    """Parse YAML text safely; errors name `name`:line:column and never quote the text."""
+    try:
+        return yaml.load(text, Loader=_StrictSafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{name}:{mark.line + 1}:{mark.column + 1}" if mark else str(name)
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        kind = "" if isinstance(exc, _RefusedYAML) else "YAML syntax error: "
+        raise UserInputError(f"{where}: {kind}{problem}") from None
+    except RecursionError:
+        raise UserInputError(f"{name}: nested too deeply (at most {MAX_YAML_DEPTH} levels)") from None
+
+
+def read_text_file(path: str | Path, max_bytes: int = MAX_TEXT_FILE_BYTES) -> str:
+    """The UTF-8 text of a small input file; errors name the file and never quote its content."""
     path = Path(path)
     try:
-        text = path.read_text()
+        if path.is_dir():
+            raise UserInputError(f"{path}: is a directory, expected a file")
+        with path.open("rb") as fh:
+            data = fh.read(max_bytes + 1)
     except FileNotFoundError:
         raise UserInputError(f"{path}: file not found") from None
     except OSError as exc:
-        raise UserInputError(f"{path}: cannot read ({exc.strerror})") from None
+        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
+    if len(data) > max_bytes:
+        raise UserInputError(f"{path}: larger than {max_bytes // (1024 * 1024)} MB; expected a small text file")
+    return decode_text(data, str(path))
+
+
+def decode_text(data: bytes, name: str) -> str:
+    """UTF-8 bytes (an optional BOM is dropped) -> str; anything else is a one-line error."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise UserInputError(f"{name}: the file is UTF-16 text; save it as UTF-8")
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
     try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise UserInputError(f"{where}: YAML syntax error: {problem}") from None
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise UserInputError(f"{name}:{line}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
+                             "save the file as UTF-8") from None
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise UserInputError(f"{name}:{line}: a NUL byte: this is a binary file, not text")
+    return text
+
+
+def load_yaml(path: str | Path) -> Any:
+    """Parse a YAML file safely (see `parse_yaml`); errors name the file and line."""
+    return parse_yaml(read_text_file(path), str(path))
+
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 60
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+_REPR.maxlevel = 3
+
+
+def short_repr(value: Any) -> str:
+    """A short repr of a value for error messages (long strings and big lists are cut)."""
+    return _REPR.repr(value)
 
 
 def format_validation_error(exc: ValidationError, source: str) -> str:
     """One line per problem: file, key path, value, what is allowed."""
     lines = []
     for err in exc.errors():
-        loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        loc = ".".join(short_repr(p) if not isinstance(p, (str, int)) or len(str(p)) > 60 else str(p)
+                       for p in err["loc"]) or "(top level)"
         msg = err["msg"]
         if msg.startswith("Value error, "):
             msg = msg[len("Value error, "):]
@@ -86,7 +210,7 @@ def format_validation_error(exc: ValidationError, source: str) -> str:
             msg = "unknown key (check the spelling)"
         value = err.get("input")
         quiet = err["type"] in ("missing", "extra_forbidden") or isinstance(value, dict) or "got" in msg
-        shown = "" if quiet else f" (got {value!r})"
+        shown = "" if quiet else f" (got {short_repr(value)})"
         lines.append(f"{source}: {loc}: {msg}{shown}")
     return "; ".join(lines)
 

@@ -8,9 +8,61 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from typing import Any
 
 from .errors import UserInputError
+
+# A quantity is a short text: a number and a unit expression ("41.8 kN", "5e-12 m^3/(Pa*s)").
+# Longer or odd-shaped text never reaches pint, whose parser takes minutes on some long strings
+# and evaluates number towers such as "10**10**10" exactly.
+MAX_QUANTITY_CHARS = 64
+MAX_LIST_ITEMS = 100
+_NUMBER = r"[+-]?(?:\d{1,30}(?:\.\d{0,30})?|\.\d{1,30})(?:[eE][+-]?\d{1,3})?"
+_TOKEN = re.compile(rf"\s*(?:(?P<number>{_NUMBER})|(?P<name>[^\W\d]\w*|°\w*|%)|(?P<power>\*\*|\^)|(?P<op>[*/()]))")
+_EXPONENT = re.compile(r"[+-]?\d{1,2}(?:\.\d{1,3})?")
+MAX_PARENTHESES = 4
+
+
+def _shown(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:30]}...' ({len(str(value))} characters)"
+
+
+def check_quantity_text(text: str, where: str, unit: str) -> None:
+    """Refuse text that is not shaped like a quantity before the unit library sees it."""
+    example = f"expected e.g. '12.5 {unit}'"
+    if len(text) > MAX_QUANTITY_CHARS:
+        raise UserInputError(f"{where}: {_shown(text)} is too long for a quantity (at most {MAX_QUANTITY_CHARS} "
+                             f"characters); {example}")
+    pos, depth, prev = 0, 0, None
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if m is None or m.end() == pos:
+            if text[pos:].strip() == "":
+                break
+            raise UserInputError(f"{where}: {_shown(text)}: cannot read character {pos + 1} of a quantity; {example}")
+        kind = m.lastgroup
+        token = m.group(kind)
+        if kind == "op" and token == "(":
+            depth += 1
+            if depth > MAX_PARENTHESES:
+                raise UserInputError(f"{where}: {_shown(text)}: more than {MAX_PARENTHESES} nested parentheses "
+                                     f"in a quantity; {example}")
+        elif kind == "op" and token == ")":
+            depth -= 1
+        if prev == "power":
+            # an exponent is a small number applied to a unit: "m**3", "s^-1" (never a tower)
+            if kind != "number" or not _EXPONENT.fullmatch(token):
+                raise UserInputError(f"{where}: {_shown(text)}: an exponent must be a number of at most two digits "
+                                     f"after a unit, e.g. 'm**3'; {example}")
+            kind = "exponent"
+        elif kind == "power" and prev not in ("name", "close"):
+            raise UserInputError(f"{where}: {_shown(text)}: '**' or '^' must follow a unit, e.g. 'm**3'; {example}")
+        elif kind == "power" and prev == "exponent":
+            raise UserInputError(f"{where}: {_shown(text)}: exponent of an exponent; {example}")
+        prev = "close" if token == ")" else kind
+        pos = m.end()
 
 
 @functools.lru_cache(maxsize=1)
@@ -28,19 +80,20 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
     `where` names the argument or key in error messages.
     """
     if isinstance(value, bool):
-        raise UserInputError(f"{where}: expected a quantity in {unit}, got {value!r}")
+        raise UserInputError(f"{where}: expected a quantity in {unit}, got {_shown(value)}")
     if isinstance(value, (int, float)):
         out = float(value)
     elif isinstance(value, str):
         text = value.strip()
         if not text:
             raise UserInputError(f"{where}: empty value, expected a quantity in {unit}")
+        check_quantity_text(text, where, unit)
         ureg = registry()
         try:
             q = ureg.Quantity(text)
         except Exception as exc:  # pint raises several error types
             raise UserInputError(
-                f"{where}: cannot read {value!r} as a quantity ({exc.__class__.__name__}); "
+                f"{where}: cannot read {_shown(value)} as a quantity ({exc.__class__.__name__}); "
                 f"expected e.g. '12.5 {unit}'"
             ) from None
         if isinstance(q, (int, float)):
@@ -50,7 +103,7 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
         elif q.dimensionless:
             if q.units != ureg.dimensionless:
                 # "12 parsecs/furlong" is a pure number to pint: units that cancel are no quantity in `unit`
-                raise UserInputError(f"{where}: {value!r} is not a quantity in {unit} (its units {q.units} cancel)")
+                raise UserInputError(f"{where}: {_shown(value)} is not a quantity in {unit} (its units {q.units} cancel)")
             # a bare number in a string: SI
             out = float(q.magnitude)
         else:
@@ -58,12 +111,12 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
                 out = float(q.to(unit).magnitude)
             except Exception:
                 raise UserInputError(
-                    f"{where}: {value!r} has units of {q.dimensionality}, expected {unit}"
+                    f"{where}: {_shown(value)} has units of {q.dimensionality}, expected {unit}"
                 ) from None
     else:
-        raise UserInputError(f"{where}: expected a quantity in {unit}, got {value!r}")
+        raise UserInputError(f"{where}: expected a quantity in {unit}, got {_shown(value)}")
     if not math.isfinite(out):
-        raise UserInputError(f"{where}: {value!r} is not a finite number")
+        raise UserInputError(f"{where}: {_shown(value)} is not a finite number")
     return out
 
 
@@ -72,6 +125,8 @@ def parse_quantity_list(text: str, unit: str, *, where: str = "value") -> list[f
     items = [t for t in str(text).split(",") if t.strip()]
     if not items:
         raise UserInputError(f"{where}: expected one or more quantities in {unit}")
+    if len(items) > MAX_LIST_ITEMS:
+        raise UserInputError(f"{where}: {len(items)} values, at most {MAX_LIST_ITEMS}")
     return [parse_quantity(t, unit, where=where) for t in items]
 
 

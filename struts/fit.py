@@ -20,6 +20,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
+from hpsim.config import decode_text
 from hpsim.errors import UserInputError
 
 from .params import StrutParams
@@ -75,7 +76,11 @@ def read_rig_csv(path: str | Path) -> RigData:
     path = Path(path)
     if not path.exists():
         raise UserInputError(f"--data: {path}: file not found")
-    lines = [ln for ln in path.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise UserInputError(f"--data: {path}: cannot read ({exc.strerror})") from None
+    lines = [ln for ln in decode_text(raw, str(path)).splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise UserInputError(f"{path}: no data rows")
     reader = csv.DictReader(lines)
@@ -87,14 +92,14 @@ def read_rig_csv(path: str | Path) -> RigData:
         kind, value_cols = "loops", ("t_s", "force_N")
     else:
         raise UserInputError(
-            f"{path}: columns {sorted(cols)} do not match an energy table "
+            f"{path}: the header's {len(cols)} columns do not match an energy table "
             "(amplitude_m,frequency_Hz,mean_m,energy_J) or loops (amplitude_m,frequency_Hz,mean_m,t_s,force_N)")
     rows = []
     for i, r in enumerate(reader, start=2):
         try:
             row = {k: float(r[k]) for k in (*base, *value_cols)}
         except (TypeError, ValueError):
-            raise UserInputError(f"{path}: line {i}: non-numeric value in {dict(r)}") from None
+            raise UserInputError(f"{path}: line {i} of the table (header = 1): a missing or non-numeric value") from None
         if not all(math.isfinite(v) for v in row.values()):
             raise UserInputError(f"{path}: line {i}: NaN or infinite value")
         rows.append(row)

@@ -35,6 +35,9 @@ Number = Plain()
 class Geometry(Model):
     """Areas and volumes (seed 000 eq. 2-5 for the separated strut)."""
 
+    _must_be_positive = ("gas_area", "gas_volume_extended", "stroke", "valve_area", "oil_volume")
+    _must_be_non_negative = ("piston_area", "rod_area", "rod_chamber_volume", "piston_chamber_oil_volume")
+
     gas_area: m2                 # A = A_o1 - A_d: gas volume change per unit deflection
     gas_volume_extended: m3      # V_g0 at full extension (x = 0), at the charge temperature
     stroke: m                    # usable deflection from full extension to the bump stop
@@ -65,6 +68,7 @@ class Charge(Model):
 
 
 class Gas(Model):
+    _must_be_positive = ("thermal_time_constant",)
     eos: Literal["ideal", "bwr"] = "bwr"
     # "energy": gas temperature state with heat exchange (REFERENCE §6);
     # "polytropic": p V^n = const from the state at full extension (seed 000 eq. 1, 5)
@@ -74,6 +78,9 @@ class Gas(Model):
 
 
 class Oil(Model):
+    _must_be_positive = ("density", "reference_temperature", "bulk_modulus", "viscosity_T1", "viscosity_nu1",
+                 "viscosity_T2", "viscosity_nu2")
+    _must_be_non_negative = ("expansion", "bulk_modulus_slope")
     density: kg_per_m3                   # at reference temperature
     reference_temperature: K
     expansion: per_K                     # volumetric thermal expansion beta_o (seed 000 eq. 6)
@@ -88,6 +95,12 @@ class Oil(Model):
 
 class Valve(Model):
     """Damping valve assembly between the oil chambers (REFERENCE §7)."""
+
+    _must_be_positive = ("bleed_area", "critical_reynolds", "compliant_oil_volume", "number_of_orifices")
+    _must_be_non_negative = ("check_area_max", "check_dp_crack", "check_dp_full", "relief_comp_area", "relief_comp_crack",
+                     "relief_comp_full", "relief_reb_area", "relief_reb_crack", "relief_reb_full", "leakage",
+                     "check_number")
+    _must_be_fraction = ("discharge_coefficient", "check_discharge_coefficient")
 
     discharge_coefficient: Number = 0.7
     bleed_area: m2
@@ -117,6 +130,10 @@ class Valve(Model):
 class Friction(Model):
     """Seal friction: Coulomb (pressure dependent) + Stribeck + viscous (REFERENCE §7, seed 001 eq. 2-3)."""
 
+    _must_be_positive = ("stribeck_velocity", "smoothing_velocity", "hysteresis_smoothing_displacement", "bristle_stiffness")
+    _must_be_non_negative = ("F0_compression", "F0_rebound", "pressure_coefficient", "breakaway_ratio", "viscous",
+                     "hysteresis_velocity_compression", "hysteresis_velocity_rebound", "bristle_damping")
+
     model: Literal["stribeck", "lugre"] = "stribeck"
     F0_compression: N
     F0_rebound: N
@@ -134,6 +151,9 @@ class Friction(Model):
 
 class EndStops(Model):
     """Elastic end stops at full extension and full compression (assumed values)."""
+
+    _must_be_positive = ("smoothing",)
+    _must_be_non_negative = ("stiffness", "damping")
 
     stiffness: N_per_m = 2e7
     damping: N_s_per_m = 2e4
@@ -154,6 +174,8 @@ class Limits(Model):
 
 class Emulsion(Model):
     """Gas-oil emulsion of the integrated strut (seed 001 eq. 8-11)."""
+
+    _must_be_fraction = ("initial_gas_fraction",)
 
     initial_gas_fraction: Number = 0.006
 

@@ -25,6 +25,21 @@ from .params import StrutParams
 
 # Ranges a rig can do: the checks give clear messages rather than solver failures.
 _MAX_FREQUENCY_HZ = 50.0
+# Work size: a cycle test stores 400 samples per cycle and reaches its periodic loop within a few
+# cycles; 1000 cycles (400 000 samples) per test and 10 000 cycles per command bound the memory
+# (tens of MB) and the time (minutes) a valid-looking command line can ask for.
+MAX_CYCLES = 1000
+MAX_CYCLES_PER_COMMAND = 10_000
+
+
+def check_cycle_work(n_tests: int, cycles) -> None:
+    """Refuse more cycles than MAX_CYCLES per test or MAX_CYCLES_PER_COMMAND in all, before any work."""
+    if int(cycles) > MAX_CYCLES:
+        raise UserInputError(f"--cycles: {cycles} cycles per test, at most {MAX_CYCLES} "
+                             "(the loop is periodic after a few cycles)")
+    if n_tests * int(cycles) > MAX_CYCLES_PER_COMMAND:
+        raise UserInputError(f"--cycles: {n_tests} tests x {cycles} cycles = {n_tests * int(cycles)} cycles, "
+                             f"at most {MAX_CYCLES_PER_COMMAND} in one command")
 
 
 def _gas_mass(strut, p0_Pa):
@@ -119,6 +134,7 @@ def check_cycle_arguments(params: StrutParams, amplitude, frequency, mean, cycle
             f"leaves the stroke [0, {stroke * 1e3:.4g}] mm")
     if int(cycles) < 1:
         raise UserInputError(f"--cycles: must be >= 1, got {cycles}")
+    check_cycle_work(1, cycles)
 
 
 def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mean_m: float, *,

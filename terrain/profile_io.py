@@ -5,6 +5,9 @@ per point; distances and heights in metres. Required columns (case-insensitive):
 `distance_m`, `left_m`, `right_m` (or `distance`, `left`, `right`). Other columns
 are ignored; lines starting with `#` are comments. Distance must increase
 strictly; all values must be finite.
+
+Error messages name the file, the line and the column, never the file's content: the path may
+be any file (`road: {csv: /etc/passwd}`), and its text is not ours to print.
 """
 from __future__ import annotations
 
@@ -21,15 +24,19 @@ UNIFORM_TOLERANCE = 1e-6  # relative deviation of a step from the mean step stil
 def _header(path: Path) -> tuple[int, list[str]]:
     """(line number of the header, lower-case column names)."""
     try:
-        with path.open("r", newline="") as fh:
+        with path.open("r", newline="", encoding="utf-8") as fh:
             for lineno, line in enumerate(fh, start=1):
                 text = line.strip()
                 if text and not text.startswith("#"):
                     return lineno, [c.strip().lower() for c in text.split(",")]
     except FileNotFoundError:
         raise UserInputError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserInputError(f"{path}: cannot read ({exc.__class__.__name__})") from None
+    except IsADirectoryError:
+        raise UserInputError(f"{path}: is a directory, expected a CSV file") from None
+    except UnicodeDecodeError:
+        raise UserInputError(f"{path}: not UTF-8 text; expected a CSV file {','.join(CSV_COLUMNS)}") from None
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
     raise UserInputError(f"{path}: empty file; expected a header {','.join(CSV_COLUMNS)} and data rows")
 
 
@@ -42,14 +49,14 @@ def _column_indices(path: Path, header_line: int, names: list[str]) -> list[int]
         elif alias in names:
             out.append(names.index(alias))
         else:
-            raise UserInputError(f"{path}:{header_line}: missing column '{col}' (header has: "
-                                 f"{', '.join(names)}); expected {','.join(CSV_COLUMNS)}")
+            raise UserInputError(f"{path}:{header_line}: missing column '{col}' in the header line ({len(names)} "
+                                 f"column(s)); expected a header {','.join(CSV_COLUMNS)}")
     return out
 
 
 def _data_lines(path: Path, header_line: int):
     """Yield (line number, stripped text) of the data lines (slow path, used for error messages)."""
-    with path.open("r", newline="") as fh:
+    with path.open("r", newline="", encoding="utf-8") as fh:
         for lineno, line in enumerate(fh, start=1):
             text = line.strip()
             if lineno <= header_line or not text or text.startswith("#"):
@@ -61,12 +68,12 @@ def _find_bad_line(path: Path, header_line: int, names: list[str], cols: list[in
     for lineno, text in _data_lines(path, header_line):
         fields = [f.strip() for f in text.split(",")]
         if len(fields) <= max(cols):
-            return f"{path}:{lineno}: {len(fields)} fields, expected {len(names)} ({','.join(names)})"
-        for c in cols:
+            return f"{path}:{lineno}: {len(fields)} fields, expected {len(names)}"
+        for c, col in zip(cols, CSV_COLUMNS):
             try:
                 float(fields[c])
             except ValueError:
-                return f"{path}:{lineno}: {names[c]} = {fields[c]!r} is not a number"
+                return f"{path}:{lineno}: the {col} field is not a number"
     return f"{path}: cannot parse the data rows"
 
 
@@ -84,7 +91,9 @@ def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarr
     cols = _column_indices(path, header_line, names)
     try:
         data = np.loadtxt(path, delimiter=",", skiprows=header_line, usecols=cols, comments="#",
-                          ndmin=2, dtype=float)
+                          ndmin=2, dtype=float, encoding="utf-8")
+    except UnicodeDecodeError:
+        raise UserInputError(f"{path}: not UTF-8 text; expected a CSV file {','.join(CSV_COLUMNS)}") from None
     except ValueError:
         raise UserInputError(_find_bad_line(path, header_line, names, cols)) from None
     if data.shape[0] < 2:

@@ -261,6 +261,10 @@ class Road:
         native = span / (d.size - 1) if uniform else float(np.median(np.diff(d)))
         step = native if spacing_m is None else float(spacing_m)
         use = span if length_m is None else float(length_m)
+        if spacing_m is not None:
+            from .spec import check_road_points   # (spec imports this module)
+
+            check_road_points(use, step, f"{path}: ")
         n = int(np.floor(use / step * (1 + 1e-12))) + 1
         if n < 2:
             raise UserInputError(f"{path}: spacing {step} m leaves fewer than 2 points over {use} m")

@@ -156,7 +156,7 @@ def test_downsampling_averages_over_the_new_spacing(tmp_path):
     ("distance_m,left_m\n0,0\n1,0\n", r"bad\.csv:1: missing column 'right_m'"),
     ("distance_m,left_m,right_m\n0,0,0\n1,0,0\n1,0,0\n", r"bad\.csv:4: distance 1 m does not increase"),
     ("distance_m,left_m,right_m\n0,0,0\n1,nan,0\n2,0,0\n", r"bad\.csv:3: left_m = nan is not a finite number"),
-    ("distance_m,left_m,right_m\n0,0,0\n1,abc,0\n", r"bad\.csv:3: left_m = 'abc' is not a number"),
+    ("distance_m,left_m,right_m\n0,0,0\n1,abc,0\n", r"bad\.csv:3: the left_m field is not a number"),
     ("distance_m,left_m,right_m\n0,0,0\n1,0\n", r"bad\.csv:3: 2 fields, expected 3"),
     ("", r"bad\.csv: empty file"),
     ("distance_m,left_m,right_m\n0,0,0\n", r"bad\.csv: 1 data row"),

@@ -39,19 +39,33 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    # everything inside the handlers, parser and imports included: a Ctrl-C in the first second
+    # is one line and exit code 130 like any other
+    command = "hpsim"
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = f"hpsim {args.command}"
         code = args.func(args)
     except UserInputError as exc:
-        sys.stderr.write(f"hpsim {args.command}: error: {exc}\n")
+        sys.stderr.write(f"{command}: error: {exc}\n")
         return 2
     except SimulationError as exc:
-        sys.stderr.write(f"hpsim {args.command}: simulation stopped: {exc}\n")
+        sys.stderr.write(f"{command}: simulation stopped: {exc}\n")
         return 3
     except KeyboardInterrupt:
-        sys.stderr.write(f"hpsim {args.command}: interrupted\n")
+        sys.stderr.write(f"{command}: interrupted\n")
         return 130
+    except RecursionError:
+        sys.stderr.write(f"{command}: error: input nested too deeply\n")
+        return 2
+    except MemoryError:
+        sys.stderr.write(f"{command}: error: out of memory (the input asks for more work than fits)\n")
+        return 2
+    except OSError as exc:     # the environment: a file or folder that cannot be read or written
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        sys.stderr.write(f"{command}: error: {where}{exc.strerror or exc.__class__.__name__}\n")
+        return 2
     return int(code or 0)
 
 

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from hpsim.errors import UserInputError
+from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 
 def register(sub):
@@ -111,6 +112,7 @@ def cmd_run(args):
 
     scen = Path(args.scenario)
     out = Path(args.output) if args.output else Path(scen.stem + ".h5")
+    check_output_file(out, "-o/--output", make_parents=True)      # before any work
     if args.resume and not scen.exists() and out.exists():
         scen_arg = None        # resume from the scenario stored in the file
     else:
@@ -144,6 +146,8 @@ def cmd_compare(args):
 
     from vehicle.presentation.report import compare, format_compare
 
+    if args.plot:
+        check_figure_file(args.plot, "--plot", make_parents=True)
     cmp = compare(args.results)
     if args.plot:
         from vehicle.presentation.plots import compare_plot
@@ -162,6 +166,7 @@ def cmd_plot(args):
     from vehicle.presentation.plots import dashboard
 
     out = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
+    check_figure_file(out, "-o/--output", make_parents=True)
     dashboard(args.results, out)
     print(f"wrote {out}")
     return 0
@@ -176,6 +181,8 @@ def cmd_sweep(args):
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
+    check_output_dir(args.output_dir or Path(args.sweep).stem,
+                     "-o/--output-dir" if args.output_dir else "output folder (the sweep file's name)")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        log=(lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True)))
     if result["finished_files"]:

@@ -18,8 +18,9 @@ import numpy as np
 from pydantic import ValidationError
 
 from hpsim.tables import format_table, print_json
-from hpsim.config import load_yaml
+from hpsim.config import load_yaml, short_repr
 from hpsim.errors import UserInputError
+from hpsim.outputs import check_figure_file, check_output_file
 
 from terrain import iso8608
 from terrain.coherence import COHERENCE_MODELS, coherence_model
@@ -131,7 +132,7 @@ def _format_errors(exc: ValidationError, from_cli: set, source: str) -> str:
                 msg = msg.replace(field, _OPTIONS[field])
         value = err.get("input")
         shown = "" if err["type"] in ("missing", "extra_forbidden") or isinstance(value, dict) or not loc \
-            else f" (got {value!r})"
+            else f" (got {short_repr(value)})"
         parts.append(f"{where}: {msg}{shown}")
     return "; ".join(parts)
 
@@ -177,6 +178,7 @@ def _spec_summary(spec: RoadSpec | None) -> dict:
 def cmd_generate(args) -> int:
     if not _spec_given(args):
         raise UserInputError("give --class A-H (or --gd-n0) and --length, or --spec road.yaml")
+    check_output_file(args.output, "-o/--output")
     spec, base_dir = spec_from_args(args)
     road = build_road(spec, base_dir)
     road.to_csv(args.output)
@@ -197,6 +199,8 @@ def _statistics(road):
 
 
 def cmd_psd(args) -> int:
+    if args.plot:
+        check_figure_file(args.plot, "--plot")
     road, spec = _load_road(args)
     stats = _statistics(road)
     if args.plot:
@@ -215,6 +219,7 @@ def cmd_psd(args) -> int:
 def cmd_plot(args) -> int:
     from terrain.plots import save_road_plot
 
+    check_figure_file(args.output, "-o/--output")
     road, spec = _load_road(args)
     stats = _statistics(road)
     save_road_plot(road, stats, args.output, title=_title(args, spec))

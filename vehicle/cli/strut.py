@@ -15,7 +15,8 @@ from pathlib import Path
 
 from hpsim.tables import format_table, print_json
 from hpsim.errors import UserInputError
-from hpsim.units import parse_quantity
+from hpsim.outputs import check_figure_file, check_output_file
+from hpsim.units import MAX_LIST_ITEMS, parse_quantity
 
 PROCESSES = ("polytropic", "isothermal")
 
@@ -38,6 +39,8 @@ def _quantity_list(text, unit: str, where: str, allowed: str) -> list[float]:
     items = [t for t in str(text).split(",") if t.strip()]
     if not items:
         raise UserInputError(f"{where}: expected one or more quantities in {unit}; allowed: {allowed}")
+    if len(items) > MAX_LIST_ITEMS:
+        raise UserInputError(f"{where}: {len(items)} values, at most {MAX_LIST_ITEMS}")
     return [_quantity(t, unit, where, allowed) for t in items]
 
 
@@ -150,9 +153,18 @@ def cmd_static(args):
             ("gas temperature [degC]", out["gas_temperature_K"] - 273.15)]))
 
 
+def _check_outputs(args, figure: str | None = "plot", table: str | None = "csv"):
+    """The figure and CSV paths of a strut command, checked before any work."""
+    if figure and getattr(args, figure, None):
+        check_figure_file(getattr(args, figure), f"--{figure}")
+    if table and getattr(args, table, None):
+        check_output_file(getattr(args, table), f"--{table}")
+
+
 def cmd_characteristic(args):
     from struts.rig import characteristic
 
+    _check_outputs(args)
     params, p0, T = _params(args, None, args.n)
     res = characteristic(params, p0_Pa=p0, T_K=T, process=args.process)
     if args.csv:
@@ -167,7 +179,7 @@ def cmd_characteristic(args):
         ax.plot(res["x_m"] * 1e3, res["force_N"] / 1e3)
         ax.set_xlabel("deflection [mm]"); ax.set_ylabel("gas force [kN]"); ax.grid(True)
         ax.set_title(f"{params.name}: p0 = {res['p0_Pa'] / 1e6:.3g} MPa, T = {res['temperature_K'] - 273.15:.3g} degC, {args.process}")
-        fig.tight_layout(); fig.savefig(args.plot, dpi=120); plt.close(fig)
+        fig.tight_layout(); _save_figure(fig, args.plot, "--plot"); plt.close(fig)
     rows = [{"x_m": float(x), "force_N": float(F)} for x, F in zip(res["x_m"][::20], res["force_N"][::20])]
     if args.json:
         print_json({"x_m": res["x_m"], "force_N": res["force_N"], "gas_pressure_Pa": res["gas_pressure_Pa"]})
@@ -176,14 +188,16 @@ def cmd_characteristic(args):
 
 
 def cmd_cycle(args):
-    from struts.rig import check_cycle_arguments, cycle_test
+    from struts.rig import check_cycle_arguments, check_cycle_work, cycle_test
 
+    _check_outputs(args)
     params, p0, T = _params(args)
     stroke_mm = params.geometry.stroke * 1e3
     amps = _quantity_list(args.amplitude, "m", "--amplitude",
                           f"> 0 m with mean ± amplitude inside the stroke [0, {stroke_mm:.4g}] mm")
     freqs = _quantity_list(args.frequency, "Hz", "--frequency", f"(0, {_max_frequency():g}] Hz")
     mean = _quantity(args.mean, "m", "--mean", f"inside the stroke [0, {stroke_mm:.4g}] mm")
+    check_cycle_work(len(amps) * len(freqs), args.cycles)
     for A, f in itertools.product(amps, freqs):  # validate all before any work
         check_cycle_arguments(params, A, f, mean, args.cycles)
     results = [cycle_test(params, A, f, mean, cycles=args.cycles, T_K=T, p0_Pa=p0)
@@ -229,21 +243,28 @@ def plot_loops(results, path, name):
     a1.set_xlabel("deflection [mm]"); a1.set_ylabel("force [kN]"); a1.grid(True); a1.legend(fontsize=7)
     a2.set_xlabel("velocity [mm/s]"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
     fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)")
-    fig.tight_layout(); fig.savefig(path, dpi=120); plt.close(fig)
+    fig.tight_layout(); _save_figure(fig, path, "--plot"); plt.close(fig)
 
 
 def cmd_fit(args):
     from struts.fit import fit, read_rig_csv
+    from struts.rig import check_cycle_work
 
+    if args.write:
+        check_output_file(args.write, "--write", suffixes=(".yaml", ".yml"))
     params, _, _ = _params(args)
     data = read_rig_csv(args.data)
+    check_cycle_work(len(data.rows), args.cycles)
     names = [n.strip() for n in args.fit.split(",") if n.strip()]
     res = fit(params, data, names, cycles=args.cycles)
     if args.write:
         from struts.fit import with_values
         import yaml
         fitted = with_values(params, names, [res.values[n] for n in names])
-        Path(args.write).write_text(yaml.safe_dump(fitted.model_dump(), sort_keys=False))
+        try:
+            Path(args.write).write_text(yaml.safe_dump(fitted.model_dump(), sort_keys=False))
+        except OSError as exc:
+            raise UserInputError(f"--write: cannot write {args.write} ({exc.strerror})") from None
     if args.json:
         print_json(res.as_dict())
     else:
@@ -263,6 +284,7 @@ def cmd_gas(args):
         from CoolProp.CoolProp import PropsSI
     except ImportError:
         raise UserInputError("strut gas: needs CoolProp (pip install -e '.[test]')") from None
+    _check_outputs(args, table=None)
     temps = _quantity_list(args.temperatures, "K", "--temperatures", "200 K to 600 K")
     if any(not 200 <= T <= 600 for T in temps):
         raise UserInputError("--temperatures: each must be in [200, 600] K")
@@ -291,7 +313,7 @@ def cmd_gas(args):
         ax.set_xscale("log"); ax.set_xlabel("pressure [MPa] (CoolProp state)"); ax.grid(True, which="both", alpha=0.4)
         ax.set_ylabel("model pressure error vs CoolProp [%]"); ax.legend(fontsize=7, ncol=2)
         ax.set_title("Nitrogen: p(T, v) of the gas models against CoolProp's reference equation")
-        fig.tight_layout(); fig.savefig(args.plot, dpi=120); plt.close(fig)
+        fig.tight_layout(); _save_figure(fig, args.plot, "--plot"); plt.close(fig)
     if args.json:
         print_json(summary)
     else:
@@ -299,8 +321,18 @@ def cmd_gas(args):
 
 
 def _write_csv(path, header, rows):
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for r in rows:
-            w.writerow([f"{float(v):.10g}" for v in r])
+    try:
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for r in rows:
+                w.writerow([f"{float(v):.10g}" for v in r])
+    except OSError as exc:
+        raise UserInputError(f"--csv: cannot write {path} ({exc.strerror})") from None
+
+
+def _save_figure(fig, path, where: str):
+    try:
+        fig.savefig(path, dpi=120)
+    except OSError as exc:
+        raise UserInputError(f"{where}: cannot write {path} ({exc.strerror})") from None

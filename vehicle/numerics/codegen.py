@@ -3,12 +3,33 @@
 The cache lives in ~/.cache/hpsim (or $HPSIM_CACHE), keyed by a hash of the generated code, the
 compiler and its flags, so a structural change of the model compiles anew and everything else
 reuses the library. Without a C compiler the function runs in CasADi's virtual machine.
+
+Trust model (README, "Set-up"): loading a library runs its code, so only libraries this user
+built are loaded.
+
+- The cache folder is created with mode 0700. A folder owned by another user or writable by
+  group/others is not used: a private temporary cache (removed at exit) takes its place, with a
+  warning.
+- Beside each library `<name>_<key>.so` a record `<name>_<key>.json` holds the SHA-256 of the
+  generated C and of the built library. A library is loaded only when both match (the C that
+  this process generated, the library bytes on disk); anything else (truncated, empty, another
+  model's library, a foreign file, no record) is rebuilt, never loaded. After loading, the
+  function's inputs and outputs are compared with the model's.
+- Libraries and records are written to temporary names and renamed into place (atomic), so
+  parallel sweep workers compiling the same model never see half a file.
+- The cache is bounded: beyond HPSIM_CACHE_MAX_MB (default 200 MB) the least recently used
+  entries are removed after each build.
 """
 from __future__ import annotations
 
+import atexit
+import functools
 import hashlib
+import json
 import os
 import shutil
+import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -18,11 +39,60 @@ from pathlib import Path
 
 import casadi as ca
 
+from hpsim.errors import UserInputError
+
+CACHE_ENV = "HPSIM_CACHE"
+CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
+DEFAULT_CACHE_MAX_MB = 200.0
+_STALE_BUILD_S = 3600.0        # a build folder older than this was left by a killed process
+
+
+def _untrusted(d: Path) -> str | None:
+    """Why folder `d` may not hold libraries this process loads (None: it may)."""
+    st = d.stat()
+    if not stat.S_ISDIR(st.st_mode):
+        return "not a folder"
+    if hasattr(os, "geteuid") and st.st_uid != os.geteuid():
+        return f"owned by another user (uid {st.st_uid})"
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return f"writable by other users (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+@functools.lru_cache(maxsize=1)
+def _private_cache() -> Path:
+    d = Path(tempfile.mkdtemp(prefix="hpsim-cache-"))    # mode 0700
+    atexit.register(shutil.rmtree, d, ignore_errors=True)
+    return d
+
 
 def cache_dir() -> Path:
-    d = Path(os.environ.get("HPSIM_CACHE", Path.home() / ".cache" / "hpsim"))
-    d.mkdir(parents=True, exist_ok=True)
-    return d
+    """The compile cache folder (created 0700); a private temporary one when it cannot be trusted."""
+    d = Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "hpsim")
+    try:
+        d.mkdir(mode=0o700, parents=True, exist_ok=True)
+        problem = _untrusted(d)
+    except OSError as exc:
+        problem = f"cannot be created ({exc.strerror})"
+    if problem is None:
+        return d
+    fallback = _private_cache()
+    warnings.warn(f"compile cache {d}: {problem}; not used, compiling into a private cache {fallback} "
+                  f"(removed at exit). Give {CACHE_ENV} a folder of your own (mode 0700).", stacklevel=2)
+    return fallback
+
+
+def cache_limit_bytes() -> float:
+    text = os.environ.get(CACHE_MAX_ENV)
+    if not text:
+        return DEFAULT_CACHE_MAX_MB * 1e6
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = float("nan")
+    if not mb >= 1:
+        raise UserInputError(f"{CACHE_MAX_ENV}: expected the cache size limit in MB (>= 1), got {text!r}")
+    return mb * 1e6
 
 
 # -freciprocal-math turns the model's many divisions by constants into multiplications and
@@ -31,15 +101,33 @@ def cache_dir() -> Path:
 COMPILER_FLAGS = ("-O2", "-fno-math-errno", "-freciprocal-math", "-fno-trapping-math")
 
 
-def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
-    """Generate C for `fn`, compile it to a shared library (cached) and load it.
+def _sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
 
-    Falls back to CasADi's virtual machine (slower, same results) when no C compiler is found.
-    """
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
-    if cc is None:
-        warnings.warn("no C compiler found: running the model in CasADi's virtual machine (slower)")
-        return fn
+
+def _verified(lib: Path, record: Path, code_sha: str) -> bool:
+    """The library on disk is the one built from this C code (see the module's trust model)."""
+    try:
+        meta = json.loads(record.read_text())
+        return (isinstance(meta, dict) and meta.get("c_sha256") == code_sha
+                and lib.stat().st_size == meta.get("library_bytes")
+                and _sha256_file(lib) == meta.get("library_sha256"))
+    except (OSError, ValueError):
+        return False
+
+
+def _same_signature(a: ca.Function, b: ca.Function) -> bool:
+    if (a.n_in(), a.n_out()) != (b.n_in(), b.n_out()):
+        return False
+    return (all(a.sparsity_in(i) == b.sparsity_in(i) for i in range(a.n_in()))
+            and all(a.sparsity_out(i) == b.sparsity_out(i) for i in range(a.n_out())))
+
+
+def _generate_c(fn: ca.Function) -> bytes:
     with tempfile.TemporaryDirectory() as tmp:
         src_name = f"{fn.name()}.c"
         cg = ca.CodeGenerator(src_name, {"with_header": False})
@@ -50,22 +138,112 @@ def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool =
             cg.generate()
         finally:
             os.chdir(cwd)
-        code = (Path(tmp) / src_name).read_bytes()
-    key = hashlib.sha256(code + opt_level.encode() + " ".join(COMPILER_FLAGS).encode() + cc.encode()).hexdigest()[:20]
-    lib = cache_dir() / f"{fn.name()}_{key}.so"
-    if not lib.exists():
-        src = cache_dir() / f"{fn.name()}_{key}.c"
+        return (Path(tmp) / src_name).read_bytes()
+
+
+def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str) -> str | None:
+    """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
+    build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
+    try:
+        src = build / f"{stem}.c"
         src.write_bytes(code)
-        tmp_lib = lib.with_suffix(f".{os.getpid()}.tmp")
-        t0 = time.perf_counter()
-        flags = [opt_level, *COMPILER_FLAGS[1:]]
-        res = subprocess.run([cc, *flags, "-fPIC", "-shared", str(src), "-o", str(tmp_lib), "-lm"],
-                             capture_output=True, text=True)
+        # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
+        # it), never the compiler alone (a compiler killed under us used to fall back silently)
+        res = subprocess.run([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
+                             capture_output=True, text=True, start_new_session=True)
+        if res.returncode == -signal.SIGINT:
+            raise KeyboardInterrupt
         if res.returncode != 0:
-            warnings.warn(f"C compilation failed ({res.stderr.strip()[:300]}); using CasADi's virtual machine")
+            return res.stderr.strip()[:300] or f"exit code {res.returncode}"
+        built = build / f"{stem}.so"
+        meta = {"c_sha256": code_sha, "library_sha256": _sha256_file(built), "library_bytes": built.stat().st_size,
+                "compiler": cc, "flags": flags, "built": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        (build / f"{stem}.json").write_text(json.dumps(meta))
+        # atomic renames, library first: a reader sees an old record with a new library at worst,
+        # which fails verification and rebuilds
+        os.replace(built, d / f"{stem}.so")
+        os.replace(build / f"{stem}.json", d / f"{stem}.json")
+        return None
+    finally:
+        shutil.rmtree(build, ignore_errors=True)
+
+
+def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
+    """Remove least recently used entries (by the record's time, touched on each use) until the
+    cache holds at most `limit_bytes`; entries whose stem is in `keep` stay. Returns removed stems."""
+    now = time.time()
+    entries: dict[str, list[Path]] = {}
+    for p in d.iterdir():
+        if p.name.startswith(".build-"):
+            try:
+                if now - p.stat().st_mtime > _STALE_BUILD_S:
+                    shutil.rmtree(p, ignore_errors=True)
+            except OSError:
+                pass
+            continue
+        if p.suffix in (".so", ".json", ".c") or p.name.endswith(".tmp"):
+            entries.setdefault(p.name.split(".", 1)[0], []).append(p)
+
+    def size(paths):
+        return sum(p.stat().st_size for p in paths if p.exists())
+
+    def last_use(stem):
+        times = [p.stat().st_mtime for p in entries[stem] if p.exists()]
+        return max(times) if times else 0.0
+
+    total = sum(size(v) for v in entries.values())
+    removed = []
+    for stem in sorted(entries, key=last_use):
+        if total <= limit_bytes:
+            break
+        if stem in keep:
+            continue
+        total -= size(entries[stem])
+        for p in entries[stem]:
+            try:
+                p.unlink()
+            except OSError:
+                pass
+        removed.append(stem)
+    return removed
+
+
+def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
+    """Generate C for `fn`, compile it to a shared library (cached, verified) and load it.
+
+    Falls back to CasADi's virtual machine (slower, same results) when no C compiler is found
+    or the compilation fails.
+    """
+    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
+    if cc is None:
+        warnings.warn("no C compiler found: running the model in CasADi's virtual machine (slower)")
+        return fn
+    code = _generate_c(fn)
+    code_sha = hashlib.sha256(code).hexdigest()
+    flags = [opt_level, *COMPILER_FLAGS[1:]]
+    key = hashlib.sha256(code + opt_level.encode() + " ".join(COMPILER_FLAGS).encode() + cc.encode()).hexdigest()[:20]
+    d = cache_dir()
+    stem = f"{fn.name()}_{key}"
+    lib, record = d / f"{stem}.so", d / f"{stem}.json"
+    if not _verified(lib, record, code_sha):
+        t0 = time.perf_counter()
+        error = _build(cc, flags, code, code_sha, d, stem)
+        if error is not None:
+            warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
             return fn
-        os.replace(tmp_lib, lib)  # atomic: parallel sweep workers may compile the same model
-        src.unlink(missing_ok=True)
         if verbose:
             print(f"compiled {fn.name()} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-    return ca.external(fn.name(), str(lib))
+        evict(d, cache_limit_bytes(), keep=(stem,))
+        if not _verified(lib, record, code_sha):     # replaced by someone else in between
+            warnings.warn(f"compile cache {d}: {lib.name} changed while it was built; "
+                          "using CasADi's virtual machine")
+            return fn
+    try:
+        os.utime(record)                # last use, for the eviction order
+    except OSError:
+        pass
+    compiled = ca.external(fn.name(), str(lib))
+    if not _same_signature(compiled, fn):
+        warnings.warn(f"compile cache {d}: {lib.name} does not match the model; using CasADi's virtual machine")
+        return fn
+    return compiled

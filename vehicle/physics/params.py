@@ -27,15 +27,17 @@ Number = Plain()
 
 
 class Tyre(Model):
-    radius: m
+    radius: m | None = None         # informational: the model measures wheel heights from the charged state
     stiffness: Quantity("N/m")
     damping: Quantity("N*s/m")
     contact_length: m = 0.35       # enveloping filter length (REFERENCE §5)
     lift_off_smoothing: m = 1e-4   # width of the smooth no-tension law
 
+    _must_be_positive = ("lift_off_smoothing",)
+
     @model_validator(mode="after")
     def _check(self):
-        if self.stiffness <= 0 or self.radius <= 0:
+        if self.stiffness <= 0 or (self.radius is not None and self.radius <= 0):
             raise ValueError("tyre stiffness and radius must be > 0")
         if self.damping < 0 or self.contact_length < 0:
             raise ValueError("tyre damping and contact_length must be >= 0")
@@ -90,6 +92,10 @@ class Heat(Model):
     air_prandtl: Number = 0.71
     convection_multiplier: Number = 1.0   # scales the total convective coefficient (sensitivity studies)
 
+    _must_be_positive = ("air_conductivity", "air_kinematic_viscosity", "air_prandtl")
+    _must_be_non_negative = ("natural_convection", "convection_multiplier")
+    _must_be_fraction = ("emissivity",)
+
     @model_validator(mode="after")
     def _check(self):
         if self.capacity <= 0 or self.surface_area <= 0 or self.diameter <= 0:
@@ -97,6 +103,22 @@ class Heat(Model):
         if not 0.0 <= self.air_speed_ratio <= 2.0:
             raise ValueError(f"air_speed_ratio must be in [0, 2], got {self.air_speed_ratio}")
         return self
+
+
+# Allowed settings of the levelling loop (SI; docs/scenarios.md "compensation"). It must stay a
+# slow loop beside the suspension's own body modes (1-2 Hz, 6-12 rad/s): a closed-loop time
+# constant of at least 2 s keeps its bandwidth below a tenth of them, and a filter of at least 1 s
+# takes the body motion (attenuated 6x at 1 Hz) out of the measured deflection. A levelling pump
+# moves a strut slowly: 1e-4 m^3/s (6 L/min per strut) extends the APC strut at 22 mm/s, a tenth
+# of its ride velocities; more is a second actuator. The dead band's edges are blended over
+# `smoothing`, which divides (hpsim.symbolic.ramp): it must be > 0.
+COMPENSATION_RANGES = {
+    "time_constant": (2.0, 3600.0),            # s
+    "filter_time_constant": (1.0, 3600.0),     # s
+    "dead_band": (0.0, 0.1),                   # m
+    "flow_limit": (1e-9, 1e-4),                # m^3/s
+    "smoothing": (1e-4, 0.02),                 # m
+}
 
 
 class Compensation(Model):
@@ -108,6 +130,15 @@ class Compensation(Model):
     dead_band: m = 0.015             # half width of the dead band on the filtered deflection error
     flow_limit: Quantity("m**3/s") = 2e-5
     smoothing: m = 1e-3
+
+    @model_validator(mode="after")
+    def _stable(self):
+        for name, (lo, hi) in COMPENSATION_RANGES.items():
+            value = getattr(self, name)
+            if not lo <= value <= hi:
+                raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] (SI), got {value:g}: a levelling loop "
+                                 "stays slow beside the 1-2 Hz body modes (docs/scenarios.md)")
+        return self
 
 
 class Seat(Model):
@@ -140,7 +171,9 @@ class Charging(Model):
 
     method: Literal[CHARGING_METHODS] = "load_and_height"
     wheel_loads: QuantityList("N")   # per axle, per wheel (left = right)
-    heights: QuantityList("m")                # hull height at each axle
+    # hull height at each axle when charged: informational (heights are reported as changes from
+    # the charged pose, which strut_deflection defines)
+    heights: QuantityList("m") | None = None
     temperature: K
     strut_deflection: m              # strut deflection at the charged state (same at every station)
     # charge every strut this much above (or below) the set-up charge: the gas mass follows the
@@ -184,7 +217,7 @@ class VehicleParams(Model):
         pos = [a.position for a in self.axles]
         if any(b <= a for a, b in zip(pos, pos[1:])):
             raise ValueError(f"axles: positions must increase from front to rear, got {pos}")
-        if len(self.charging.wheel_loads) != n or len(self.charging.heights) != n:
+        if len(self.charging.wheel_loads) != n or len(self.charging.heights or [0] * n) != n:
             raise ValueError(f"charging: wheel_loads and heights need one value per axle ({n})")
         if any(w <= 0 for w in self.charging.wheel_loads):
             raise ValueError("charging.wheel_loads must be > 0 N")

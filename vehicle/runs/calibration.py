@@ -35,10 +35,20 @@ def _run(src, parameter: str, value: float):
     return float(np.mean(T1 - T0)), prepared, drive
 
 
+# the calibrated ratio stays within these: below, forced convection is nil; above 2 the air at the
+# strut would be faster than twice the vehicle speed (vehicle.physics.params.Heat allows [0, 2])
+RATIO_BOUNDS = (1e-3, 2.0)
+
+
 def calibrate_heat(scenario_path, target_rise_K: float, parameter: str = "heat.air_speed_ratio",
                    tol_K: float = 0.1, max_runs: int = 8, log=print) -> dict:
     if parameter != "heat.air_speed_ratio":
         raise UserInputError("--parameter: only heat.air_speed_ratio is supported")
+    if not tol_K > 0:
+        raise UserInputError(f"--tolerance: must be > 0 K, got {tol_K:g} K")
+    if not target_rise_K > 0:
+        raise UserInputError(f"--target-rise: must be > 0 K, got {target_rise_K:g} K")
+    lo_bound, hi_bound = RATIO_BOUNDS
     src = read_scenario(scenario_path)
     prepared = prepare(src)
     heat = prepared.vehicle.heat
@@ -48,6 +58,8 @@ def calibrate_heat(scenario_path, target_rise_K: float, parameter: str = "heat.a
     rise, prepared, drive = _run(src, parameter, value)
     history.append((value, rise))
     log(f"run 1: {parameter} = {value:.5g} -> mean rise {rise:.3f} K")
+    if abs(rise - target_rise_K) < tol_K:      # already calibrated
+        return _result(parameter, value, target_rise_K, rise, history, t0, scenario_path)
     # physics-based second point: the steady state scales with 1/h
     v_mean = float(np.mean(drive.settings.speed.speeds_m_per_s))
     h_now = float(thermal.convection_coefficient(heat, v_mean))
@@ -62,7 +74,7 @@ def calibrate_heat(scenario_path, target_rise_K: float, parameter: str = "heat.a
     for _ in range(60):   # bisection on the monotone forced-convection law
         mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if forced(mid) < forced_need else (lo, mid)
-    value = math.sqrt(lo * hi)
+    value = min(max(math.sqrt(lo * hi), lo_bound), hi_bound)
     for k in range(2, max_runs + 1):
         rise, prepared, drive = _run(src, parameter, value)
         history.append((value, rise))
@@ -71,11 +83,20 @@ def calibrate_heat(scenario_path, target_rise_K: float, parameter: str = "heat.a
             break
         (v1, r1), (v2, r2) = history[-2], history[-1]
         # secant in log(value): the rise is smooth and monotone decreasing in the ratio
-        slope = (r2 - r1) / (math.log(v2) - math.log(v1))
+        slope = (r2 - r1) / (math.log(v2) - math.log(v1)) if v2 != v1 else 0.0
         value = math.exp(math.log(v2) + (target_rise_K - r2) / slope) if slope != 0 else v2 * 0.8
-        value = min(max(value, 1e-3), 2.0)
+        value = min(max(value, lo_bound), hi_bound)
+        if value == v2 and v2 in RATIO_BOUNDS:
+            # the next step would run the bound again: no ratio in range gives the target
+            raise UserInputError(
+                f"--target-rise: {target_rise_K:g} K is not reachable: {parameter} = {v2:g} (its bound, allowed "
+                f"[{lo_bound:g}, {hi_bound:g}]) gives a mean rise of {r2:.4g} K")
     else:
         raise UserInputError(f"calibration did not reach {target_rise_K} K +- {tol_K} K in {max_runs} runs")
+    return _result(parameter, value, target_rise_K, rise, history, t0, scenario_path)
+
+
+def _result(parameter, value, target_rise_K, rise, history, t0, scenario_path) -> dict:
     return {"parameter": parameter, "value": value, "target_rise_K": target_rise_K, "achieved_rise_K": rise,
             "runs": [{"value": v, "mean_rise_K": r} for v, r in history],
             "wall_s": time.perf_counter() - t0, "scenario": str(scenario_path)}

@@ -22,17 +22,20 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
-from pydantic import Field, StrictBool, StrictInt, field_validator, model_validator
+from pydantic import Field, StrictBool, StrictInt, ValidationInfo, field_validator, model_validator
 
-from hpsim.config import Model, Quantity, format_validation_error, load_yaml
+from hpsim.config import Model, Quantity, format_validation_error, load_yaml, parse_yaml, read_text_file
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
+
+from vehicle.physics.params import COMPENSATION_RANGES
 
 K_ = Quantity("K")
 
 # ranges (allowed values) of the scenario's own keys
-DISTANCE_RANGE_M = (1.0, 20_000e3)            # 1 m .. 20 000 km
+# 1 m .. 1000 km: the road under a drive is generated whole, at most terrain.spec.MAX_ROAD_POINTS
+# (1250 km at the default 50 mm spacing), and must reach past the last axle at the end
+DISTANCE_RANGE_M = (1.0, 1000e3)
 SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
 AMBIENT_RANGE_K = (273.15 - 60, 273.15 + 60)  # -60 .. 60 degC
 STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
@@ -47,7 +50,9 @@ ALWAYS_STORED = ("t_s", "distance_m")
 
 
 def _in_range(value: float, lo: float, hi: float, unit: str, scale: float = 1.0, offset: float = 0.0) -> float:
-    if not lo <= value <= hi:
+    # the ends as printed are allowed: "150 km/h" converts to 41.66666666666667 m/s, one ulp above 150/3.6
+    slack = 1e-9 * max(abs(lo), abs(hi))
+    if not lo - slack <= value <= hi + slack:
         raise ValueError(f"must be in [{lo * scale + offset:.6g}, {hi * scale + offset:.6g}] {unit}, "
                          f"got {value * scale + offset:.6g} {unit}")
     return value
@@ -105,7 +110,7 @@ def _speed_profile(value: dict) -> SpeedProfileSpec:
         except UserInputError as exc:
             raise ValueError(str(exc)) from None
         lo, hi = SPEED_RANGE_M_PER_S
-        if not lo <= v_ms <= hi:
+        if not lo * (1 - 1e-9) <= v_ms <= hi * (1 + 1e-9):   # the printed ends are allowed
             raise ValueError(f"profile item {k}: speed must be in [{lo * 3.6:.6g}, {hi * 3.6:.6g}] km/h, "
                              f"got {v_ms * 3.6:.6g} km/h")
         if s_m < 0:
@@ -129,20 +134,21 @@ class CompensationSpec(Model):
     flow_limit: float | None = None
     smoothing: float | None = None
 
+    # ranges: vehicle.physics.params.COMPENSATION_RANGES (a slow loop beside the body modes)
     @field_validator("time_constant", "filter_time_constant", mode="before")
     @classmethod
-    def _seconds(cls, v):
-        return None if v is None else _in_range(_quantity("s", v), 0.1, 3600.0, "s")
+    def _seconds(cls, v, info: ValidationInfo):
+        return None if v is None else _in_range(_quantity("s", v), *COMPENSATION_RANGES[info.field_name], "s")
 
     @field_validator("dead_band", "smoothing", mode="before")
     @classmethod
-    def _metres(cls, v):
-        return None if v is None else _in_range(_quantity("m", v), 0.0, 0.1, "mm", 1e3)
+    def _metres(cls, v, info: ValidationInfo):
+        return None if v is None else _in_range(_quantity("m", v), *COMPENSATION_RANGES[info.field_name], "mm", 1e3)
 
     @field_validator("flow_limit", mode="before")
     @classmethod
     def _flow(cls, v):
-        return None if v is None else _in_range(_quantity("m**3/s", v), 1e-9, 1e-2, "m^3/s")
+        return None if v is None else _in_range(_quantity("m**3/s", v), *COMPENSATION_RANGES["flow_limit"], "m^3/s")
 
 
 class SolverSpec(Model):
@@ -322,13 +328,7 @@ class ScenarioSource:
 
 
 def read_scenario_text(text: str, name: str, base_dir: str | Path) -> ScenarioSource:
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{name}:{mark.line + 1}:{mark.column + 1}" if mark else name
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise UserInputError(f"{where}: YAML syntax error: {problem}") from None
+    data = parse_yaml(text, name)      # the one safe YAML parser (hpsim.config), as for every file
     if not isinstance(data, dict):
         raise UserInputError(f"{name}: expected a mapping of scenario keys (vehicle, road, speed, distance, ...), "
                              f"got {type(data).__name__}")
@@ -337,8 +337,7 @@ def read_scenario_text(text: str, name: str, base_dir: str | Path) -> ScenarioSo
 
 def read_scenario(path: str | Path) -> ScenarioSource:
     path = Path(path)
-    load_yaml(path)   # file errors and YAML syntax errors with file:line
-    return read_scenario_text(path.read_text(), str(path), path.resolve().parent)
+    return read_scenario_text(read_text_file(path), str(path), path.resolve().parent)
 
 
 def validate_scenario(src: ScenarioSource) -> Scenario:
@@ -384,9 +383,16 @@ class Prepared:
         import terrain
 
         try:
-            return terrain.build_road(self.road_spec, self.source.base_dir)
+            road = terrain.build_road(self.road_spec, self.source.base_dir)
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: road: {exc}") from None
+        needed = road_length_needed(self.scenario, self.vehicle)
+        if road.length_m < needed:
+            # beyond its end the road would be held flat: a drive on a road that is not there
+            raise UserInputError(f"{self.source.name}: road.csv: the profile in {self.road_spec.csv} is "
+                                 f"{road.length_m:.6g} m long, the drive needs {needed:.6g} m (distance + the tyre's "
+                                 "contact length + 1 m); give a longer profile or a shorter distance")
+        return road
 
     def drive(self, drive_class=None):
         """(model, Drive) ready to run."""
@@ -510,6 +516,12 @@ def prepare(src: ScenarioSource) -> Prepared:
                     speed_profile=speed)
 
 
+def road_length_needed(S: Scenario, vehicle) -> float:
+    """Road length [m] the front axle reads: the drive's distance plus its last step (1 m, as
+    vehicle.runs.drive samples it) plus the tyre's enveloping length ahead of the contact point."""
+    return S.distance + 1.0 + vehicle.tyre.contact_length
+
+
 def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
     from pydantic import ValidationError
 
@@ -527,7 +539,7 @@ def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
     if "track_width" in fields and data.get("track_width") is None:
         data["track_width"] = vehicle.track      # left/right coherence at the vehicle's track
     try:
-        return RoadSpec.model_validate(data)
+        spec = RoadSpec.model_validate(data)
     except ValidationError as exc:
         msg = format_validation_error(exc, src.name)
         # pydantic's locations are relative to the road mapping: prefix them
@@ -535,6 +547,12 @@ def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
         raise UserInputError(msg) from None
     except UserInputError as exc:
         raise UserInputError(f"{src.name}: road: {exc}") from None
+    needed = road_length_needed(S, vehicle)
+    if spec.length is not None and spec.length < needed:
+        raise UserInputError(f"{src.name}: road.length: {spec.length:.6g} m is shorter than the drive, which needs "
+                             f"{needed:.6g} m (distance + the tyre's contact length + 1 m); leave road.length out "
+                             "to get the default")
+    return spec
 
 
 def _prefix_loc(part: str, name: str, prefix: str) -> str:
