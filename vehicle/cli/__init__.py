@@ -1,3 +1,4 @@
+# PYTHON_ARGCOMPLETE_OK  (shell completion: eval "$(register-python-argcomplete hpsim)")
 """`hpsim` command line: the one console entry point and every sub-command, all in this package.
 
     hpsim strut ...                                  strut.py     (rig, characteristic, fit, gas)
@@ -5,11 +6,16 @@
     hpsim vehicle ... / run / report / compare / sweep / plot   drives.py
     hpsim calibrate                                  calibrate.py
 
-User errors (bad argument, bad file) print one line and exit with code 2.
+User errors (bad argument, bad file) print one line and exit with code 2. -v / -q (before or after
+the command) set how much is logged to stderr (`logging`, logger "hpsim"): -q only warnings and
+errors, no progress bar; -v also debug details. Output cut short by its reader (`hpsim report x.h5
+| head`) ends quietly with exit code 141, like any Unix tool killed by SIGPIPE.
 """
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
 
 from hpsim.errors import SimulationError, UserInputError
@@ -35,7 +41,49 @@ def build_parser() -> argparse.ArgumentParser:
     drives.register(sub)
     calibrate.register(sub)
     uq.register(sub)
+    from . import examples
+
+    examples.apply(parser)
+    for _, p in [("hpsim", parser)] + list(examples.commands(parser)):
+        _add_verbosity(p, top=p is parser)
     return parser
+
+
+def _add_verbosity(p: argparse.ArgumentParser, top: bool) -> None:
+    # on the sub-commands the options only count when given (SUPPRESS): their defaults must not
+    # overwrite what was given before the command
+    default = 0 if top else argparse.SUPPRESS
+    p.add_argument("-v", "--verbose", action="count", default=default, help="log more (debug details) to stderr")
+    p.add_argument("-q", "--quiet", action="count", default=default,
+                   help="log only warnings and errors; no progress bar")
+
+
+class _LevelFormatter(logging.Formatter):
+    def format(self, record):
+        text = record.getMessage()
+        return text if record.levelno < logging.WARNING else f"{record.levelname.lower()}: {text}"
+
+
+def setup_logging(verbosity: int) -> None:
+    """Logger "hpsim" to stderr: -q WARNING, default INFO, -v DEBUG."""
+    level = logging.WARNING if verbosity < 0 else (logging.INFO if verbosity == 0 else logging.DEBUG)
+    log = logging.getLogger("hpsim")
+    log.handlers.clear()
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_LevelFormatter())
+    log.addHandler(handler)
+    log.setLevel(level)
+    log.propagate = False
+
+
+def _stdout_gone() -> int:
+    """The reader of stdout went away (`| head`): drop what is left unwritten, exit like SIGPIPE."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 141
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,9 +92,20 @@ def main(argv: list[str] | None = None) -> int:
     command = "hpsim"
     try:
         parser = build_parser()
+        try:
+            import argcomplete
+
+            argcomplete.autocomplete(parser)
+        except ImportError:
+            pass
         args = parser.parse_args(argv)
         command = f"hpsim {args.command}"
+        args.verbosity = args.verbose - args.quiet
+        setup_logging(args.verbosity)
         code = args.func(args)
+        sys.stdout.flush()            # a closed pipe shows here, not at interpreter exit
+    except BrokenPipeError:
+        return _stdout_gone()
     except UserInputError as exc:
         sys.stderr.write(f"{command}: error: {exc}\n")
         return 2

@@ -5,6 +5,7 @@ stopped (solver failure; what was written is kept), 130 interrupted (Ctrl-C; res
 """
 from __future__ import annotations
 
+import logging
 import re
 import sys
 from pathlib import Path
@@ -119,7 +120,8 @@ def cmd_run(args):
         scen_arg = scen
     try:
         summary = run_scenario(scen_arg, out, resume=args.resume, overwrite=args.overwrite,
-                               progress=not args.no_progress, log=lambda m: print(m, file=sys.stderr))
+                               progress=not args.no_progress and getattr(args, "verbosity", 0) >= 0,
+                               log=logging.getLogger("hpsim").info)
     except RunInterrupted as exc:
         sys.stderr.write(f"hpsim run: {exc}\n")
         return 130
@@ -184,7 +186,7 @@ def cmd_sweep(args):
     check_output_dir(args.output_dir or Path(args.sweep).stem,
                      "-o/--output-dir" if args.output_dir else "output folder (the sweep file's name)")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
-                       log=(lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True)))
+                       log=(lambda m: None) if args.json else logging.getLogger("hpsim").info)
     if result["finished_files"]:
         result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
                                                 labels=result["finished_labels"])))

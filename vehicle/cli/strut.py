@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import itertools
+import logging
 import re
 from pathlib import Path
 
@@ -73,8 +74,10 @@ def register(sub):
     common(c)
     c.add_argument("--process", choices=PROCESSES, default="polytropic")
     c.add_argument("--n", help="polytropic exponent (default: the file's)")
-    c.add_argument("--plot", help="write a PNG")
+    c.add_argument("--plot", help="write a PNG (with the stroke limits and the operating point)")
     c.add_argument("--csv", help="write a CSV (x_m,force_N,gas_pressure_Pa)")
+    c.add_argument("--load", help="static strut force of the operating point, e.g. 41.8kN (default: the mean "
+                                  "static strut force of a built-in vehicle that uses this strut)")
     c.set_defaults(func=cmd_characteristic)
 
     y = ssub.add_parser("cycle", help="displacement-driven sinusoidal test")
@@ -85,6 +88,8 @@ def register(sub):
     y.add_argument("--cycles", type=int, default=3)
     y.add_argument("--plot", help="write force-displacement and force-velocity loops as PNG")
     y.add_argument("--csv", help="write the last-cycle loops as CSV")
+    y.add_argument("--data", help="measured loops to overlay (CSV: amplitude_m, frequency_Hz, mean_m, t_s, force_N "
+                                  "over one cycle of x = mean + A sin(2 pi f t)); their energies join the table")
     y.set_defaults(func=cmd_cycle)
 
     g = ssub.add_parser("gas", help="nitrogen models (ideal, BWR) against CoolProp's reference equation")
@@ -167,6 +172,7 @@ def cmd_characteristic(args):
     _check_outputs(args)
     params, p0, T = _params(args, None, args.n)
     res = characteristic(params, p0_Pa=p0, T_K=T, process=args.process)
+    op = _operating_point(args, params, p0, T)
     if args.csv:
         _write_csv(args.csv, ["x_m", "force_N", "gas_pressure_Pa"],
                    zip(res["x_m"], res["force_N"], res["gas_pressure_Pa"]))
@@ -175,16 +181,64 @@ def cmd_characteristic(args):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig, ax = plt.subplots(figsize=(6, 4))
-        ax.plot(res["x_m"] * 1e3, res["force_N"] / 1e3)
-        ax.set_xlabel("deflection [mm]"); ax.set_ylabel("gas force [kN]"); ax.grid(True)
-        ax.set_title(f"{params.name}: p0 = {res['p0_Pa'] / 1e6:.3g} MPa, T = {res['temperature_K'] - 273.15:.3g} degC, {args.process}")
+        fig, ax = plt.subplots(figsize=(6.4, 4.2))
+        ax.plot(res["x_m"] * 1e3, res["force_N"] / 1e3, label="gas force")
+        stroke_mm = params.geometry.stroke * 1e3
+        # labels where the rising curve is not: top left, bottom right
+        for x_mm, y, text in ((0.0, 0.97, "full extension\n(rebound stop)"),
+                              (stroke_mm, 0.03, "full compression\n(bump stop)")):
+            ax.axvline(x_mm, color="k", lw=1.0)
+            ax.annotate(text, (x_mm, y), xycoords=("data", "axes fraction"), ha="left" if x_mm == 0 else "right",
+                        va="top" if y > 0.5 else "bottom", fontsize=7, xytext=(3 if x_mm == 0 else -3, 0),
+                        textcoords="offset points")
+        if op is not None:
+            ax.plot(op["x_m"] * 1e3, op["load_N"] / 1e3, "o", color="C3", label=f"operating point ({op['label']})")
+            ax.annotate(f"{op['x_m'] * 1e3:.0f} mm, {op['load_N'] / 1e3:.1f} kN\nk = {op['stiffness_N_per_m'] / 1e3:.0f} kN/m",
+                        (op["x_m"] * 1e3, op["load_N"] / 1e3), xytext=(-8, 8), textcoords="offset points", fontsize=7,
+                        ha="right", va="bottom")        # above left: the curve rises to the right
+        ax.set_xlim(-0.03 * stroke_mm, 1.03 * stroke_mm)
+        ax.set_xlabel("deflection [mm]"); ax.set_ylabel("gas force [kN]"); ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="center left")
+        ax.set_title(f"{params.name}: p0 = {res['p0_Pa'] / 1e6:.3g} MPa, T = {res['temperature_K'] - 273.15:.3g} degC, "
+                     f"{args.process}", fontsize=10)
         fig.tight_layout(); _save_figure(fig, args.plot, "--plot"); plt.close(fig)
     rows = [{"x_m": float(x), "force_N": float(F)} for x, F in zip(res["x_m"][::20], res["force_N"][::20])]
     if args.json:
-        print_json({"x_m": res["x_m"], "force_N": res["force_N"], "gas_pressure_Pa": res["gas_pressure_Pa"]})
+        print_json({"x_m": res["x_m"], "force_N": res["force_N"], "gas_pressure_Pa": res["gas_pressure_Pa"],
+                    "stroke_m": params.geometry.stroke, "operating_point": op})
     else:
         print(format_table(["x [mm]", "F [kN]"], [(r["x_m"] * 1e3, r["force_N"] / 1e3) for r in rows]))
+        if op is not None:
+            print(f"operating point ({op['label']}): {op['x_m'] * 1e3:.1f} mm at {op['load_N'] / 1e3:.2f} kN, "
+                  f"stiffness {op['stiffness_N_per_m'] / 1e3:.0f} kN/m; stroke 0-{params.geometry.stroke * 1e3:.0f} mm")
+
+
+def _operating_point(args, params, p0, T) -> dict | None:
+    """Static deflection and stiffness at --load, or at the mean static strut force of a built-in
+    vehicle that uses this strut (charging loads less the unsprung weight, through the motion ratio)."""
+    from struts.rig import static_point
+
+    if args.load is not None:
+        load = _quantity(args.load, "N", "--load", "> 0 N")
+        if load <= 0:
+            raise UserInputError(f"--load: must be > 0 N, got {load} N")
+        label = "at --load"
+    else:
+        load = label = None
+        from vehicle.physics.params import GRAVITY, builtin_vehicles, load_vehicle
+
+        for name in builtin_vehicles():
+            P = load_vehicle(name)
+            forces = [(w - ax.unsprung_mass * GRAVITY) / ax.motion_ratio
+                      for w, ax in zip(P.charging.wheel_loads, P.axles) if ax.strut == params.name]
+            if forces:
+                load, label = sum(forces) / len(forces), f"static on {name}"
+                break
+        if load is None:
+            return None
+    res = static_point(params, load, p0_Pa=p0, T_K=T, process=args.process)
+    return {"load_N": load, "x_m": res["static_deflection_m"], "stiffness_N_per_m": res["stiffness_N_per_m"],
+            "label": label}
 
 
 def cmd_cycle(args):
@@ -200,8 +254,10 @@ def cmd_cycle(args):
     check_cycle_work(len(amps) * len(freqs), args.cycles)
     for A, f in itertools.product(amps, freqs):  # validate all before any work
         check_cycle_arguments(params, A, f, mean, args.cycles)
+    measured = _measured_loops(args.data) if args.data else []
     results = [cycle_test(params, A, f, mean, cycles=args.cycles, T_K=T, p0_Pa=p0)
                for A, f in itertools.product(amps, freqs)]
+    energy_measured = [next((m["energy_per_cycle_J"] for m in measured if _same_test(m, r)), None) for r in results]
     if args.csv:
         header = ["amplitude_m", "frequency_Hz", "mean_m", "t_s", "x_m", "v_m_per_s", "force_N",
                   "gas_force_N", "valve_force_N", "friction_force_N", "end_stop_force_N", "gas_temperature_K"]
@@ -213,15 +269,58 @@ def cmd_cycle(args):
                              r.components_N["friction"][i], r.components_N["end_stop"][i], r.gas_temperature_K[i]])
         _write_csv(args.csv, header, rows)
     if args.plot:
-        plot_loops(results, args.plot, params.name)
+        plot_loops(results, args.plot, params.name, measured)
     if args.json:
-        print_json([r.summary() for r in results])
+        out = [r.summary() for r in results]
+        if args.data:
+            for o, e in zip(out, energy_measured):
+                o["measured_energy_per_cycle_J"] = e
+        print_json(out)
     else:
-        print(format_table(
-            ["A [mm]", "f [Hz]", "E/cycle [J]", "valve [J]", "friction [J]", "gas [J]", "Fmax comp [kN]", "Fmin reb [kN]"],
+        headers = ["A [mm]", "f [Hz]", "E/cycle [J]", "valve [J]", "friction [J]", "gas [J]", "Fmax comp [kN]",
+                   "Fmin reb [kN]"] + (["E measured [J]"] if args.data else [])
+        print(format_table(headers,
             [(r.amplitude_m * 1e3, r.frequency_Hz, r.energy_per_cycle_J, r.energy_by_mechanism_J["valve"],
               r.energy_by_mechanism_J["friction"], r.energy_by_mechanism_J["gas"],
-              r.peak_force_compression_N / 1e3, r.peak_force_rebound_N / 1e3) for r in results]))
+              r.peak_force_compression_N / 1e3, r.peak_force_rebound_N / 1e3)
+             + ((("-" if e is None else e),) if args.data else ()) for r, e in zip(results, energy_measured)]))
+        unmatched = [m for m in measured if not any(_same_test(m, r) for r in results)]
+        if unmatched:
+            print("measured tests without a simulated one (overlaid only): " + ", ".join(
+                f"A={m['amplitude_m'] * 1e3:.4g} mm f={m['frequency_Hz']:.4g} Hz mean={m['mean_m'] * 1e3:.4g} mm"
+                for m in unmatched))
+
+
+def _same_test(m: dict, r) -> bool:
+    import math
+
+    return all(math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-12) for a, b in
+               ((m["amplitude_m"], r.amplitude_m), (m["frequency_Hz"], r.frequency_Hz), (m["mean_m"], r.mean_m)))
+
+
+def _measured_loops(path) -> list[dict]:
+    """Measured loops of a rig CSV: per test, x, v and F over one cycle (sorted by phase) and the
+    energy per cycle, the loop's area (closed trapezoid sum of F dx)."""
+    import numpy as np
+
+    from struts.fit import read_rig_csv
+
+    data = read_rig_csv(path)
+    if data.kind != "loops":
+        raise UserInputError(f"--data: {path} is an energy table; the overlay needs measured loops "
+                             "(columns amplitude_m, frequency_Hz, mean_m, t_s, force_N)")
+    out = []
+    for A, f, mean in data.tests():
+        rows = [r for r in data.rows if (r["amplitude_m"], r["frequency_Hz"], r["mean_m"]) == (A, f, mean)]
+        phase = np.array([r["t_s"] for r in rows]) * f % 1.0
+        order = np.argsort(phase)
+        phase, F = phase[order], np.array([r["force_N"] for r in rows])[order]
+        x = mean + A * np.sin(2 * np.pi * phase)
+        xc, Fc = np.append(x, x[0]), np.append(F, F[0])            # close the loop
+        out.append({"amplitude_m": A, "frequency_Hz": f, "mean_m": mean, "phase": phase, "x_m": x, "force_N": F,
+                    "v_m_per_s": 2 * np.pi * f * A * np.cos(2 * np.pi * phase),
+                    "energy_per_cycle_J": float(np.sum(0.5 * (Fc[1:] + Fc[:-1]) * np.diff(xc)))})
+    return out
 
 
 def _max_frequency() -> float:
@@ -230,19 +329,34 @@ def _max_frequency() -> float:
     return _MAX_FREQUENCY_HZ
 
 
-def plot_loops(results, path, name):
+def plot_loops(results, path, name, measured=()):
     import matplotlib
+    import numpy as np
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for r in results:
+    for j, r in enumerate(results):
         lab = f"A={r.amplitude_m * 1e3:.3g} mm, f={r.frequency_Hz:.3g} Hz, E={r.energy_per_cycle_J:.4g} J"
-        a1.plot(r.x_m * 1e3, r.force_N / 1e3, label=lab)
-        a2.plot(r.v_m_per_s * 1e3, (r.force_N - r.components_N["gas"]) / 1e3, label=lab)
+        a1.plot(r.x_m * 1e3, r.force_N / 1e3, label=lab, color=f"C{j % 10}")
+        a2.plot(r.v_m_per_s * 1e3, (r.force_N - r.components_N["gas"]) / 1e3, label=lab, color=f"C{j % 10}")
+        # the measured loop of the same test in the same colour, dashed; its resisting force is the
+        # measured force less the model's gas force at the same phase of the cycle
+        for m in measured:
+            if _same_test(m, r):
+                gas = np.interp(m["phase"], ((r.t_s - r.t_s[0]) * r.frequency_Hz) % 1.0, r.components_N["gas"],
+                                period=1.0)
+                a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, "--", color=f"C{j % 10}", lw=1.2,
+                        label=f"measured, E={m['energy_per_cycle_J']:.4g} J")
+                a2.plot(m["v_m_per_s"] * 1e3, (m["force_N"] - gas) / 1e3, "--", color=f"C{j % 10}", lw=1.2)
+    for m in measured:
+        if not any(_same_test(m, r) for r in results):
+            a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, "--", color="k", lw=1.0,
+                    label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz")
     a1.set_xlabel("deflection [mm]"); a1.set_ylabel("force [kN]"); a1.grid(True); a1.legend(fontsize=7)
     a2.set_xlabel("velocity [mm/s]"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
-    fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)")
+    fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)"
+                 + ("; dashed: measured" if len(measured) else ""))
     fig.tight_layout(); _save_figure(fig, path, "--plot"); plt.close(fig)
 
 
@@ -265,14 +379,49 @@ def cmd_fit(args):
             Path(args.write).write_text(yaml.safe_dump(fitted.model_dump(), sort_keys=False))
         except OSError as exc:
             raise UserInputError(f"--write: cannot write {args.write} ({exc.strerror})") from None
+    unidentified = [n for n in names if not _identified(res.confidence_95[n])]
+    for n in unidentified:
+        lo, hi = res.confidence_95[n]
+        logging.getLogger("hpsim").warning(
+            f"{n} is not identified by these data: 95 % confidence interval {lo:.3g} to {hi:.3g} "
+            f"{FIT_UNITS.get(n, '')} ({_orders(lo, hi)}); hold it at a known value or add tests that excite it")
     if args.json:
-        print_json(res.as_dict())
+        out = res.as_dict()
+        out["units"] = {n: FIT_UNITS.get(n, "") for n in names}
+        out["not_identified"] = unidentified
+        print_json(out)
     else:
-        print(format_table(["parameter", "initial", "fitted", "95% CI low", "95% CI high"],
-                           [(n, res.initial[n], res.values[n], *res.confidence_95[n]) for n in names]))
+        print(format_table(["parameter", "unit", "initial", "fitted", "95% CI low", "95% CI high", "identified"],
+                           [(n, FIT_UNITS.get(n, "") or "-", res.initial[n], res.values[n], *res.confidence_95[n],
+                             "no" if n in unidentified else "yes") for n in names]))
         print()
         print(format_table(["test", "measured", "model", "rel. error [%]"],
                            [(i + 1, m, s, 100 * (s - m) / m) for i, (m, s) in enumerate(zip(res.measured, res.model))]))
+
+
+# SI units of the fittable parameters (struts.fit.FITTABLE), for the table
+FIT_UNITS = {"F0": "N", "F0_compression": "N", "F0_rebound": "N", "pressure_coefficient": "N/Pa",
+             "breakaway_ratio": "", "viscous": "N s/m", "thermal_time_constant": "s", "bleed_area": "m^2",
+             "discharge_coefficient": "", "polytropic_exponent": ""}
+# a parameter is taken as identified when its 95 % interval spans less than this factor
+IDENTIFIED_SPAN = 10.0
+
+
+def _identified(ci) -> bool:
+    import math
+
+    lo, hi = (float(v) for v in ci)
+    return math.isfinite(lo) and math.isfinite(hi) and lo > 0 and hi / lo < IDENTIFIED_SPAN
+
+
+def _orders(lo: float, hi: float) -> str:
+    import math
+
+    if not math.isfinite(hi):
+        return "unbounded"
+    if not math.isfinite(lo) or lo <= 0:
+        return "reaches zero"
+    return f"{math.log10(hi / lo):.1f} orders of magnitude"
 
 
 def cmd_gas(args):

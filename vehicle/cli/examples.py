@@ -1,0 +1,79 @@
+"""Examples shown at the end of every `hpsim ... --help` (argparse epilogs), in one place.
+
+`apply(parser)` walks the sub-command tree and gives each command its examples; a command that
+sets its own epilog keeps it. tests/test_cli_help.py checks that every command has some.
+"""
+from __future__ import annotations
+
+import argparse
+
+EXAMPLES = {
+    "strut static": """\
+  hpsim strut static --strut apc --load 41.8kN --p0 4.8MPa --temperature 20degC
+  hpsim strut static --strut yin2023 --load 4kN --json""",
+    "strut characteristic": """\
+  hpsim strut characteristic --strut apc --plot f.png      # marks the stroke limits and the operating point
+  hpsim strut characteristic --strut apc --temperature 80degC --csv f.csv""",
+    "strut cycle": """\
+  hpsim strut cycle --strut apc --amplitude 10mm,50mm,100mm --frequency 0.1Hz --mean 115mm --plot loops.png
+  hpsim strut cycle --strut apc --amplitude 10mm --frequency 0.5Hz --mean 115mm --data rig.csv --plot cmp.png
+    (rig.csv: measured loops, columns amplitude_m, frequency_Hz, mean_m, t_s, force_N)""",
+    "strut gas": """\
+  hpsim strut gas --temperatures 250K,300K,400K --plot gas.png""",
+    "strut fit": """\
+  hpsim strut fit --strut apc --data struts/data/apc_rig_energy.csv --fit F0,thermal_time_constant,bleed_area
+  hpsim strut fit --strut apc --data struts/data/apc_rig_energy.csv --fit bleed_area --write apc_fitted.yaml""",
+    "road generate": """\
+  hpsim road generate --class D --length 20km --seed 7 -o road.csv
+  hpsim road generate --class E --length 5km --json""",
+    "road psd": """\
+  hpsim road psd road.csv --json
+  hpsim road psd --class D --length 5km --plot psd.png      # a generated road, no file needed""",
+    "road plot": """\
+  hpsim road plot road.csv -o road.png
+  hpsim road plot --class C --length 2km -o road.png""",
+    "vehicle equilibrium": """\
+  hpsim vehicle equilibrium
+  hpsim vehicle equilibrium --temperatures 80degC,75degC,70degC,70degC --json""",
+    "vehicle response": """\
+  hpsim vehicle response --plot response.png
+  hpsim vehicle response --friction-velocity 50mm/s --json""",
+    "run": """\
+  hpsim run scenarios/quick_demo.yaml -o demo.h5
+  hpsim run scenarios/mileage_106km.yaml -o mileage.h5 --resume     # continue an interrupted run
+  hpsim -q run scenarios/quick_demo.yaml -o demo.h5 --overwrite       # no progress bar, no messages""",
+    "report": """\
+  hpsim report demo.h5
+  hpsim report demo.h5 --json | python -m json.tool | head""",
+    "compare": """\
+  hpsim compare a.h5 b.h5
+  hpsim compare results/*.h5 --plot compare.png""",
+    "sweep": """\
+  hpsim sweep scenarios/compensation_sweep.yaml --workers 2
+  hpsim sweep scenarios/compensation_sweep.yaml -o sweep_out --json""",
+    "plot": """\
+  hpsim plot demo.h5 -o dashboard.png""",
+    "calibrate": """\
+  hpsim calibrate scenarios/mileage_106km.yaml --target-rise 54K
+  hpsim calibrate scenarios/quick_demo.yaml --target-rise 6K --tolerance 0.2K --json""",
+    "uq": """\
+  hpsim uq scenarios/quick_demo.yaml --list                 # the parameters with priors
+  hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2 -o uq_out""",
+}
+
+
+def commands(parser: argparse.ArgumentParser, path=()):
+    """(path, parser) of every leaf command."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield " ".join(path), parser
+        return
+    for name, sp in subs[0].choices.items():
+        yield from commands(sp, path + (name,))
+
+
+def apply(parser: argparse.ArgumentParser) -> None:
+    for path, p in commands(parser):
+        if p.epilog is None and path in EXAMPLES:
+            p.epilog = "examples:\n" + EXAMPLES[path]
+            p.formatter_class = argparse.RawDescriptionHelpFormatter
