@@ -67,7 +67,7 @@ def test_two_cases_in_parallel_give_both_results_and_the_summary(two_cases):
         assert float(r["distance_km"]) == pytest.approx(1.5)
         with h5py.File(two_cases / f"{name}.h5", "r") as f:
             assert f["summary"].attrs["complete"]
-            assert f["timeseries/t_s"].shape[0] == 270
+            assert f["timeseries/time"].shape[0] == 270
     assert rows["c00_enabled-false"]["compensation.enabled"] == "False"
     assert rows["c01_enabled-true"]["compensation.enabled"] == "True"
     assert (two_cases / "compare.png").stat().st_size > 10_000
@@ -86,8 +86,8 @@ def test_compensation_reduces_load_redistribution(two_cases):
     heights = {}
     for name in rows:
         with h5py.File(two_cases / f"{name}.h5", "r") as f:
-            heights[name] = np.asarray(f["equilibrium/after/axle_height_change_m"]) * 1e3
-            oil = f["timeseries/oil_added_m3"][-1]
+            heights[name] = np.asarray(f["equilibrium/after/axle_height_change"]) * 1e3
+            oil = f["timeseries/oil_added_volume"][-1]
             if name.endswith("true"):
                 assert np.any(np.abs(oil) > 1e-6)          # the levelling moved oil
             else:
@@ -144,3 +144,97 @@ def test_scheduler_without_dask_is_a_clear_error(tmp_path, capsys):
                      "-o", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code == 2 and "hpsim[dask]" in err and "Traceback" not in err
+
+
+# --- interrupting a sweep -----------------------------------------------------------------------------
+LONG_BASE = BASE.replace("distance: 1.5 km", "distance: 6 km")
+
+
+def _start_sweep(tmp_path):
+    import subprocess
+
+    from .test_run_helpers import hpsim_subprocess
+
+    (tmp_path / "base.yaml").write_text(LONG_BASE)
+    (tmp_path / "sweep.yaml").write_text("base: base.yaml\ngrid:\n  road.seed: [3, 4]\n")
+    out = tmp_path / "out"
+    p = hpsim_subprocess(["sweep", tmp_path / "sweep.yaml", "--workers", "2", "-o", out], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    return p, out
+
+
+def _running_workers(p, out, timeout=120.0) -> list[int]:
+    """The worker pids, from the cases' lock files, once both cases are driving (status running)."""
+    import json
+    import time
+
+    from vehicle.runs.results import open_read, valid_counts
+
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        assert p.poll() is None, p.communicate()
+        locks = sorted(out.glob("*.h5.lock")) if out.exists() else []
+        if len(locks) == 2:
+            try:
+                pids = [json.loads(lk.read_text())["pid"] for lk in locks]
+                counts = []
+                for h5 in sorted(out.glob("*.h5")):
+                    with open_read(h5) as f:
+                        counts.append(valid_counts(f)[0])
+                if len(counts) == 2 and min(counts) > 0:
+                    return pids
+            except (OSError, ValueError, KeyError):
+                pass
+        time.sleep(0.05)
+    raise AssertionError("the sweep's cases did not start in time")
+
+
+def test_kill_9_of_the_sweep_leaves_no_worker_running(tmp_path):
+    import os
+    import signal
+    import time
+
+    from vehicle.runs.results import _pid_alive
+
+    p, out = _start_sweep(tmp_path)
+    try:
+        workers = _running_workers(p, out)
+        assert p.pid not in workers
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(timeout=30)
+        t0 = time.time()
+        while any(_pid_alive(w) for w in workers) and time.time() - t0 < 30:
+            time.sleep(0.05)
+        alive = [w for w in workers if _pid_alive(w)]
+    finally:
+        if p.poll() is None:
+            p.kill()
+        for w in workers if "workers" in locals() else []:
+            if _pid_alive(w):
+                os.kill(w, signal.SIGKILL)
+    assert not alive, f"workers {alive} still running after the sweep was killed"
+
+
+def test_ctrl_c_stops_the_sweep_with_130_and_a_command_that_continues_it(tmp_path, capsys):
+    import os
+    import shlex
+    import signal
+
+    p, out = _start_sweep(tmp_path)
+    try:
+        _running_workers(p, out)
+        os.killpg(p.pid, signal.SIGINT)          # Ctrl-C in a terminal: the whole process group
+        _, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+    assert p.returncode == 130, err
+    assert "Traceback" not in err
+    line = [ln for ln in err.splitlines() if "Continue with: " in ln]
+    assert line, err
+    cmd = shlex.split(line[0].split("Continue with: ", 1)[1])
+    assert cmd[:2] == ["hpsim", "sweep"]
+    # the suggested command exists and finishes the sweep (interrupted cases resume)
+    assert cli.main(cmd[1:] + ["--workers", "2"]) == 0
+    assert {r["status"] for r in _summary(out).values()} == {"done"}
