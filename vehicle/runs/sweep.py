@@ -30,7 +30,7 @@ from typing import Any, Callable
 import yaml
 from pydantic import ValidationError
 
-from hpsim.config import Model, format_validation_error, load_yaml
+from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, UserInputError
 
 from vehicle.runs.scenario import ScenarioSource, apply_overrides, prepare, read_scenario
@@ -113,7 +113,7 @@ def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
 
     t0 = time.perf_counter()
     try:
-        src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=yaml.safe_load(text))
+        src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=parse_yaml(text, name))
         summary = run_scenario(src, out, resume=True, progress=False)
         return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
