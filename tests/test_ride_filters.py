@@ -145,3 +145,42 @@ def test_dynamic_load_coefficient_and_travel_percentiles():
     h = np.array([0, 0, 1, 1, 0, 0])
     np.testing.assert_allclose(ride.travel_percentiles(h, np.arange(7.0), (0, 100)), [2.0, 4.0])
     assert np.all(np.isnan(ride.travel_percentiles(np.zeros(4), np.arange(5.0))))
+
+
+def test_seat_filters_building_block():
+    """What a model integrates per seat (ride.SeatFilters): a seat 2 m ahead of the CG under a pitch
+    oscillation gets a_w = |Wk| 2 m theta'' / sqrt(2), its lateral channel |Wd| B / sqrt(2), its
+    absorbed power |H|^2 (2 m theta'')^2 / 2."""
+    sf = ride.SeatFilters.default()
+    f_hz, pitch_amp, lat_amp, T = 3.15, 0.4, 0.8, 10.0
+    w = 2 * math.pi * f_hz
+    n = sf.n_states
+    t0 = 20.0
+
+    def rhs(t, s):
+        a_v = ride.seat_vertical_acceleration(0.0, pitch_amp * math.sin(w * t), 0.0, -2.0, 0.5)
+        r, q = sf.rates(list(s[:n]), a_v, lat_amp * math.cos(w * t))
+        on = 1.0 if t >= t0 else 0.0
+        return r + [on * q[k] for k in sf.QUADRATURES]
+
+    sol = solve_ivp(rhs, (0.0, t0 + T), np.zeros(n + 4), method="DOP853", rtol=1e-9, atol=1e-12)
+    aw2, aw4, awl2, pabs = sol.y[n:, -1]
+    A = 2.0 * pitch_amp
+    assert math.sqrt(aw2 / T) == pytest.approx(abs(sf.vertical.frequency_response(f_hz)) * A / math.sqrt(2), rel=2e-4)
+    assert aw4 ** 0.25 == pytest.approx(abs(sf.vertical.frequency_response(f_hz)) * A * (3 * T / 8) ** 0.25, rel=2e-4)
+    assert math.sqrt(awl2 / T) == pytest.approx(abs(sf.lateral.frequency_response(f_hz)) * lat_amp / math.sqrt(2),
+                                                rel=2e-4)
+    assert pabs / T == pytest.approx(abs(sf.power.frequency_response(f_hz)) ** 2 * A * A / 2, rel=2e-4)
+    assert len(sf.state_names("driver")) == n
+
+
+def test_road_holding_indicators():
+    F = np.array([0.0, 1.0, 3e4])
+    _, F2, off = ride.tyre_integrands(F)
+    np.testing.assert_array_equal(off, [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(F2, F * F)
+    np.testing.assert_array_equal(ride.end_stop_indicator(np.array([-1e-4, 0.0, 0.1, 0.2341]), 0.234), [1, 0, 0, 1])
+    x = np.array([-0.01, 0.0, 0.1, 0.2, 0.3])
+    bins = np.array(ride.travel_bin_indicators(x, [0.0, 0.1, 0.2, 0.234]))
+    np.testing.assert_array_equal(bins.sum(axis=0), 1.0)               # every travel in exactly one bin
+    np.testing.assert_array_equal(bins.argmax(axis=0), [0, 0, 1, 2, 2])

@@ -288,3 +288,79 @@ def travel_percentiles(time_in_bins_s, bin_edges_m, percentiles=(1, 5, 50, 95, 9
             keep = np.concatenate([[False], used]) | np.concatenate([used, [False]])
             out[k] = np.interp(q, cum[keep], edges[keep])
     return out.reshape(h.shape[:-1] + (len(q),))
+
+
+# --- building blocks for the model: per-seat filter states and quadrature integrands -------------
+@dataclass(frozen=True)
+class SeatFilters:
+    """The filters a seat carries in a drive: Wk on its vertical, Wd on its lateral acceleration
+    (both without the 100 Hz band limit, see `iso2631_weighting`) and the absorbed-power filter.
+
+    A model adds `state_names(seat)` to its states and `QUADRATURES` (per seat) to its
+    quadratures, and sets their rates from `rates(states, a_vertical, a_lateral)`:
+      I_aw2  = int a_w^2 dt (Wk)       -> weighted_rms_acceleration_m_s2 = sqrt(dI / T)
+      I_aw4  = int a_w^4 dt (Wk)       -> vdv_m_s175 = dI^(1/4)
+      I_awl2 = int a_wl^2 dt (Wd, lateral) -> weighted_rms_lateral_acceleration_m_s2
+      I_pabs = int P_abs dt            -> absorbed_power_W = dI / T
+    """
+
+    vertical: LinearFilter
+    lateral: LinearFilter
+    power: LinearFilter
+
+    QUADRATURES = ("aw2", "aw4", "awl2", "pabs")
+
+    @classmethod
+    def default(cls) -> "SeatFilters":
+        return cls(iso2631_weighting(WK, upper_band_limit=False), iso2631_weighting(WD, upper_band_limit=False),
+                   absorbed_power_filter())
+
+    @property
+    def n_states(self) -> int:
+        return self.vertical.n_states + self.lateral.n_states + self.power.n_states
+
+    def state_names(self, seat: str) -> list[str]:
+        return ([f"wk_{seat}[{j}]" for j in range(self.vertical.n_states)]
+                + [f"wd_{seat}[{j}]" for j in range(self.lateral.n_states)]
+                + [f"ap_{seat}[{j}]" for j in range(self.power.n_states)])
+
+    def rates(self, states, a_vertical, a_lateral):
+        """(state rates in `state_names` order, {quadrature: integrand}) for a seat's states (a list)."""
+        nk, nd = self.vertical.n_states, self.lateral.n_states
+        rk, yk = self.vertical.rates(states[:nk], a_vertical)
+        rd, yd = self.lateral.rates(states[nk:nk + nd], a_lateral)
+        rp, yp = self.power.rates(states[nk + nd:], a_vertical)
+        yk2 = yk * yk
+        return rk + rd + rp, {"aw2": yk2, "aw4": yk2 * yk2, "awl2": yd * yd, "pabs": yp * yp}
+
+
+def tyre_integrands(tyre_force_N, lift_off_force_N=0.0):
+    """Integrands of a wheel's road-holding quadratures: (F, F^2, 1 while lifted off).
+
+    int F dt and int F^2 dt give the dynamic load coefficient (`dynamic_load_coefficient`); the
+    third integrates to the time off the ground (F <= lift_off_force_N; the smoothed tyre law of
+    tyre.py is exactly 0 there)."""
+    from hpsim import symbolic as sym
+
+    return tyre_force_N, tyre_force_N * tyre_force_N, sym.if_else(tyre_force_N <= lift_off_force_N, 1.0, 0.0)
+
+
+def end_stop_indicator(deflection_m, stroke_m):
+    """1 while a strut is beyond full extension (x < 0) or full compression (x > stroke), else 0."""
+    from hpsim import symbolic as sym
+
+    return sym.if_else(deflection_m < 0.0, 1.0, sym.if_else(deflection_m > stroke_m, 1.0, 0.0))
+
+
+def travel_bin_indicators(deflection_m, bin_edges_m):
+    """One indicator per travel bin [edge_k, edge_k+1) (the first and last bins take everything
+    beyond the edges), to integrate into the time spent in each bin (`travel_percentiles`)."""
+    from hpsim import symbolic as sym
+
+    edges = list(bin_edges_m)
+    out = []
+    for k in range(len(edges) - 1):
+        above = 1.0 if k == 0 else sym.if_else(deflection_m >= edges[k], 1.0, 0.0)
+        below = 1.0 if k == len(edges) - 2 else sym.if_else(deflection_m < edges[k + 1], 1.0, 0.0)
+        out.append(above * below)
+    return out
