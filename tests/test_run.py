@@ -216,7 +216,7 @@ def test_solver_failure_stops_with_a_message_and_keeps_the_data(workdir, monkeyp
     from hpsim.errors import SimulationError
     from vehicle.runs.drive import Drive
 
-    def failing_check(self, X, t, s):
+    def failing_check(self, X, t, s, *more):
         if s[-1] > 1200.0:
             raise SimulationError(f"strut axle2_left bottomed out (beyond the bump stop) at {s[-1] / 1e3:.3f} km "
                                   f"(t = {t[-1]:.1f} s)")
