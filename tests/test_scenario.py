@@ -148,8 +148,9 @@ def test_missing_file(tmp_path, capsys):
 
 
 def test_overrides_reach_vehicle_struts_and_compensation(tmp_path):
+    # charge.pressure takes effect only when the vehicle charges by pressure (issue 10 §5)
     text = GOOD.replace("vehicle: {name: apc_8x8}", "vehicle: {name: apc_8x8, overrides: {heat.capacity: 20 kJ/K, "
-                                                    "axles.1.unsprung_mass: 500 kg}}")
+                                                    "axles.1.unsprung_mass: 500 kg, charging.method: gas_pressure}}")
     text = text.replace("compensation: {enabled: false}", "compensation: {enabled: true, dead_band: 5 mm}")
     text += "struts: {all: {overrides: {charge.pressure: 5 MPa}}, axle2: {overrides: {valve.bleed_area: 1e-5 m^2}}}\n"
     prep = load_prepared(_write(tmp_path, text))
