@@ -664,9 +664,11 @@ def test_cache_evicts_least_recently_used_beyond_its_limit(tmp_path):
 def _hpsim_process(args, cwd, env):
     import subprocess
 
-    e = {**os.environ, **env}
-    return subprocess.Popen([sys.executable, "-m", "vehicle.cli", *map(str, args)], cwd=cwd, env=e,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    from .test_run_helpers import hpsim_subprocess
+
+    # a session of its own: os.killpg then does what Ctrl-C at a terminal does (the whole group)
+    return hpsim_subprocess(args, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
 
 
 def _wait_for(proc, condition, timeout=120.0) -> bool:
@@ -705,9 +707,6 @@ def test_ctrl_c_while_the_model_compiles_stops(tmp_path):
     assert not list(cache.glob(".build-*")) and not list(cache.glob("*.so"))   # nothing half-built kept
 
 
-@pytest.mark.skip(reason="timing race: a SIGINT during numpy's C-extension import surfaces as ImportError "
-                         "('PyCapsule_Import could not import module datetime') under load; needs a handler "
-                         "installed before the heavy imports, left for the next session")
 def test_ctrl_c_in_the_first_second_is_one_line(tmp_path):
     """While main is still importing the commands (numpy being loaded)."""
     (tmp_path / "s.yaml").write_text(SCENARIO)

@@ -14,8 +14,10 @@ errors, no progress bar; -v also debug details. Output cut short by its reader (
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import os
+import signal
 import sys
 
 from hpsim.errors import SimulationError, UserInputError
@@ -86,20 +88,41 @@ def _stdout_gone() -> int:
     return 141
 
 
+@contextlib.contextmanager
+def _sigint_deferred():
+    """SIGINT only noted (in the yielded list) inside the block; the previous handler is back after it."""
+    noted: list[int] = []
+    try:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: noted.append(signum))
+    except ValueError:          # not the main thread: signals are not ours to handle
+        previous = None
+    try:
+        yield noted
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     # everything inside the handlers, parser and imports included: a Ctrl-C in the first second
     # is one line and exit code 130 like any other
     command = "hpsim"
     try:
-        parser = build_parser()
-        try:
-            import argcomplete
+        # a Ctrl-C while the command modules are imported is held until they are in: raised inside a
+        # C extension's import it would surface as an ImportError (numpy: "PyCapsule_Import could not
+        # import module datetime"), not as an interrupt
+        with _sigint_deferred() as interrupted:
+            parser = build_parser()
+            try:
+                import argcomplete
 
-            argcomplete.autocomplete(parser)
-        except ImportError:
-            pass
-        args = parser.parse_args(argv)
+                argcomplete.autocomplete(parser)
+            except ImportError:
+                pass
+            args = parser.parse_args(argv)
         command = f"hpsim {args.command}"
+        if interrupted:
+            raise KeyboardInterrupt
         args.verbosity = args.verbose - args.quiet
         setup_logging(args.verbosity)
         code = args.func(args)
