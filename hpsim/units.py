@@ -103,7 +103,8 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
         elif q.dimensionless:
             if q.units != ureg.dimensionless:
                 # "12 parsecs/furlong" is a pure number to pint: units that cancel are no quantity in `unit`
-                raise UserInputError(f"{where}: {_shown(value)} is not a quantity in {unit} (its units {q.units} cancel)")
+                raise UserInputError(f"{where}: {_shown(value)} is not a quantity in {unit} "
+                                     f"(its units {q.units} cancel)")
             # a bare number in a string: SI
             out = float(q.magnitude)
         else:

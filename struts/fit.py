@@ -99,7 +99,8 @@ def read_rig_csv(path: str | Path) -> RigData:
         try:
             row = {k: float(r[k]) for k in (*base, *value_cols)}
         except (TypeError, ValueError):
-            raise UserInputError(f"{path}: line {i} of the table (header = 1): a missing or non-numeric value") from None
+            raise UserInputError(f"{path}: line {i} of the table (header = 1): a missing or non-numeric "
+                                 "value") from None
         if not all(math.isfinite(v) for v in row.values()):
             raise UserInputError(f"{path}: line {i}: NaN or infinite value")
         rows.append(row)

@@ -97,9 +97,9 @@ class Valve(Model):
     """Damping valve assembly between the oil chambers (REFERENCE §7)."""
 
     _must_be_positive = ("bleed_area", "critical_reynolds", "compliant_oil_volume", "number_of_orifices")
-    _must_be_non_negative = ("check_area_max", "check_dp_crack", "check_dp_full", "relief_comp_area", "relief_comp_crack",
-                     "relief_comp_full", "relief_reb_area", "relief_reb_crack", "relief_reb_full", "leakage",
-                     "check_number")
+    _must_be_non_negative = ("check_area_max", "check_dp_crack", "check_dp_full", "relief_comp_area",
+                             "relief_comp_crack", "relief_comp_full", "relief_reb_area", "relief_reb_crack",
+                             "relief_reb_full", "leakage", "check_number")
     _must_be_fraction = ("discharge_coefficient", "check_discharge_coefficient")
 
     discharge_coefficient: Number = 0.7
@@ -130,9 +130,10 @@ class Valve(Model):
 class Friction(Model):
     """Seal friction: Coulomb (pressure dependent) + Stribeck + viscous (REFERENCE §7, seed 001 eq. 2-3)."""
 
-    _must_be_positive = ("stribeck_velocity", "smoothing_velocity", "hysteresis_smoothing_displacement", "bristle_stiffness")
+    _must_be_positive = ("stribeck_velocity", "smoothing_velocity", "hysteresis_smoothing_displacement",
+                         "bristle_stiffness")
     _must_be_non_negative = ("F0_compression", "F0_rebound", "pressure_coefficient", "breakaway_ratio", "viscous",
-                     "hysteresis_velocity_compression", "hysteresis_velocity_rebound", "bristle_damping")
+                             "hysteresis_velocity_compression", "hysteresis_velocity_rebound", "bristle_damping")
 
     model: Literal["stribeck", "lugre"] = "stribeck"
     F0_compression: N
