@@ -96,21 +96,6 @@ def equivalent_friction_params(params: VehicleParams, velocity_amplitude_m_s: fl
     return VehicleParams.model_validate(data)
 
 
-# --- the equilibrium as a state vector -----------------------------------------------------------
-def equilibrium_state(model: VehicleModel, eq, gas_masses) -> np.ndarray:
-    """Full state vector at a standing equilibrium (hull, wheels, strut temperatures and internal states)."""
-    x = np.zeros(model.nx)
-    x[model.idx("z")], x[model.idx("theta")], x[model.idx("phi")] = eq.heave_m, eq.pitch_rad, eq.roll_rad
-    for i in range(model.n):
-        x[model.idx(f"w[{i}]")] = eq.wheel_displacement_m[i]
-        x[model.idx(f"T_strut[{i}]")] = eq.temperatures_K[i]
-        x[model.idx(f"xf[{i}]")] = eq.strut_deflections_m[i]
-        for nm, v in model.struts[i].initial_states(eq.temperatures_K[i], x=eq.strut_deflections_m[i],
-                                                    m_gas=gas_masses[i]).items():
-            x[model.idx(f"{nm}[{i}]")] = v
-    return x
-
-
 def mechanical_states(model: VehicleModel) -> list[str]:
     """Wheels, strut internal states and hull (the states a ride linearisation keeps)."""
     names = []
@@ -161,7 +146,7 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     T = np.full(n, params.charging.temperature) if temperatures_K is None else \
         np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
     eq = EquilibriumSolver(model).solve(T, gas_masses)
-    x0 = equilibrium_state(model, eq, gas_masses)
+    x0 = model.state_at_rest(eq, gas_masses)
     u0 = np.zeros(model.nu)
     u0[2 * n] = speed_m_per_s
     u0[2 * n + 1] = float(np.mean(T))             # ambient = strut temperature: no heat flow

@@ -73,16 +73,16 @@ class VehicleModel:
         self.params = params
         self.n = params.n_stations
         self.station_names = params.station_names()
-        # one strut model per distinct (file, overrides)
-        strut_params, self.struts, cache = [], [], {}
-        for i in range(self.n):
-            axle = params.axles[params.station_axle(i)]
-            key = (axle.strut, repr(sorted(axle.strut_overrides.items())))
-            if key not in cache:
-                cache[key] = (len(cache), load_strut(axle.strut, axle.strut_overrides or None))
-                cache[key] = (*cache[key], make_strut(cache[key][1]))
-            strut_params.append(cache[key])
-            self.struts.append(cache[key][2])
+        # one strut model per distinct (file, overrides): (index, parameters, model)
+        axles = [params.axles[params.station_axle(i)] for i in range(self.n)]
+        keys = [(axle.strut, repr(sorted(axle.strut_overrides.items()))) for axle in axles]
+        distinct: dict = {}
+        for key, axle in zip(keys, axles):
+            if key not in distinct:
+                sp = load_strut(axle.strut, axle.strut_overrides or None)
+                distinct[key] = (len(distinct), sp, make_strut(sp))
+        station_struts = [distinct[key] for key in keys]
+        self.struts = [model for _, _, model in station_struts]
         K = self._kinematics(params)
         self.a, self.y, self.r, self.m_u = (np.asarray(v, float) for v in (K.a, K.y, K.r, K.m_u))
         self.a_cg, self.y_cg, self.M, self.x_charged = K.a_cg, K.y_cg, K.M, K.x_charged
@@ -92,13 +92,25 @@ class VehicleModel:
         # the symbolic twin: the same parameters as CasADi symbols (theta), for the compiled equations
         self.parameters = ParameterVector()
         sym_params = symbolic_copy(params, self.parameters, "vehicle")
-        sym_struts = {}
-        for k, sp, _ in strut_params:
-            if k not in sym_struts:
-                sym_struts[k] = make_strut(symbolic_copy(sp, self.parameters, f"strut{k}"), check=False)
+        sym_struts = {k: make_strut(symbolic_copy(sp, self.parameters, f"strut{k}"), check=False)
+                      for k, sp, _ in distinct.values()}
         self.sym = self._kinematics(sym_params)
-        self.sym.struts = [sym_struts[k] for k, _, _ in strut_params]
+        self.sym.struts = [sym_struts[k] for k, _, _ in station_struts]
         self._build_layout()
+
+    def state_at_rest(self, eq, gas_masses_kg) -> np.ndarray:
+        """Full state vector of the vehicle standing in equilibrium `eq` (vehicle.physics.equilibrium.Equilibrium):
+        hull and wheels, strut temperatures, filtered deflections and the struts' internal states at rest."""
+        x = np.zeros(self.nx)
+        x[self.idx("z")], x[self.idx("theta")], x[self.idx("phi")] = eq.heave_m, eq.pitch_rad, eq.roll_rad
+        for i in range(self.n):
+            x[self.idx(f"w[{i}]")] = eq.wheel_displacement_m[i]
+            x[self.idx(f"T_strut[{i}]")] = eq.temperatures_K[i]
+            x[self.idx(f"xf[{i}]")] = eq.strut_deflections_m[i]
+            for nm, v in self.struts[i].initial_states(eq.temperatures_K[i], x=eq.strut_deflections_m[i],
+                                                       m_gas=gas_masses_kg[i]).items():
+                x[self.idx(f"{nm}[{i}]")] = v
+        return x
 
     @staticmethod
     def _kinematics(P) -> SimpleNamespace:

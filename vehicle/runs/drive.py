@@ -145,20 +145,10 @@ class Drive:
         return self.equilibrium_solver.solve(T0, self.gas_masses)
 
     def initial_state(self) -> DriveState:
-        m = self.model
-        eq = self.initial_equilibrium()
-        x = np.zeros(m.nx)
-        x[m.idx("z")], x[m.idx("theta")], x[m.idx("phi")] = eq.heave_m, eq.pitch_rad, eq.roll_rad
-        for i in range(m.n):
-            x[m.idx(f"w[{i}]")] = eq.wheel_displacement_m[i]
-            x[m.idx(f"T_strut[{i}]")] = eq.temperatures_K[i]
-            x[m.idx(f"xf[{i}]")] = eq.strut_deflections_m[i]
-            for nm, v in m.struts[i].initial_states(eq.temperatures_K[i], x=eq.strut_deflections_m[i],
-                                                    m_gas=self.gas_masses[i]).items():
-                x[m.idx(f"{nm}[{i}]")] = v
+        x = self.model.state_at_rest(self.initial_equilibrium(), self.gas_masses)
         return DriveState(t_s=0.0, s_m=0.0, x=x, next_stats_m=self.settings.stats_interval_m,
                           last_stats={"t_s": 0.0, "q": x[self.quad_index].copy()},
-                          solver_memory=self.solver.get_state() * 0.0)
+                          solver_memory=np.zeros_like(self.solver.get_state()))
 
     def describe(self):
         """(one block of samples, one statistics row, one state dict) with the keys and shapes the drive
