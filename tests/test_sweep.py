@@ -219,12 +219,20 @@ def test_ctrl_c_stops_the_sweep_with_130_and_a_command_that_continues_it(tmp_pat
     import os
     import shlex
     import signal
+    import time
 
     p, out = _start_sweep(tmp_path)
     try:
-        _running_workers(p, out)
+        workers = _running_workers(p, out)
         os.killpg(p.pid, signal.SIGINT)          # Ctrl-C in a terminal: the whole process group
         _, err = p.communicate(timeout=120)
+        # the parent may exit a moment before its workers have released their results files' locks: wait for
+        # them, so that the continuing sweep below does not meet a live writer
+        from vehicle.runs.results import _pid_alive
+
+        deadline = time.time() + 60
+        while any(_pid_alive(pid) for pid in workers) and time.time() < deadline:
+            time.sleep(0.05)
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
