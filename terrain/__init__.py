@@ -11,12 +11,27 @@ Modules: iso8608 (class table, PSD, generation), coherence, envelope (tyre conta
 filter), events (and random populations of them), passes (surface per pass), profile_io
 (CSV), road (Road), stats (PSD fit, IRI), spec (RoadSpec, build_road), plots, cli.
 """
-from .events import EVENT_TYPES, EventPopulation, EventSpec
-from .iso8608 import ISO_CLASS_GD_N0_M3, class_of_gd, displacement_psd
-from .passes import PassSpec
-from .road import Road
-from .spec import RoadSpec, build_road, load_road_spec
-from .stats import road_statistics
+import importlib
 
-__all__ = ["EVENT_TYPES", "EventPopulation", "EventSpec", "ISO_CLASS_GD_N0_M3", "PassSpec", "Road", "RoadSpec",
-           "build_road", "class_of_gd", "displacement_psd", "load_road_spec", "road_statistics"]
+# names -> defining module, imported on first use (PEP 562): `import terrain` stays cheap for a
+# command that only needs one of them (scipy.signal and scipy.ndimage take ~1 s to import)
+_EXPORTS = {
+    "EVENT_TYPES": "events", "EventPopulation": "events", "EventSpec": "events",
+    "ISO_CLASS_GD_N0_M3": "iso8608", "class_of_gd": "iso8608", "displacement_psd": "iso8608",
+    "PassSpec": "passes", "Road": "road",
+    "RoadSpec": "spec", "build_road": "spec", "load_road_spec": "spec",
+    "road_statistics": "stats",
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -13,6 +13,7 @@ its keys). Bad input raises UserInputError naming the argument, file or line (ex
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import ValidationError
@@ -22,10 +23,11 @@ from hpsim.config import load_yaml, short_repr
 from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_file
 
-from terrain import iso8608
 from terrain.coherence import COHERENCE_MODELS, coherence_model
-from terrain.road import Road
-from terrain.spec import RoadSpec, build_road
+
+if TYPE_CHECKING:
+    from terrain.road import Road
+    from terrain.spec import RoadSpec
 
 # RoadSpec field -> command-line option (for error messages)
 _OPTIONS = {
@@ -82,6 +84,8 @@ def _spec_given(args) -> bool:
 
 def spec_from_args(args) -> tuple[RoadSpec, Path | None]:
     """RoadSpec from --spec and/or options; errors name the option (or the YAML file and key)."""
+    from terrain.spec import RoadSpec
+
     data: dict = {}
     base_dir = None
     source = "command line"
@@ -138,6 +142,9 @@ def _format_errors(exc: ValidationError, from_cli: set, source: str) -> str:
 
 
 def _load_road(args) -> tuple[Road, RoadSpec | None]:
+    from terrain.road import Road
+    from terrain.spec import build_road
+
     if args.csv is not None and _spec_given(args):
         if args.spec is not None or args.iso_class is not None or args.gd_n0 is not None:
             raise UserInputError(f"{args.csv}: give either a CSV file or a road spec (--class/--gd-n0/--spec), "
@@ -159,6 +166,8 @@ def _load_road(args) -> tuple[Road, RoadSpec | None]:
 
 
 def _spec_summary(spec: RoadSpec | None) -> dict:
+    from terrain import iso8608
+
     if spec is None:
         return {}
     out = {"seed": spec.seed, "coherence_model": spec.coherence, "track_width_m": spec.track_width}
@@ -179,6 +188,8 @@ def cmd_generate(args) -> int:
     if not _spec_given(args):
         raise UserInputError("give --class A-H (or --gd-n0) and --length, or --spec road.yaml")
     check_output_file(args.output, "-o/--output")
+    from terrain.spec import build_road
+
     spec, base_dir = spec_from_args(args)
     road = build_road(spec, base_dir)
     road.to_csv(args.output)
