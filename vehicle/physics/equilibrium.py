@@ -132,9 +132,12 @@ def _masses_for_charging_loads(model: VehicleModel, process: str | None) -> np.n
     return masses
 
 
-def static_balance(model: VehicleModel, q, T, m, dV, strut_force_offset=None) -> dict:
+def static_balance(model: VehicleModel, q, T, m, dV, strut_force_offset=None, acceleration_m_s2=0.0) -> dict:
     """The 3 + n static balances of the hull on its stations and their by-products (symbolic or numeric).
 
+    acceleration_m_s2: a steady longitudinal acceleration a_x (+ forward; braking < 0): the settled
+    vehicle under the pitch moment and linkage forces of vehicle.physics.hull (as in the model's
+    equations with dx/dt = 0); 0: standing.
     q = (z, theta, phi, w_1..w_n) [m, rad, rad, m]; T [K], m [kg], dV [m^3] per strut. Each strut
     carries its static gas force (`static_gas_force`) plus its end-stop force; valves carry nothing.
     strut_force_offset(i, p_gas_Pa) -> extra strut force [N] at station i (seal friction held at
@@ -145,6 +148,8 @@ def static_balance(model: VehicleModel, q, T, m, dV, strut_force_offset=None) ->
     P = model.params
     n = model.n
     res, Fs_list, Fg_list, Ft_list, xs_list, p_list, zs_list = [], [], [], [], [], [], []
+    V_link = hull_eq.linkage_forces(acceleration_m_s2, model.pitch_per_acceleration, model.link_drive,
+                                    model.link_brake)
     for i in range(n):
         zs = hull_eq.station_displacement(q[0], q[1], q[2], model.a[i], model.y[i], model.a_cg, model.y_cg)
         xs = hull_eq.strut_deflection(model.x_charged, model.r[i], q[3 + i], zs)
@@ -154,17 +159,19 @@ def static_balance(model: VehicleModel, q, T, m, dV, strut_force_offset=None) ->
         Fs = F_gas + strut.end_stop_force(xs, 0.0)[0]
         if strut_force_offset is not None:
             Fs = Fs + strut_force_offset(i, p_gas)
-        Ft = tyre_force(model.tyre_static_deflection[i] - q[3 + i], 0.0, P.tyre.stiffness, P.tyre.damping,
-                        P.tyre.lift_off_smoothing)
-        res.append((Ft - model.r[i] * Fs - model.m_u[i] * GRAVITY) / 1e4)
+        tyre = model.tyre[i]
+        Ft = tyre_force(model.tyre_static_deflection[i] - q[3 + i], 0.0, tyre.stiffness, tyre.damping,
+                        tyre.lift_off_smoothing)
+        res.append((Ft - model.r[i] * Fs - V_link[i] - model.m_u[i] * GRAVITY) / 1e4)
         Fs_list.append(Fs)
         Fg_list.append(F_gas)
         Ft_list.append(Ft)
         xs_list.append(xs)
         p_list.append(p_gas)
         zs_list.append(zs)
-    Qz, Qt, Qp = hull_eq.generalised_forces([model.r[i] * Fs_list[i] for i in range(n)], model.a, model.y,
-                                            model.a_cg, model.y_cg)
+    Qz, Qt, Qp = hull_eq.generalised_forces([model.r[i] * Fs_list[i] + V_link[i] for i in range(n)], model.a,
+                                            model.y, model.a_cg, model.y_cg)
+    Qt = Qt + model.pitch_per_acceleration * acceleration_m_s2
     res = [(Qz - model.M * GRAVITY) / 1e4, Qt / 1e4, Qp / 1e4] + res
     axle_heights = [hull_eq.axle_height_change(q[0], q[1], ax.position, model.a_cg) for ax in P.axles]
     return {"residual": res, "wheel_loads": Ft_list, "strut_forces": Fs_list, "gas_forces": Fg_list,
@@ -180,7 +187,8 @@ def statics_inputs(n: int, temperatures_K, gas_masses_kg, oil_volumes_m3=None):
 
 
 class EquilibriumSolver:
-    """Newton solve of the static balances for given temperatures, gas masses and oil volumes."""
+    """Newton solve of the static balances for given temperatures, gas masses and oil volumes (and a steady
+    longitudinal acceleration: the settled state of a vehicle braking or accelerating at a constant rate)."""
 
     def __init__(self, model: VehicleModel):
         self.model = model
@@ -189,33 +197,38 @@ class EquilibriumSolver:
         T = ca.SX.sym("T", n)
         m = ca.SX.sym("m", n)
         dV = ca.SX.sym("dV", n)
-        b = static_balance(model, q, T, m, dV)
+        acc = ca.SX.sym("acc")
+        b = static_balance(model, q, T, m, dV, acceleration_m_s2=acc)
         res = ca.vertcat(*b["residual"])
-        self.F = ca.Function("eq_res", [q, T, m, dV], [res])
-        self.Jf = ca.Function("eq_jac", [q, T, m, dV], [ca.jacobian(res, q)])
-        self.out = ca.Function("eq_out", [q, T, m, dV], [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]),
-                                                         ca.vertcat(*b["deflections"])])
+        args = [q, T, m, dV, acc]
+        self.F = ca.Function("eq_res", args, [res])
+        self.Jf = ca.Function("eq_jac", args, [ca.jacobian(res, q)])
+        self.out = ca.Function("eq_out", args, [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]),
+                                                ca.vertcat(*b["deflections"])])
 
-    def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None) -> Equilibrium:
+    def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None,
+              acceleration_m_s2: float = 0.0) -> Equilibrium:
+        """acceleration_m_s2: steady longitudinal acceleration (+ forward, braking < 0), default standing."""
         model = self.model
         n = model.n
+        a = float(acceleration_m_s2)
         T, m, dV = statics_inputs(n, temperatures_K, gas_masses_kg, oil_volumes_m3)
         q = np.zeros(3 + n) if q0 is None else np.asarray(q0, float).copy()
         for it in range(100):
-            r = np.asarray(self.F(q, T, m, dV)).ravel()
+            r = np.asarray(self.F(q, T, m, dV, a)).ravel()
             if not np.all(np.isfinite(r)):
                 raise UserInputError("static equilibrium: the struts cannot carry the vehicle at these "
                                      "temperatures and charges (gas volume exhausted)")
             if np.max(np.abs(r)) < 1e-10:
                 break
-            J = np.asarray(self.Jf(q, T, m, dV))
+            J = np.asarray(self.Jf(q, T, m, dV, a))
             dq = np.linalg.solve(J, -r)
             # damped Newton: limit wheel/hull moves to 20 mm per iteration
             scale = min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30))
             q = q + scale * dq
         else:
             raise UserInputError("static equilibrium did not converge (check temperatures and charges)")
-        Ft, Fs, xs = (np.asarray(v).ravel() for v in self.out(q, T, m, dV))
+        Ft, Fs, xs = (np.asarray(v).ravel() for v in self.out(q, T, m, dV, a))
         for i in range(n):
             stroke = model.struts[i].p.geometry.stroke
             if not -1e-3 <= xs[i] <= stroke + 1e-3:

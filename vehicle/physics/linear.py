@@ -147,9 +147,8 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
         np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
     eq = EquilibriumSolver(model).solve(T, gas_masses)
     x0 = model.state_at_rest(eq, gas_masses)
-    u0 = np.zeros(model.nu)
-    u0[2 * n] = speed_m_per_s
-    u0[2 * n + 1] = float(np.mean(T))             # ambient = strut temperature: no heat flow
+    # standing road, constant speed (no acceleration), ambient = strut temperature: no heat flow
+    u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
     p = model.run_parameters(gas_masses, False)
     A, B, C, D, rates = _model_jacobians(model, x0, u0, p)
     names = mechanical_states(model)
@@ -167,8 +166,9 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
                      "vehicle")
     if residual > 1e-6:
         notes.append(f"warning: the equilibrium is not at rest in the dynamic model (max |dx/dt| = {residual:.3g})")
-    return LinearVehicle(model=model, states=names, A=A[np.ix_(keep, keep)], B_road=B[keep, :n],
-                         B_rate=B[keep, n:2 * n], C_tyre=C[:, keep], D_tyre_road=D[:, :n], D_tyre_rate=D[:, n:2 * n],
+    road, rate = model.input_index["road"], model.input_index["road_rate"]
+    return LinearVehicle(model=model, states=names, A=A[np.ix_(keep, keep)], B_road=B[keep, road],
+                         B_rate=B[keep, rate], C_tyre=C[:, keep], D_tyre_road=D[:, road], D_tyre_rate=D[:, rate],
                          temperatures_K=T, static_wheel_loads_N=np.asarray(eq.wheel_loads_N, float),
                          friction_velocity_m_s=friction_velocity_m_s, notes=notes)
 

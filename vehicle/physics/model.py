@@ -14,8 +14,16 @@ States (per station i, stations axle-major, left first):
   energy quadratures per station [J]: valve, friction, gas heat, end stop, strut work,
             tyre work, road work.
 Algebraic: dp_valve_i [Pa] (valve flow balance, incompressible oil: seed 000 eq. 2).
-Inputs u (time-varying): road height r_i [m] and rate dr_i [m/s] under each tyre (enveloped
-  road at the wheel's own distance), vehicle speed V [m/s], ambient temperature [K].
+Inputs u (time-varying), in this order (`INPUTS`; `input_index` gives the positions and
+  `input_matrix` builds U from named rows: nothing else hard-codes them):
+  road           road height r_i [m] under each tyre (n; the enveloped road at the wheel's own
+                 distance, pass surface of its axle)
+  road_rate      its rate dr_i [m/s] (n)
+  speed          vehicle speed V [m/s] (1)
+  ambient        ambient temperature [K] (1)
+  acceleration   longitudinal acceleration a_x [m/s^2] of the speed profile, + forward (1): drive and
+                 brake forces at the tyres, the hull's pitch moment (load transfer), the linkage's
+                 anti-pitch forces (vehicle.physics.hull, issue 10 §3)
 Parameters p (constant during a run): the run parameters (gas mass per strut [kg], nominal
   deflection per strut [m], compensation on/off) followed by the parameter vector theta: every
   non-zero number of the vehicle and strut files (`hpsim.parameters`), so a sweep, a calibration
@@ -49,6 +57,8 @@ from vehicle.physics.tyre import tyre_force
 ENERGY_TERMS = ("valve", "friction", "gas", "end_stop", "strut_work", "tyre_work", "road_work")
 DISSIPATION_TERMS = ("valve", "friction", "gas", "end_stop")
 HULL_ACCELERATIONS = ("heave_acc", "pitch_acc", "roll_acc")
+# time-varying inputs in the order of u: (name, per station?) (see the module doc)
+INPUTS = (("road", True), ("road_rate", True), ("speed", False), ("ambient", False), ("acceleration", False))
 
 
 @dataclass
@@ -89,6 +99,10 @@ class VehicleModel:
         self.charged_wheel_loads = np.asarray(K.charged_wheel_loads, float)
         # tyre deflection at the charged state carries the charged wheel load
         self.tyre_static_deflection = np.asarray(K.tyre_static_deflection, float)
+        # per-station tyres (the axle's override of the vehicle tyre) and the longitudinal load transfer
+        self.tyre = K.tyre
+        self.pitch_per_acceleration = float(K.pitch_per_acceleration)
+        self.link_drive, self.link_brake = (np.asarray(v, float) for v in (K.link_drive, K.link_brake))
         # the symbolic twin: the same parameters as CasADi symbols (theta), for the compiled equations
         self.parameters = ParameterVector()
         sym_params = symbolic_copy(params, self.parameters, "vehicle")
@@ -118,11 +132,25 @@ class VehicleModel:
         n = P.n_stations
         axle = [P.axles[P.station_axle(i)] for i in range(n)]
         loads = [w for w in P.charging.wheel_loads for _ in (0, 1)]
+        tyre = [P.axle_tyre(P.station_axle(i)) for i in range(n)]       # per-axle tyres (axles[k].tyre)
+        a = [ax.position for ax in axle]
+        m_u = [ax.unsprung_mass for ax in axle]
+        static_defl = [w / t.stiffness for w, t in zip(loads, tyre)]
+        # longitudinal acceleration (hull.py): pitch moment per unit acceleration m_total h_total [kg m],
+        # the wheel centres at radius - static deflection, and the anti-pitch linkage per station
+        M = P.sprung_mass()
+        pitch_per_acc = hull_eq.longitudinal_pitch_moment(1.0, M, P.hull.cg_height, m_u,
+                                                          [t.radius - d for t, d in zip(tyre, static_defl)])
+        shares = {w: [s * 0.5 for s in P.axle_shares(w) for _ in (0, 1)] for w in ("drive", "brake")}
+        L = P.longitudinal
         return SimpleNamespace(
-            params=P, a=[ax.position for ax in axle], y=[P.station_y(i) for i in range(n)],
-            r=[ax.motion_ratio for ax in axle], m_u=[ax.unsprung_mass for ax in axle],
-            a_cg=P.sprung_cg_x(), y_cg=P.hull.cg_y, M=P.sprung_mass(), x_charged=P.charging.strut_deflection,
-            charged_wheel_loads=loads, tyre_static_deflection=[w / P.tyre.stiffness for w in loads])
+            params=P, a=a, y=[P.station_y(i) for i in range(n)],
+            r=[ax.motion_ratio for ax in axle], m_u=m_u,
+            a_cg=P.sprung_cg_x(), y_cg=P.hull.cg_y, M=M, x_charged=P.charging.strut_deflection,
+            charged_wheel_loads=loads, tyre_static_deflection=static_defl, tyre=tyre,
+            pitch_per_acceleration=pitch_per_acc,
+            link_drive=hull_eq.linkage_coefficients(shares["drive"], a, L.anti_squat),
+            link_brake=hull_eq.linkage_coefficients(shares["brake"], a, L.anti_dive))
 
     @property
     def structure(self) -> str:
@@ -163,9 +191,33 @@ class VehicleModel:
         self.layout = L
         self.nx = len(L)
         self.nz = sum(len(st.algebraic_names) for st in self.struts)
-        self.nu = 2 * self.n + 2
+        self.nu = sum(self.n if per_station else 1 for _, per_station in INPUTS)
         self.n_run = 2 * self.n + 1          # run parameters ahead of theta in p
         self.np = self.n_run + len(self.parameters)
+
+    @cached_property
+    def input_index(self) -> dict:
+        """Positions of the inputs in u: name -> slice (per-station inputs) or int (see INPUTS)."""
+        out, k = {}, 0
+        for name, per_station in INPUTS:
+            if per_station:
+                out[name] = slice(k, k + self.n)
+                k += self.n
+            else:
+                out[name] = k
+                k += 1
+        return out
+
+    def input_matrix(self, n_columns: int, **rows) -> np.ndarray:
+        """U (nu, n_columns) from named input rows (INPUTS; an omitted input is 0): scalars, (n_columns,)
+        rows, or (n, n_columns) blocks for the per-station inputs."""
+        unknown = set(rows) - set(self.input_index)
+        if unknown:
+            raise KeyError(f"unknown model inputs {sorted(unknown)}; the model's inputs: {list(self.input_index)}")
+        U = np.zeros((self.nu, n_columns))
+        for name, value in rows.items():
+            U[self.input_index[name]] = value
+        return U
 
     def station_motion(self, X, i: int, K=None):
         """(strut deflection [m], strut velocity [m/s]) of station i from named states X.
@@ -221,10 +273,14 @@ class VehicleModel:
         P = K.params
         n = self.n
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
-        road = [u[i] for i in range(n)]
-        droad = [u[n + i] for i in range(n)]
-        speed = u[2 * n]
-        T_amb = u[2 * n + 1]
+        iu = self.input_index
+        road = [u[k] for k in range(iu["road"].start, iu["road"].stop)]
+        droad = [u[k] for k in range(iu["road_rate"].start, iu["road_rate"].stop)]
+        speed = u[iu["speed"]]
+        T_amb = u[iu["ambient"]]
+        acc = u[iu["acceleration"]]
+        # anti-pitch linkage forces on the hull at each station (hull.py; the wheel gets -V_i)
+        V_link = hull_eq.linkage_forces(acc, K.pitch_per_acceleration, K.link_drive, K.link_brake)
         m_gas = [p[i] for i in range(n)]
         x_nom = [p[n + i] for i in range(n)]
         comp_on = p[2 * n]
@@ -271,10 +327,10 @@ class VehicleModel:
             # tyre on the enveloped road
             defl = K.tyre_static_deflection[i] + road[i] - w
             ddefl = droad[i] - dw
-            Ft = tyre_force(defl, ddefl, P.tyre.stiffness, P.tyre.damping, P.tyre.lift_off_smoothing)
+            Ft = tyre_force(defl, ddefl, K.tyre[i].stiffness, K.tyre[i].damping, K.tyre[i].lift_off_smoothing)
             # wheel station
             rates[f"w[{i}]"] = dw
-            rates[f"dw[{i}]"] = (Ft - K.r[i] * Fs) / K.m_u[i] - GRAVITY
+            rates[f"dw[{i}]"] = (Ft - K.r[i] * Fs - V_link[i]) / K.m_u[i] - GRAVITY
             for nm in strut.state_names:
                 rates[f"{nm}[{i}]"] = eq["rates"][nm]
             rates[f"T_strut[{i}]"] = dTs
@@ -290,7 +346,7 @@ class VehicleModel:
             rates[f"I_v2[{i}]"] = vs * vs
             if eq["residual"] is not None:
                 residuals.append(eq["residual"])
-            hull_forces.append(K.r[i] * Fs)
+            hull_forces.append(K.r[i] * Fs + V_link[i])
             out["strut_force"].append(Fs)
             out["strut_deflection"].append(xs)
             out["strut_velocity"].append(vs)
@@ -304,6 +360,7 @@ class VehicleModel:
             out["power_end_stop"].append(eq["power_end_stop"])
             out["oil_flow"].append(q_oil)
         Qz, Qt, Qp = hull_eq.generalised_forces(hull_forces, K.a, K.y, K.a_cg, K.y_cg)
+        Qt = Qt + K.pitch_per_acceleration * acc          # the longitudinal pitch moment (hull.py)
         ddz, ddt, ddp = hull_eq.hull_accelerations(Qz, Qt, Qp, K.M, P.hull.pitch_inertia, P.hull.roll_inertia,
                                                    GRAVITY)
         rates.update({"z": dzc, "theta": dth, "phi": dph, "dz": ddz, "dtheta": ddt, "dphi": ddp})
@@ -420,7 +477,6 @@ class VehicleModel:
         for a, b in zip(hull, dhull):
             J[a, b] = 1.0
         inertia = [K.M, P.hull.pitch_inertia, P.hull.roll_inertia]
-        kt, ct = P.tyre.stiffness, P.tyre.damping
         KK = [[0.0] * 3 for _ in range(3)]
         CC = [[0.0] * 3 for _ in range(3)]
         for i in range(n):
@@ -431,6 +487,7 @@ class VehicleModel:
                                                    [X[f"{nm}[{i}]"] for nm in self.struts[i].state_names])
             r2 = K.r[i] ** 2
             mu = K.m_u[i]
+            kt, ct = K.tyre[i].stiffness, K.tyre[i].damping
             J[w, dw] = 1.0
             J[dw, w] = (-kt - r2 * ks) / mu
             J[dw, dw] = (-ct - r2 * cs) / mu

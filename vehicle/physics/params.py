@@ -11,7 +11,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from hpsim.config import Model, Plain, Quantity, QuantityList, deep_update, load_yaml, validate
 from hpsim.errors import UserInputError
@@ -27,7 +27,9 @@ Number = Plain()
 
 
 class Tyre(Model):
-    radius: m | None = None         # informational: the model measures wheel heights from the charged state
+    # unloaded radius: the wheel centre stands radius - static deflection above the ground, the height
+    # of the unsprung masses' inertial force under longitudinal acceleration (hull.longitudinal_pitch_moment)
+    radius: m | None = None
     stiffness: Quantity("N/m")
     damping: Quantity("N*s/m")
     contact_length: m = 0.35       # enveloping filter length (REFERENCE §5)
@@ -44,12 +46,27 @@ class Tyre(Model):
         return self
 
 
+class AxleTyre(Model):
+    """Per-axle override of the vehicle's `tyre:` (issue 12 §4): the keys given replace the vehicle's values
+    for the two wheels of this axle (`VehicleParams.axle_tyre`); the merged tyre is validated as a `Tyre`."""
+
+    radius: m | None = None
+    stiffness: Quantity("N/m") | None = None
+    damping: Quantity("N*s/m") | None = None
+    contact_length: m | None = None
+    lift_off_smoothing: m | None = None
+
+    def given(self) -> dict:
+        return {k: getattr(self, k) for k in type(self).model_fields if getattr(self, k) is not None}
+
+
 class Axle(Model):
     position: m                     # behind axle 1 [m]
     strut: str = "apc"              # built-in strut name or path
     unsprung_mass: kg               # per wheel station
     motion_ratio: Number            # strut travel / wheel travel
     strut_overrides: dict = {}      # e.g. {"valve.bleed_area": "1.2e-5 m^2"} (charge.pressure: charging.method gas_pressure)
+    tyre: AxleTyre | None = None    # overrides of the vehicle's tyre on this axle (None: the vehicle's tyre)
 
     @model_validator(mode="after")
     def _check(self):
@@ -64,6 +81,7 @@ class Hull(Model):
     mass: kg | None = None          # sprung mass; None: derived from the charging loads
     cg_x: m | None = None           # behind axle 1; None: derived from the charging loads
     cg_y: m = 0.0                   # to the left of the centre line
+    cg_height: m                    # sprung-mass CG above the ground (longitudinal load transfer)
     pitch_inertia: Quantity("kg*m**2")
     roll_inertia: Quantity("kg*m**2")
 
@@ -73,7 +91,36 @@ class Hull(Model):
             raise ValueError(f"mass must be > 0 kg, got {self.mass}")
         if self.pitch_inertia <= 0 or self.roll_inertia <= 0:
             raise ValueError("pitch_inertia and roll_inertia must be > 0 kg m^2")
+        if not 0.2 <= self.cg_height <= 5.0:
+            raise ValueError(f"cg_height must be in [0.2, 5] m above the ground, got {self.cg_height:g} m")
         return self
+
+
+class Longitudinal(Model):
+    """How the longitudinal tyre forces of the speed profile's acceleration load the hull (issue 10 §3;
+    vehicle.physics.hull.longitudinal_pitch_moment, linkage_forces).
+
+    drive_distribution / brake_distribution: relative share of the drive (a > 0) and brake (a < 0)
+        force per axle, split equally between its two wheels; normalised to a sum of 1; None: equal on
+        every axle (all-wheel drive, brakes on all wheels).
+    anti_squat / anti_dive: fraction of the pitch moment of acceleration / braking reacted by the
+        suspension linkage geometry instead of the springs (0: none, the reference of Gillespie 1992
+        §7 with the instant centres at ground level; 1: the hull does not pitch on its springs).
+    """
+
+    drive_distribution: QuantityList("") | None = None
+    brake_distribution: QuantityList("") | None = None
+    anti_squat: Number = 0.0
+    anti_dive: Number = 0.0
+
+    _must_be_fraction = ("anti_squat", "anti_dive")
+
+    @field_validator("drive_distribution", "brake_distribution")
+    @classmethod
+    def _shares(cls, v):
+        if v is not None and (any(x < 0 for x in v) or sum(v) <= 0):
+            raise ValueError(f"the shares must be >= 0 with a sum > 0, got {v}")
+        return v
 
 
 class Heat(Model):
@@ -200,6 +247,7 @@ class VehicleParams(Model):
     tyre: Tyre
     heat: Heat
     compensation: Compensation = Compensation()
+    longitudinal: Longitudinal = Longitudinal()
     charging: Charging
     seats: list[Seat] = []          # ride-comfort evaluation points (driver, crew)
 
@@ -223,6 +271,29 @@ class VehicleParams(Model):
             raise ValueError("charging.wheel_loads must be > 0 N")
         if self.track <= 0:
             raise ValueError(f"track must be > 0 m, got {self.track}")
+        for k in range(n):
+            tyre = self.axle_tyre(k)
+            if self.axles[k].tyre is not None:
+                try:
+                    Tyre.model_validate(tyre.model_dump())
+                except ValidationError as exc:
+                    msg = "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())
+                    raise ValueError(f"axles.{k}.tyre: {msg}") from None
+            if tyre.radius is None:
+                raise ValueError(f"tyre.radius (axle {k + 1}): needed, the wheel-centre height of the unsprung "
+                                 "masses' inertial force under longitudinal acceleration")
+            if not 0.1 <= tyre.radius <= self.hull.cg_height + 1.0:
+                raise ValueError(f"tyre.radius (axle {k + 1}) must be in [0.1 m, hull.cg_height + 1 m], "
+                                 f"got {tyre.radius:g} m")
+        L = self.longitudinal
+        for name, shares, anti in (("drive_distribution", L.drive_distribution, L.anti_squat),
+                                   ("brake_distribution", L.brake_distribution, L.anti_dive)):
+            if shares is not None and len(shares) != n:
+                raise ValueError(f"longitudinal.{name}: needs one share per axle ({n}), got {len(shares)}")
+            used = [self.axles[k].position for k in range(n) if shares is None or shares[k] > 0]
+            if anti > 0 and len(set(used)) < 2:
+                raise ValueError(f"longitudinal.{name}: an anti-pitch linkage needs forces on at least two axles "
+                                 "(a pure pitch couple); give two axles a share or set the anti factor to 0")
         if self.charging.method != "gas_pressure":
             for k, axle in enumerate(self.axles):
                 if _has_key(axle.strut_overrides, "charge.pressure"):
@@ -269,6 +340,27 @@ class VehicleParams(Model):
         raise UserInputError(
             f"{where}: got {len(v)} values; allowed: 1 (all struts), {self.n_axles} (one per axle) "
             f"or {self.n_stations} (one per strut, axle-major, left first)")
+
+    def axle_tyre(self, k: int) -> Tyre:
+        """The tyre of axle k: the vehicle's `tyre`, with the axle's `tyre` overrides (works on symbolic copies)."""
+        over = self.axles[k].tyre
+        if over is None:
+            return self.tyre
+        fields = {name: getattr(self.tyre, name) for name in type(self.tyre).model_fields}
+        fields.update(over.given())
+        return Tyre.model_construct(**fields)
+
+    def max_contact_length(self) -> float:
+        """The longest tyre envelope of all axles [m] (how far ahead of an axle the road is read)."""
+        return max(float(self.axle_tyre(k).contact_length) for k in range(self.n_axles))
+
+    def axle_shares(self, which: str):
+        """Normalised per-axle share of the drive ("drive") or brake ("brake") force (sum 1)."""
+        v = getattr(self.longitudinal, f"{which}_distribution")
+        if v is None:
+            return [1.0 / self.n_axles] * self.n_axles
+        total = sum(v)
+        return [x / total for x in v]
 
     def unsprung_mass_total(self) -> float:
         return sum(2 * a.unsprung_mass for a in self.axles)

@@ -1,16 +1,16 @@
 """A drive: the vehicle DAE over a road with a speed profile, fast, in bounded memory.
 
-`Drive` ties a `VehicleModel` to a road (terrain.Road, enveloped by the tyre contact length),
-a speed profile (constant or distance -> speed table), ambient and initial temperatures and
-levelling on/off. It integrates with the compiled ROS2 stepper in blocks; each block's inputs
-(road under each tyre at its own distance behind axle 1, speed, ambient) are sampled just in
-time, so memory does not grow with distance. After every block it hands decimated time series,
+`Drive` ties a `VehicleModel` to a road (terrain.Road, enveloped by each axle's tyre contact
+length), a speed profile (`vehicle.runs.speed.SpeedProfile`: constant, table, recorded or
+generated), ambient and initial temperatures and levelling on/off. It integrates with the compiled
+ROS2 stepper in blocks; each block's inputs (road under each tyre at its own distance behind axle 1
+on its axle's pass surface, speed, ambient, the profile's longitudinal acceleration) are sampled just
+in time, so memory does not grow with distance. After every block it hands decimated time series,
 finished per-km statistics and a checkpoint to a sink (an HDF5 writer, or nothing), so a long
 run that fails or is interrupted keeps what it did and can resume.
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
@@ -22,37 +22,7 @@ from hpsim.errors import SimulationError, UserInputError
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.numerics.solvers import Ros2
-
-
-@dataclass
-class SpeedProfile:
-    """Vehicle speed [m/s] as a function of distance [m]: constant or piecewise linear table."""
-
-    distances_m: np.ndarray
-    speeds_m_per_s: np.ndarray
-
-    @classmethod
-    def constant(cls, speed_m_per_s: float) -> "SpeedProfile":
-        return cls(np.array([0.0]), np.array([float(speed_m_per_s)]))
-
-    def __post_init__(self):
-        self.distances_m = np.atleast_1d(np.asarray(self.distances_m, float))
-        self.speeds_m_per_s = np.atleast_1d(np.asarray(self.speeds_m_per_s, float))
-        if np.any(self.speeds_m_per_s <= 0):
-            raise UserInputError("speed: every speed must be > 0 m/s (the drive is parametrised by distance)")
-        if np.any(np.diff(self.distances_m) <= 0):
-            raise UserInputError("speed: the profile's distances must increase")
-
-    def speed(self, s_m):
-        return np.interp(s_m, self.distances_m, self.speeds_m_per_s)
-
-    def time_grid(self, distance_m: float, ds: float = 1.0):
-        """(s, t) table: t(s) = integral ds / v(s), fine enough for interpolation both ways."""
-        n = max(int(math.ceil(distance_m / ds)), 2)
-        s = np.linspace(0.0, distance_m, n + 1)
-        v = self.speed(s)
-        t = np.concatenate([[0.0], np.cumsum(np.diff(s) * 0.5 * (1.0 / v[1:] + 1.0 / v[:-1]))])
-        return s, t
+from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
 
 
 @dataclass
@@ -121,7 +91,15 @@ class Drive:
         settings.validate()
         self.model = model
         self.settings = settings
-        self.road = road.enveloped(model.params.tyre.contact_length) if model.params.tyre.contact_length > 0 else road
+        # the road each station reads: enveloped by its axle's tyre (one envelope per distinct contact length)
+        envelopes: dict = {}
+        self.station_roads = []
+        for i in range(model.n):
+            L = float(model.tyre[i].contact_length)
+            if L not in envelopes:
+                envelopes[L] = road.enveloped(L) if L > 0 else road
+            self.station_roads.append(envelopes[L])
+        self.road = self.station_roads[0]
         t0 = time.perf_counter()
         self.gas_masses = charge_gas_masses(model) if gas_masses is None else np.asarray(gas_masses, float)
         self.equilibrium_solver = EquilibriumSolver(model)
@@ -164,19 +142,20 @@ class Drive:
         return np.interp(t, self.t_grid, self.s_grid)
 
     def inputs(self, t: np.ndarray) -> np.ndarray:
-        """Input matrix (nu, len(t)): road height and rate under each tyre, speed, ambient."""
+        """Input matrix (nu, len(t)) by name (`VehicleModel.input_matrix`): road height and rate under each
+        tyre (axle k reads pass k of the ground, terrain.passes: the wheels ahead of it have rolled over it),
+        speed, ambient, the speed profile's longitudinal acceleration a = v dv/ds (0 at constant speed)."""
         m = self.model
+        P = m.params
         s = self.distance_at(t)
         v = self.settings.speed.speed(s)
-        U = np.empty((m.nu, len(t)))
+        road, rate = np.empty((m.n, len(t))), np.empty((m.n, len(t)))
         for i in range(m.n):
             track = "left" if i % 2 == 0 else "right"
-            h, slope = self.road.evaluate(s - m.a[i], track)
-            U[i] = h
-            U[m.n + i] = slope * v
-        U[2 * m.n] = v
-        U[2 * m.n + 1] = self.settings.ambient_K
-        return U
+            road[i], slope = self.station_roads[i].evaluate(s - m.a[i], track, pass_index=P.station_axle(i))
+            rate[i] = slope * v
+        return m.input_matrix(len(t), road=road, road_rate=rate, speed=v, ambient=self.settings.ambient_K,
+                              acceleration=self.settings.speed.acceleration(s))
 
     # --- run --------------------------------------------------------------------------------------
     def run(self, sink: DriveSink | None = None, state: DriveState | None = None,
@@ -292,7 +271,7 @@ class Drive:
         Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
                                               np.repeat(self.p[:, None], n, axis=1))
         outs = m.split_outputs(np.asarray(Y))
-        block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[2 * m.n],
+        block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[m.input_index["speed"]],
                  "strut_temperature_K": X[self.T_index],
                  "axle_height_change_m": np.asarray(heights),
                  "hull_acceleration": np.asarray(acc),

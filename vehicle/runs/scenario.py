@@ -519,7 +519,7 @@ def prepare(src: ScenarioSource) -> Prepared:
 def road_length_needed(S: Scenario, vehicle) -> float:
     """Road length [m] the front axle reads: the drive's distance plus its last step (1 m, as
     vehicle.runs.drive samples it) plus the tyre's enveloping length ahead of the contact point."""
-    return S.distance + 1.0 + vehicle.tyre.contact_length
+    return S.distance + 1.0 + vehicle.max_contact_length()
 
 
 def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
@@ -535,7 +535,7 @@ def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
     if "length" in fields and data.get("length") is None and data.get("csv") is None:
         # the road must reach the last axle at the end of the drive (plus the tyre's envelope)
         wheelbase = max(a.position for a in vehicle.axles)
-        data["length"] = S.distance + wheelbase + 2.0 * vehicle.tyre.contact_length + 10.0
+        data["length"] = S.distance + wheelbase + 2.0 * vehicle.max_contact_length() + 10.0
     if "track_width" in fields and data.get("track_width") is None:
         data["track_width"] = vehicle.track      # left/right coherence at the vehicle's track
     try:

@@ -1,12 +1,12 @@
 """Speed profiles of a drive: constant, tables over distance, recorded drives (CSV) and generated cycles.
 
 The drive is parametrised by distance (`vehicle.runs.drive.Drive` integrates t(s) = ∫ ds / v(s)),
-so every profile ends as a piecewise-linear table v(s) with v > 0 (`SpeedTable`, a
-`vehicle.runs.drive.SpeedProfile`). A stop cannot be v = 0: it is driven at the creeping speed
+so every profile ends as a piecewise-linear table v(s) with v > 0 (`SpeedProfile`, the one speed
+profile class of the drive and the scenario; `SpeedTable` is its former name). A stop cannot be v = 0: it is driven at the creeping speed
 MIN_SPEED_M_PER_S (0.5 km/h) for the stop's duration, so the time at (near) standstill is kept and
 the vehicle creeps v_min * t_stop metres (4 m for a 30 s stop). The longitudinal acceleration the
 load transfer needs is that of the motion the drive performs: a(s) = v dv/ds on the table
-(`SpeedTable.acceleration`), exact for the piecewise-linear v(s).
+(`SpeedProfile.acceleration`), which the drive feeds to the model as its longitudinal acceleration, exact for the piecewise-linear v(s).
 
 Sources (the scenario's `speed:` key, docs/scenarios.md):
   "20 km/h"                                    constant
@@ -34,8 +34,6 @@ from hpsim.config import Model
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
 
-from vehicle.runs.drive import SpeedProfile
-
 MIN_SPEED_M_PER_S = 0.5 / 3.6          # creeping speed standing in for a stop (documented choice)
 MAX_SPEED_M_PER_S = 150.0 / 3.6        # as the scenario's constant speed
 ACCELERATION_RANGE_M_PER_S2 = (0.05, 5.0)
@@ -48,10 +46,31 @@ SPREAD_TOLERANCE = 0.02                # relative: a random profile must reach t
 
 # --- the table ------------------------------------------------------------------------------------
 @dataclass
-class SpeedTable(SpeedProfile):
-    """Piecewise-linear v(s) [m/s] over distance [m] with its acceleration and trip statistics."""
+class SpeedProfile:
+    """Vehicle speed v(s) [m/s] over distance [m]: a piecewise-linear table (one point: constant), with
+    the time of the motion, its acceleration and trip statistics."""
 
+    distances_m: np.ndarray
+    speeds_m_per_s: np.ndarray
     description: str = ""
+
+    @classmethod
+    def constant(cls, speed_m_per_s: float) -> "SpeedProfile":
+        return cls(np.array([0.0]), np.array([float(speed_m_per_s)]), description="constant")
+
+    def __post_init__(self):
+        self.distances_m = np.atleast_1d(np.asarray(self.distances_m, float))
+        self.speeds_m_per_s = np.atleast_1d(np.asarray(self.speeds_m_per_s, float))
+        if self.distances_m.shape != self.speeds_m_per_s.shape:
+            raise UserInputError("speed: the profile needs one speed per distance")
+        if np.any(self.speeds_m_per_s <= 0):
+            raise UserInputError("speed: every speed must be > 0 m/s (the drive is parametrised by distance)")
+        if np.any(np.diff(self.distances_m) <= 0):
+            raise UserInputError("speed: the profile's distances must increase")
+
+    def speed(self, s_m):
+        """Speed [m/s] at distance s_m (held beyond the table's ends)."""
+        return np.interp(s_m, self.distances_m, self.speeds_m_per_s)
 
     def time_grid(self, distance_m: float, ds: float = 1.0):
         """(s, t) table of the motion: t(s) = ∫ ds / v(s), exact for the piecewise-linear v(s).
@@ -101,7 +120,7 @@ class SpeedTable(SpeedProfile):
 
     @classmethod
     def from_time_series(cls, t_s, v_m_per_s, min_speed_m_per_s: float = MIN_SPEED_M_PER_S,
-                         description: str = "") -> "SpeedTable":
+                         description: str = "") -> "SpeedProfile":
         """Table over distance from a speed-over-time series (piecewise linear in time).
 
         Speeds below min_speed are raised to it (a stop becomes creeping for the same time). Each
@@ -124,7 +143,7 @@ class SpeedTable(SpeedProfile):
         s = np.concatenate([[0.0], np.cumsum(np.diff(tt) * 0.5 * (vv[1:] + vv[:-1]))])
         return cls(s, vv, description=description)
 
-    def repeated(self, distance_m: float) -> "SpeedTable":
+    def repeated(self, distance_m: float) -> "SpeedProfile":
         """The table laid end to end until it covers distance_m (a recorded lap driven again)."""
         d, v = self.distances_m, self.speeds_m_per_s
         L = float(d[-1] - d[0])
@@ -135,11 +154,14 @@ class SpeedTable(SpeedProfile):
         dd = np.concatenate([d[:1]] + [d[1:] + k * L for k in range(n)])
         vv = np.concatenate([v[:1]] + [v[1:]] * n)
         keep = np.concatenate([[True], np.diff(dd) > 0])
-        return SpeedTable(dd[keep], vv[keep], description=self.description + f", repeated every {L:.6g} m")
+        return SpeedProfile(dd[keep], vv[keep], description=self.description + f", repeated every {L:.6g} m")
 
 
-def constant(speed_m_per_s: float) -> SpeedTable:
-    return SpeedTable(np.array([0.0]), np.array([float(speed_m_per_s)]), description="constant")
+def constant(speed_m_per_s: float) -> SpeedProfile:
+    return SpeedProfile.constant(speed_m_per_s)
+
+
+SpeedTable = SpeedProfile     # its former name (the table of vehicle.runs.speed before the two classes merged)
 
 
 # --- scenario specifications -------------------------------------------------------------------------
@@ -299,7 +321,7 @@ def parse_speed_spec(value: dict):
 
 
 # --- building the tables ----------------------------------------------------------------------------
-def build_speed_profile(spec, distance_m: float, base_dir: Path | None = None) -> SpeedTable:
+def build_speed_profile(spec, distance_m: float, base_dir: Path | None = None) -> SpeedProfile:
     """The drive's table for a scenario `speed` value (float, {profile}, or a spec of this module)."""
     if isinstance(spec, (int, float)):
         return constant(float(spec))
@@ -312,7 +334,7 @@ def build_speed_profile(spec, distance_m: float, base_dir: Path | None = None) -
     points = getattr(spec, "profile", None)
     if points is not None:
         d, v = zip(*points)
-        return SpeedTable(np.array(d, float), np.array(v, float), description="profile over distance")
+        return SpeedProfile(np.array(d, float), np.array(v, float), description="profile over distance")
     raise TypeError(f"speed: unsupported specification {spec!r}")
 
 
@@ -331,7 +353,7 @@ def _ramp(v_from: float, v_to: float, accel: float, s0: float):
     return s, v
 
 
-def stop_go_profile(spec: StopGoSpec, length_m: float) -> SpeedTable:
+def stop_go_profile(spec: StopGoSpec, length_m: float) -> SpeedProfile:
     """Cycles from rest: accelerate, cruise, brake, stand (creep at min_speed for stop_duration)."""
     V, v0 = spec.cruise_speed, spec.min_speed
     d_acc, d_dec, d_stop = spec.ramp_distances()
@@ -352,7 +374,7 @@ def stop_go_profile(spec: StopGoSpec, length_m: float) -> SpeedTable:
     s = np.concatenate([np.atleast_1d(np.asarray(x, float)) for x in S])
     v = np.concatenate([np.atleast_1d(np.asarray(x, float)) for x in Vs])
     keep = np.concatenate([[True], np.diff(s) > 1e-9])
-    return SpeedTable(s[keep], v[keep], description=(
+    return SpeedProfile(s[keep], v[keep], description=(
         f"stop-go: cruise {V * 3.6:.4g} km/h, a stop of {spec.stop_duration:.4g} s every {spec.spacing:.6g} m, "
         f"+{spec.acceleration:.3g}/-{spec.deceleration:.3g} m/s^2"))
 
@@ -373,7 +395,7 @@ def smooth_noise(n_points: int, spacing_m: float, correlation_length_m: float, s
     return g * math.sqrt(2.0 * math.sqrt(math.pi) * sigma)
 
 
-def random_profile(spec: RandomSpeedSpec, distance_m: float) -> SpeedTable:
+def random_profile(spec: RandomSpeedSpec, distance_m: float) -> SpeedProfile:
     """A smooth random speed with the requested trip average and spread over [0, distance_m].
 
     v(s) = clip(mu + sigma g(s), min, max), g = `smooth_noise`; mu and sigma are solved so that over
@@ -429,7 +451,7 @@ def random_profile(spec: RandomSpeedSpec, distance_m: float) -> SpeedTable:
             f"cannot be reached between min {lo * 3.6:.4g} and max {hi * 3.6:.4g} km/h (clipping leaves "
             f"{spread * 3.6:.4g} km/h); widen [min, max] or lower the spread")
     v = np.clip(mu + sigma * g, lo, hi)
-    return SpeedTable(s, v, description=(
+    return SpeedProfile(s, v, description=(
         f"random: mean {spec.mean * 3.6:.4g} km/h (trip average), spread {spec.spread * 3.6:.4g} km/h, "
         f"correlation length {spec.correlation_length:.4g} m, seed {spec.seed}, in [{lo * 3.6:.4g}, {hi * 3.6:.4g}] km/h"))
 
@@ -457,7 +479,7 @@ def parse_column(name: str, where: str) -> tuple[str, float]:
     return kind, factor
 
 
-def read_speed_csv(spec: CsvSpeedSpec, distance_m: float, base_dir: Path | None = None) -> SpeedTable:
+def read_speed_csv(spec: CsvSpeedSpec, distance_m: float, base_dir: Path | None = None) -> SpeedProfile:
     """A recorded drive from a CSV with a header row: (time or distance, speed) columns with units."""
     path = Path(spec.csv).expanduser()
     if not path.is_absolute():
@@ -503,7 +525,7 @@ def read_speed_csv(spec: CsvSpeedSpec, distance_m: float, base_dir: Path | None 
     if by == "time":
         table = SpeedTable.from_time_series(x - x[0], v, spec.min_speed, description=note)
     else:
-        table = SpeedTable(x - x[0], np.maximum(v, spec.min_speed), description=note)
+        table = SpeedProfile(x - x[0], np.maximum(v, spec.min_speed), description=note)
     length = float(table.distances_m[-1])
     if length < distance_m:
         if not spec.repeat:
