@@ -272,6 +272,7 @@ class Drive:
                                               np.repeat(self.p[:, None], n, axis=1))
         outs = m.split_outputs(np.asarray(Y))
         block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[m.input_index["speed"]],
+                 "longitudinal_acceleration_m_per_s2": U[m.input_index["acceleration"]],
                  "strut_temperature_K": X[self.T_index],
                  "axle_height_change_m": np.asarray(heights),
                  "hull_acceleration": np.asarray(acc),

@@ -79,6 +79,8 @@ VARIABLES: dict[str, Var | Split] = {
     "t_s": Var("time", "s", "time since the start of the drive", None, "record", standard_name="time"),
     "distance_m": Var("distance", "m", "distance driven since the start", None, "coord"),
     "speed_m_per_s": Var("speed", "m s-1", "vehicle speed", None),
+    "longitudinal_acceleration_m_per_s2": Var("longitudinal_acceleration", "m s-2",
+                                              "longitudinal acceleration of the speed profile (+ forward)", None),
     "strut_temperature_K": Var("strut_temperature", "K", "strut temperature (lumped heat node)", "station"),
     "axle_height_change_m": Var("axle_height_change", "m",
                                 "hull height change at the axle against the charged state", "axle"),
