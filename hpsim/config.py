@@ -224,14 +224,30 @@ def validate(model: type[BaseModel], data: Any, source: str):
 
 
 def deep_update(base: dict, overrides: dict) -> dict:
-    """Return a copy of `base` with nested `overrides` applied (dotted keys allowed)."""
+    """Return a copy of `base` with nested `overrides` applied (dotted keys allowed; an integer step
+    indexes a list that is there: `axles.0.tyre.stiffness`)."""
     out = dict(base)
     for key, value in overrides.items():
         if "." in key:
             head, rest = key.split(".", 1)
-            out[head] = deep_update(dict(out.get(head) or {}), {rest: value})
+            if isinstance(out.get(head), list):
+                out[head] = _update_item(out[head], rest, value, head)
+            else:
+                out[head] = deep_update(dict(out.get(head) or {}), {rest: value})
         elif isinstance(value, dict) and isinstance(out.get(key), dict):
             out[key] = deep_update(out[key], value)
         else:
             out[key] = value
+    return out
+
+
+def _update_item(items: list, key: str, value, where: str) -> list:
+    """Copy of `items` with `key` ("<index>" or "<index>.<rest>") set to `value`."""
+    index, _, rest = key.partition(".")
+    if not index.isdigit() or int(index) >= len(items):
+        raise UserInputError(f"{where}.{key}: {where} is a list of {len(items)}; the step after {where} must be an "
+                             f"index 0..{len(items) - 1}")
+    out = list(items)
+    k = int(index)
+    out[k] = deep_update(dict(out[k]) if isinstance(out[k], dict) else {}, {rest: value}) if rest else value
     return out

@@ -187,10 +187,8 @@ def test_following_axles_read_their_own_pass_surface():
 
 
 def test_an_axle_with_stiffer_tyres_deflects_them_less_by_the_ratio():
-    over = {"axles": [{"tyre": {"stiffness": "2 MN/m"}}, {}, {}, {}]}
     base = load_vehicle("apc_8x8")
-    P = load_vehicle("apc_8x8", {"axles": [dict(a.model_dump(exclude_none=True), **o) for a, o in
-                                           zip(base.axles, over["axles"])]})
+    P = load_vehicle("apc_8x8", {"axles.0.tyre.stiffness": "2 MN/m"})     # a scenario's vehicle.overrides key
     assert P.axle_tyre(0).stiffness == 2e6 and P.axle_tyre(1).stiffness == base.tyre.stiffness
     assert P.axle_tyre(0).damping == base.tyre.damping          # the keys not given stay the vehicle's
     stiff, ref = VehicleModel(P), VehicleModel(base)
@@ -225,3 +223,11 @@ def test_bad_axle_tyre_names_the_axle(tyre, needle):
     axles[0]["tyre"] = tyre
     with pytest.raises(UserInputError, match=needle):
         load_vehicle("apc_8x8", {"axles": axles})
+
+
+def test_a_dotted_override_into_a_list_needs_a_valid_index():
+    from hpsim.errors import UserInputError
+
+    assert load_vehicle("apc_8x8", {"axles.3.tyre.damping": "3 kN*s/m"}).axle_tyre(3).damping == 3000.0
+    with pytest.raises(UserInputError, match=r"axles.4.tyre.damping: .* index 0..3"):
+        load_vehicle("apc_8x8", {"axles.4.tyre.damping": "3 kN*s/m"})
