@@ -105,5 +105,5 @@ def linkage_forces(acceleration_m_s2, moment_per_acceleration, drive_coefficient
             v = v + cd * a_pos
         if not (isinstance(cb, (int, float)) and cb == 0):
             v = v + cb * a_neg
-        out.append(moment_per_acceleration * v)
+        out.append(v if isinstance(v, float) and v == 0.0 else moment_per_acceleration * v)
     return out
