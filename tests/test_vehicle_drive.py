@@ -29,7 +29,7 @@ def _gas_internal_energy(drive, x):
     U = 0.0
     for i in range(m.n):
         s = m.struts[i]
-        V = float(s.gas_volume(m.strut_deflections(x)[i], x[m.idx(f"T_strut[{i}]")], x[m.idx(f"V_oil[{i}]")]))
+        V = float(s.gas_volume(m.strut_deflections(x)[i], x[m.idx(f"T_oil[{i}]")], x[m.idx(f"V_oil[{i}]")]))
         mg = drive.gas_masses[i]
         U += mg * float(gaslaw.internal_energy(x[m.idx(f"T_gas[{i}]")], V / mg, s.gas, s.p.gas.eos))
     return U
@@ -69,7 +69,15 @@ def test_energy_balance_road_work_equals_dissipated_plus_stored(drive_d):
     # the gas energy equation is the least resolved part at 4 ms (its heat share is ~20 % low,
     # but that share is < 0.5 % of the dissipation): the strut balance closes to 1 % here
     assert abs(strut) < 1e-2 * E["strut_work"]
-    assert E["valve"] > 0 and E["friction"] > 0 and E["gas"] > -1e-3 * E["strut_work"]
+    assert E["valve"] > 0 and E["friction"] > 0
+    # the gas follows the oil node of the heat network (C_oil ~ 3.5 kJ/K warms ~3 K here): while the oil
+    # warms the gas takes heat from it, about its sensible heat m c dT_oil (bounded with c < 2 cv)
+    m = d.model
+    x1 = res.state.x
+    sensible = sum(d.gas_masses[i] * float(gaslaw.cv(x1[m.idx(f"T_gas[{i}]")], 1e-2, m.struts[i].gas, "ideal"))
+                   * (x1[m.idx(f"T_oil[{i}]")] - x0[m.idx(f"T_oil[{i}]")]) for i in range(m.n))
+    assert sensible > 0
+    assert E["gas"] > -2.0 * sensible
     # second-order convergence of the mechanical balance residual
     d2 = make_drive(distance_m=300.0, dt_s=0.002)
     x0_2 = d2.initial_state().x.copy()

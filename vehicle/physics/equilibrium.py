@@ -1,7 +1,7 @@
 """Static equilibrium of the hull on its struts and tyres, and charging of the gas springs.
 
 Standing still, each strut carries its gas force at the body temperature (the gas has had time
-to reach it: isothermal at T_strut, or the seed-000 polytropic law if the strut file says so);
+to reach it: isothermal at the oil temperature (the heat network's oil node; the gas follows it at rest), or the seed-000 polytropic law if the strut file says so);
 valves carry nothing and seal friction is taken at the middle of its band (zero). The hull
 (3 DOF) on 8 supports is statically indeterminate: the strut and tyre compliances decide the
 load split, so the unknowns are heave, pitch, roll and the 8 wheel displacements, solved by

@@ -9,7 +9,8 @@ speed profile.
 States (per station i, stations axle-major, left first):
   hull:     z, theta, phi [m, rad], and their rates
   station:  w_i (wheel vertical displacement from the charged pose, + up), dw_i,
-            T_strut_i (strut body temperature), strut internal states (e.g. T_gas_i),
+            T_oil_i, T_wall_i, T_surface_i (the strut's heat network, vehicle.physics.thermal),
+            strut internal states (e.g. T_gas_i, the gas node),
             xf_i (filtered deflection, compensation), V_oil_i (oil added by compensation)
   energy quadratures per station [J]: valve, friction, gas heat, end stop, strut work,
             tyre work, road work.
@@ -119,7 +120,8 @@ class VehicleModel:
         x[self.idx("z")], x[self.idx("theta")], x[self.idx("phi")] = eq.heave_m, eq.pitch_rad, eq.roll_rad
         for i in range(self.n):
             x[self.idx(f"w[{i}]")] = eq.wheel_displacement_m[i]
-            x[self.idx(f"T_strut[{i}]")] = eq.temperatures_K[i]
+            for node in thermal.NODES:
+                x[self.idx(f"T_{node}[{i}]")] = eq.temperatures_K[i]
             x[self.idx(f"xf[{i}]")] = eq.strut_deflections_m[i]
             for nm, v in self.struts[i].initial_states(eq.temperatures_K[i], x=eq.strut_deflections_m[i],
                                                        m_gas=gas_masses_kg[i]).items():
@@ -176,7 +178,8 @@ class VehicleModel:
                 if nm not in self.struts[i].stiff_state_names:
                     L.add(f"{nm}[{i}]")
         for i in range(self.n):
-            L.add(f"T_strut[{i}]")
+            for node in thermal.NODES:        # the heat network: slow (tau >= seconds, thermal.py)
+                L.add(f"T_{node}[{i}]")
             L.add(f"xf[{i}]")
             L.add(f"V_oil[{i}]")
         self.n_dynamic = len(L)
@@ -287,7 +290,6 @@ class VehicleModel:
 
         zc, th = X["z"], X["theta"]
         dzc, dth, dph = X["dz"], X["dtheta"], X["dphi"]
-        h_conv = thermal.convection_coefficient(P.heat, speed)
 
         rates = {}
         residuals = []
@@ -298,7 +300,7 @@ class VehicleModel:
         for i in range(n):
             strut = K.struts[i]
             w, dw = X[f"w[{i}]"], X[f"dw[{i}]"]
-            Ts = X[f"T_strut[{i}]"]
+            T_oil, T_wall, T_surf = (X[f"T_{node}[{i}]"] for node in thermal.NODES)
             xs, vs = self.station_motion(X, i, K)
             # levelling
             xf = X[f"xf[{i}]"]
@@ -312,17 +314,22 @@ class VehicleModel:
                 dp = None
             else:
                 dp = dp_override[i] if dp_override is not None else z[self._z_index[i]]
-            # The oil's thermal expansion enters through the gas volume (a function of T_strut);
-            # its *rate* in the gas energy equation is left out (dT_wall_rate = 0): beta V_oil dT/dt
-            # ~ 1e-8 m^3/s against A v ~ 1e-4 m^3/s while driving, and the gas follows the wall
-            # within tau anyway. Keeping it would need the body-temperature rate, which depends on
-            # the gas heat flow: no loop, but a second evaluation of the whole strut.
-            sin = StrutInputs(x=xs, v=vs, T_wall=Ts, m_gas=m_gas[i], dV_oil=V_oil, dV_oil_rate=q_oil,
+            # The strut sees the oil node as its T_wall: oil expansion, viscosity and the gas's
+            # heat-exchange partner (the floating piston, oil side). The oil's thermal expansion
+            # enters through the gas volume (a function of T_oil); its *rate* in the gas energy
+            # equation is left out (dT_wall_rate = 0): beta V_oil dT/dt ~ 1e-8 m^3/s against
+            # A v ~ 1e-4 m^3/s while driving, and the gas follows the oil within tau anyway.
+            sin = StrutInputs(x=xs, v=vs, T_wall=T_oil, m_gas=m_gas[i], dV_oil=V_oil, dV_oil_rate=q_oil,
                               dT_wall_rate=0.0, x_mid=x_nom[i])
             eq = strut.equations(sin, internal, dp)
-            P_diss = eq["power_valve"] + eq["power_friction"] + eq["heat_gas"] + eq["power_end_stop"]
-            dTs = thermal.temperature_rate(Ts, P_diss, T_amb, h_conv, P.heat.surface_area, P.heat.emissivity,
-                                           P.heat.capacity)
+            # the heat network (vehicle.physics.thermal): valve and gas heat into the oil, seal
+            # friction and end stops into the wall, the surface to the station's air and the mounts
+            T_film = 0.5 * (T_oil + T_wall)
+            flows = thermal.network_flows(P.heat, thermal.station_environment(P.heat, P.axles[P.station_axle(i)].heat),
+                                          T_oil, T_wall, T_surf, T_amb, speed, vs, strut.oil_viscosity(T_film),
+                                          strut.oil_density(T_film), strut.p.oil.expansion)
+            dT_nodes = thermal.network_rates(P.heat, flows, eq["power_valve"], eq["power_friction"],
+                                             eq["power_end_stop"], eq["heat_gas"])
             Fs = eq["force"]
             # tyre on the enveloped road
             defl = K.tyre_static_deflection[i] + road[i] - w
@@ -333,7 +340,8 @@ class VehicleModel:
             rates[f"dw[{i}]"] = (Ft - K.r[i] * Fs - V_link[i]) / K.m_u[i] - GRAVITY
             for nm in strut.state_names:
                 rates[f"{nm}[{i}]"] = eq["rates"][nm]
-            rates[f"T_strut[{i}]"] = dTs
+            for node, dT in zip(thermal.NODES, dT_nodes):
+                rates[f"T_{node}[{i}]"] = dT
             rates[f"xf[{i}]"] = comp.filtered_deflection_rate(xf, xs, P.compensation.filter_time_constant)
             rates[f"V_oil[{i}]"] = q_oil
             rates[f"E_valve[{i}]"] = eq["power_valve"]
@@ -406,7 +414,7 @@ class VehicleModel:
                 dps.append(None)
                 continue
             _, vs = self.station_motion(X, i, self.sym)
-            dps.append(strut.valve_pressure_drop(vs, X[f"T_strut[{i}]"], dp_guess=memory[k],
+            dps.append(strut.valve_pressure_drop(vs, X[f"T_oil[{i}]"], dp_guess=memory[k],
                                                  newton_iterations=iterations, warm=True))
             k += 1
         return dps
@@ -483,7 +491,7 @@ class VehicleModel:
             w, dw = self.idx(f"w[{i}]"), self.idx(f"dw[{i}]")
             B = [1.0, -(K.a[i] - K.a_cg), K.y[i] - K.y_cg]   # d z_station / d (z, theta, phi)
             xs, vs = self.station_motion(X, i, K)
-            ks, cs = self._strut_stiffness_damping(i, xs, vs, X[f"T_strut[{i}]"], p[i], X[f"V_oil[{i}]"], dps[i],
+            ks, cs = self._strut_stiffness_damping(i, xs, vs, X[f"T_oil[{i}]"], p[i], X[f"V_oil[{i}]"], dps[i],
                                                    [X[f"{nm}[{i}]"] for nm in self.struts[i].state_names])
             r2 = K.r[i] ** 2
             mu = K.m_u[i]

@@ -60,6 +60,46 @@ class AxleTyre(Model):
         return {k: getattr(self, k) for k in type(self).model_fields if getattr(self, k) is not None}
 
 
+# allowed ranges of a station's heat environment (SI; issue 10 §2): a wheel bay's air moves at most
+# twice the vehicle speed; a film coefficient above 500 W/m^2K is boiling or a water jet, not air; a
+# local heat source above 5 kW would be a fire; an ambient offset beyond -50/+150 K is no longer the
+# air around a strut
+ENVIRONMENT_RANGES = {
+    "air_speed_ratio": (0.0, 2.0),            # -
+    "film_coefficient": (0.0, 500.0),         # W/(m^2 K)
+    "ambient_offset": (-50.0, 150.0),         # K
+    "view_factor": (0.0, 1.0),                # -
+    "heat_source": (0.0, 5000.0),             # W
+}
+
+
+def _check_environment(model):
+    for name, (lo, hi) in ENVIRONMENT_RANGES.items():
+        value = getattr(model, name)
+        if value is not None and not lo <= value <= hi:
+            raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] (SI), got {value:g}")
+    if getattr(model, "film_coefficient") is not None and model.film_coefficient <= 0:
+        raise ValueError(f"film_coefficient must be > 0 W/(m^2 K), got {model.film_coefficient:g}")
+
+
+class AxleHeat(Model):
+    """Per-axle overrides of the vehicle's heat environment (issue 10 §2); a field left out keeps the
+    vehicle's `heat` value. Give air_speed_ratio or film_coefficient, not both."""
+
+    air_speed_ratio: Number | None = None                   # wheel-bay air speed / vehicle speed
+    film_coefficient: Quantity("W/(m**2*K)") | None = None  # outside convection (replaces natural + forced)
+    ambient_offset: K | None = None                         # local air minus ambient [K]
+    view_factor: Number | None = None                       # radiation view factor to the ambient
+    heat_source: Quantity("W") | None = None                # local heat onto the strut surface (engine, exhaust)
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.air_speed_ratio is not None and self.film_coefficient is not None:
+            raise ValueError("give air_speed_ratio or film_coefficient, not both")
+        _check_environment(self)
+        return self
+
+
 class Axle(Model):
     position: m                     # behind axle 1 [m]
     strut: str = "apc"              # built-in strut name or path
@@ -67,6 +107,7 @@ class Axle(Model):
     motion_ratio: Number            # strut travel / wheel travel
     strut_overrides: dict = {}      # e.g. {"valve.bleed_area": "1.2e-5 m^2"} (charge.pressure: charging.method gas_pressure)
     tyre: AxleTyre | None = None    # overrides of the vehicle's tyre on this axle (None: the vehicle's tyre)
+    heat: AxleHeat | None = None  # this axle's heat environment where it differs from the vehicle's `heat`
 
     @model_validator(mode="after")
     def _check(self):
@@ -124,9 +165,10 @@ class Longitudinal(Model):
 
 
 class Heat(Model):
-    """Lumped thermal node per strut (REFERENCE §8)."""
+    """Strut heat network (vehicle.physics.thermal; issue 10 §1) and the default heat environment of
+    every station (§2; axles[k].heat overrides it)."""
 
-    capacity: Quantity("J/K")
+    capacity: Quantity("J/K")                   # total of the strut's nodes (oil + steel), REFERENCE §8
     surface_area: Quantity("m**2")
     diameter: m                                 # outer cylinder diameter (forced convection)
     natural_convection: Quantity("W/(m**2*K)") = 5.0
@@ -137,18 +179,40 @@ class Heat(Model):
     air_conductivity: Quantity("W/(m*K)") = 0.026
     air_kinematic_viscosity: Quantity("m**2/s") = 1.6e-5
     air_prandtl: Number = 0.71
-    convection_multiplier: Number = 1.0   # scales the total convective coefficient (sensitivity studies)
+    convection_multiplier: Number = 1.0   # scales the outside convective coefficient (sensitivity studies)
+    # the default environment of every station (issue 10 §2)
+    film_coefficient: Quantity("W/(m**2*K)") | None = None   # replaces natural + forced outside convection
+    ambient_offset: K = 0.0
+    view_factor: Number = 1.0
+    heat_source: Quantity("W") = 0.0
+    # the network (issue 10 §1; defaults are the apc_8x8 file's values, see its sources)
+    oil_capacity_fraction: Number = 0.1        # of capacity: the oil node
+    surface_capacity_fraction: Number = 0.2    # of the steel (capacity - oil): the outer skin node
+    bore_diameter: m = 0.11                    # inner diameter of the cylinder wall
+    wall_conductivity: Quantity("W/(m*K)") = 45.0
+    wetted_area: Quantity("m**2") = 0.2        # oil-wetted inner area of the cylinder
+    oil_column_height: m = 0.3                 # natural-convection length in the oil
+    oil_conductivity: Quantity("W/(m*K)") = 0.13
+    oil_specific_heat: Quantity("J/(kg*K)") = 1900.0
+    oil_film_multiplier: Number = 1.0          # scales the oil-side film coefficient (correlation prior)
+    mount_conductance: Quantity("W/K") = 1.0   # conduction into the hull and wheel-carrier mounts
 
-    _must_be_positive = ("air_conductivity", "air_kinematic_viscosity", "air_prandtl")
-    _must_be_non_negative = ("natural_convection", "convection_multiplier")
+    _must_be_positive = ("air_conductivity", "air_kinematic_viscosity", "air_prandtl", "wall_conductivity",
+                         "wetted_area", "oil_column_height", "oil_conductivity", "oil_specific_heat",
+                         "oil_film_multiplier", "bore_diameter")
+    _must_be_non_negative = ("natural_convection", "convection_multiplier", "mount_conductance")
     _must_be_fraction = ("emissivity",)
 
     @model_validator(mode="after")
     def _check(self):
         if self.capacity <= 0 or self.surface_area <= 0 or self.diameter <= 0:
             raise ValueError("capacity, surface_area and diameter must be > 0")
-        if not 0.0 <= self.air_speed_ratio <= 2.0:
-            raise ValueError(f"air_speed_ratio must be in [0, 2], got {self.air_speed_ratio}")
+        _check_environment(self)
+        for name in ("oil_capacity_fraction", "surface_capacity_fraction"):
+            if not 0.0 < getattr(self, name) < 1.0:
+                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name):g}")
+        if not self.bore_diameter < self.diameter:
+            raise ValueError(f"bore_diameter ({self.bore_diameter:g} m) must be < diameter ({self.diameter:g} m)")
         return self
 
 

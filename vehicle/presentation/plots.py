@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from vehicle.presentation.report import compare, open_results, report_from
+from vehicle.runs.summary import _equilibrium_temperature
 
 MECHANISMS = (("valve", "valve (damping)"), ("friction", "seal friction"), ("gas", "gas heat"),
               ("end_stop", "end stops"))
@@ -97,14 +98,15 @@ def dashboard(path, out: str | Path) -> Path:
             x, Ts = s_km, T
         else:                      # time series not stored: the start and the statistics rows
             x = np.concatenate([[0.0], s_stats])
-            Ts = np.vstack([np.asarray(before["strut_temperature"], float)[None, :], T_stats])
+            Ts = np.vstack([np.asarray(_equilibrium_temperature(before), float)[None, :], T_stats])
         Tax = 0.5 * (Ts[:, 0::2] + Ts[:, 1::2]) - 273.15
         for k, name in enumerate(axles):
             a.plot(x, Tax[:, k], color=colors[k % len(colors)], label=name, marker="o" if len(x) < 30 else None, ms=3)
         a.axhline(rep["ambient_C"], color="0.45", ls="--", lw=1.0)
         a.annotate(f"ambient {rep['ambient_C']:.0f} degC", (x[0], rep["ambient_C"]), textcoords="offset points",
                    xytext=(2, 3), fontsize=7, color="0.35")
-        a.set(xlabel="distance [km]", ylabel="strut temperature [degC]", title="strut temperature (mean of left/right)")
+        a.set(xlabel="distance [km]", ylabel="strut surface temperature [degC]",
+              title="strut surface temperature (mean of left/right)")
 
     if (T is not None and s_km is not None and len(s_km)) or (T_stats is not None and len(T_stats)):
         panels.append(temperatures)
@@ -251,7 +253,7 @@ def _history(path) -> dict:
     over a tenth of the drive) of one run, from its time series or, if not stored, its rows."""
     with open_results(path) as f:
         before = f.equilibrium("before")
-        T0 = np.asarray(before["strut_temperature"], float)
+        T0 = np.asarray(_equilibrium_temperature(before), float)
         s = f.series("distance")
         T = f.series("strut_temperature")
         h = f.series("axle_height_change")

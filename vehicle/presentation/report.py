@@ -12,14 +12,16 @@ def format_report(rep: dict) -> str:
     head = (f"{rep['file']}: {rep['status']}, {rep['distance_km']:.3f} of {rep['planned_distance_km']:.6g} km, "
             f"simulated {rep['simulated_s'] / 3600:.3f} h in {rep['wall_s']:.1f} s wall, "
             f"compensation {'on' if rep['compensation'] else 'off'}")
-    cols = ["axle", "T_start_C", "T_end_C", "dh_mm", "N_before_daN", "N_after_daN", "dN_pct", "energy_dissipated_MJ"]
-    headers = ["axle", "T start [degC]", "T end [degC]", "dh [mm]", "N before [daN]", "N after [daN]", "dN [%]",
-               "E diss [MJ]"]
-    fmts = {"T_start_C": ".1f", "T_end_C": ".1f", "dh_mm": ".2f", "N_before_daN": ".0f", "N_after_daN": ".0f",
-            "dN_pct": "+.2f", "energy_dissipated_MJ": ".3f"}
+    # T end: the outer surface (pyrometer); oil and gas inside (the heat network, vehicle.physics.thermal)
+    cols = ["axle", "T_start_C", "T_end_C", "T_oil_end_C", "T_gas_end_C", "dh_mm", "N_before_daN", "N_after_daN",
+            "dN_pct", "energy_dissipated_MJ"]
+    headers = ["axle", "T start [degC]", "T surface end [degC]", "T oil end", "T gas end", "dh [mm]",
+               "N before [daN]", "N after [daN]", "dN [%]", "E diss [MJ]"]
+    fmts = {"T_start_C": ".1f", "T_end_C": ".1f", "T_oil_end_C": ".1f", "T_gas_end_C": ".1f", "dh_mm": ".2f",
+            "N_before_daN": ".0f", "N_after_daN": ".0f", "dN_pct": "+.2f", "energy_dissipated_MJ": ".3f"}
 
     def cell(r, c):
-        v = r[c]
+        v = r.get(c)
         if v is None:
             return "-"
         return format(v, fmts[c]) if c in fmts else str(v)
@@ -30,7 +32,7 @@ def format_report(rep: dict) -> str:
         tail.append(f"load shift {rep['load_shift_pct']:.2f} % (sum |dN| / sum N), max |dN| {rep['max_abs_dN_pct']:.2f} %; "
                     f"against the charged loads {rep['load_shift_vs_charged_pct']:.2f} %")
     if rep.get("mean_temperature_rise_K") is not None:
-        tail.append(f"mean strut temperature rise {rep['mean_temperature_rise_K']:.1f} K")
+        tail.append(f"mean strut (surface) temperature rise {rep['mean_temperature_rise_K']:.1f} K")
     if rep.get("error"):
         tail.append(f"stopped: {rep['error']}")
     ride = format_ride(rep.get("ride") or {}, len(rep["axles"]))
@@ -111,7 +113,7 @@ def format_compare(cmp: dict, labels=None) -> str:
     blocks = []
     for key, title, fmt in (("dN_pct", "wheel load change dN [%] (after vs before)", "+.2f"),
                             ("dh_mm", "height change dh [mm]", "+.2f"),
-                            ("T_end_C", "strut temperature at the end [degC]", ".1f")):
+                            ("T_end_C", "strut surface temperature at the end [degC]", ".1f")):
         rows = []
         for k in range(len(runs[0]["axles"])):
             rows.append([k + 1] + ["-" if r["axles"][k][key] is None else format(r["axles"][k][key], fmt) for r in runs])

@@ -1,10 +1,11 @@
 """Calibration of the one heat-transfer parameter against a measured mean temperature rise.
 
 Seed 000 §4.4 gives one number for the heat model: the mean rise of the strut surface
-temperature over all struts after the 106 km drive (about 54 K, REFERENCE §4). We calibrate
-exactly one parameter against it, by default `heat.air_speed_ratio` (the fraction of the vehicle
-speed that reaches the strut in the wheel bay, which sets the forced convection). Everything
-per axle stays a prediction.
+temperature over all struts after the 106 km drive (about 54 K, REFERENCE §4), read by pyrometer.
+We calibrate exactly one parameter against it, by default `heat.air_speed_ratio` (the fraction of
+the vehicle speed that reaches the strut in the wheel bay, which sets the forced convection), and
+compare it with the rise of the heat network's outer SURFACE node (vehicle.physics.thermal;
+`drive.T_index`), not the oil inside. Everything per axle stays a prediction.
 
     hpsim calibrate scenarios/mileage_106km.yaml --target-rise 54K
 
@@ -31,7 +32,7 @@ def _run(src, parameter: str, value: float):
     model, drive = prepared.drive()
     T0 = np.asarray(drive.initial_equilibrium().temperatures_K)
     res = drive.run()
-    T1 = res.state.x[drive.T_index]
+    T1 = res.state.x[drive.T_index]          # the surface node: what the pyrometer read
     return float(np.mean(T1 - T0)), prepared, drive
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
+from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.numerics.solvers import Ros2
@@ -115,7 +116,16 @@ class Drive:
         self.quad_index = np.array([model.idx(f"E_{e}[{i}]") for e in ENERGY_TERMS for i in range(n)]
                                    + [model.idx(f"I_v2[{i}]") for i in range(n)]
                                    + [model.idx(f"I_{a}2") for a in HULL_ACCELERATIONS])
-        self.T_index = np.array([model.idx(f"T_strut[{i}]") for i in range(n)])
+        # the strut heat network (vehicle.physics.thermal): the surface is what a pyrometer reads and
+        # what "strut temperature" means in results; the statics after the drive see the oil (and the
+        # gas, which follows the oil within seconds at rest)
+        self.node_index = {node: np.array([model.idx(f"T_{node}[{i}]") for i in range(n)]) for node in thermal.NODES}
+        self.T_index = self.node_index["surface"]
+        self.T_oil_index = self.node_index["oil"]
+        self.T_wall_index = self.node_index["wall"]
+        # the gas node: the strut's T_gas state (energy-equation gas), else the gas is at the oil temperature
+        self.T_gas_index = np.array([model.idx(f"T_gas[{i}]") if "T_gas" in model.struts[i].state_names
+                                     else model.idx(f"T_oil[{i}]") for i in range(n)])
 
     # --- initial state --------------------------------------------------------------------------
     def initial_equilibrium(self):
@@ -134,7 +144,7 @@ class Drive:
         st = self.initial_state()
         t = np.array([0.0])
         block = self._block_outputs(st.x[:, None], self.inputs(t), t, t, st.solver_memory[:, None])
-        row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x[self.T_index])
+        row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
         return block, row, st.as_dict()
 
     # --- inputs -----------------------------------------------------------------------------------
@@ -203,7 +213,7 @@ class Drive:
             if not np.all(keep):
                 break
         wall = time.perf_counter() - wall0
-        final_T = st.x[self.T_index]
+        final_T = st.x[self.T_oil_index]
         V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
         after = self.equilibrium_solver.solve(final_T, self.gas_masses, V_oil)
         return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s)
@@ -239,7 +249,8 @@ class Drive:
                     k = m.station_names.index(station)
                     x_def = float(m.strut_deflections(prev[:, None])[k, 0])
                     last = (f"; last finite sample: deflection {x_def * 1e3:.1f} mm, strut temperature "
-                            f"{prev[m.idx(f'T_strut[{k}]')] - 273.15:.1f} degC")
+                            f"{prev[m.idx(f'T_surface[{k}]')] - 273.15:.1f} degC (surface), "
+                            f"{prev[m.idx(f'T_oil[{k}]')] - 273.15:.1f} degC (oil)")
             raise SimulationError(
                 f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s), first in {where} "
                 f"({len(bad)} states non-finite){last}; {self._advice()}")
@@ -254,14 +265,15 @@ class Drive:
                 raise SimulationError(
                     f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
                     f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
-                    f"{X[m.idx(f'T_strut[{i}]'), col] - 273.15:.1f} degC; {self._advice()}")
-        T = X[self.T_index]
+                    f"{X[m.idx(f'T_oil[{i}]'), col] - 273.15:.1f} degC (oil); {self._advice()}")
+        T = X[np.concatenate([self.node_index[node] for node in thermal.NODES])]
         lo, hi = self.PHYSICAL_TEMPERATURE_K
         bad = (T < lo) | (T > hi)
         if np.any(bad):
-            i, col = (int(v[0]) for v in np.nonzero(bad))
+            k, col = (int(v[0]) for v in np.nonzero(bad))
+            i, node = k % m.n, thermal.NODES[k // m.n]
             raise SimulationError(
-                f"strut {m.station_names[i]} temperature {T[i, col] - 273.15:.1f} degC at {s[col] / 1e3:.3f} km "
+                f"strut {m.station_names[i]} {node} temperature {T[i, col] - 273.15:.1f} degC at {s[col] / 1e3:.3f} km "
                 f"(t = {t[col]:.1f} s) is outside any physical range ({lo - 273.15:.0f} to {hi - 273.15:.0f} degC): "
                 f"the heat balance has failed; {self._advice()}")
 
@@ -274,6 +286,8 @@ class Drive:
         block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[m.input_index["speed"]],
                  "longitudinal_acceleration_m_per_s2": U[m.input_index["acceleration"]],
                  "strut_temperature_K": X[self.T_index],
+                 "wall_temperature_K": X[self.T_wall_index],
+                 "oil_temperature_K": X[self.T_oil_index],
                  "axle_height_change_m": np.asarray(heights),
                  "hull_acceleration": np.asarray(acc),
                  "heave_m": X[m.idx("z")], "pitch_rad": X[m.idx("theta")], "roll_rad": X[m.idx("phi")],
@@ -288,9 +302,9 @@ class Drive:
         """Statistics for every interval boundary crossed in this block (and the last partial one)."""
         rows = []
         q = X[self.quad_index]
-        T = X[self.T_index]
+        T = X
         t_last, q_last = st.last_stats["t_s"], st.last_stats["q"]
-        s0, t0, q0, T0 = st.s_m, st.t_s, st.x[self.quad_index], st.x[self.T_index]
+        s0, t0, q0, T0 = st.s_m, st.t_s, st.x[self.quad_index], st.x
         for j in range(len(t)):
             while s[j] >= st.next_stats_m - 1e-9:
                 # the quadratures are smooth and monotone: interpolate them to the boundary
@@ -306,12 +320,16 @@ class Drive:
         st.last_stats = {"t_s": t_last, "q": q_last}
         return rows
 
-    def _stats_row(self, s_end, duration, dq, T_end) -> dict:
+    def _stats_row(self, s_end, duration, dq, x_end) -> dict:
+        """One statistics row; x_end: the state at the interval's end (its temperatures are reported)."""
         n = self.model.n
         nE = len(ENERGY_TERMS)
         E = dq[: nE * n].reshape(nE, n)
         row = {"distance_end_m": float(s_end), "duration_s": float(duration),
-               "strut_temperature_K": T_end.copy()}
+               "strut_temperature_K": x_end[self.T_index].copy(),
+               "wall_temperature_K": x_end[self.T_wall_index].copy(),
+               "oil_temperature_K": x_end[self.T_oil_index].copy(),
+               "gas_temperature_K": x_end[self.T_gas_index].copy()}
         for k, e in enumerate(ENERGY_TERMS):
             if e in DISSIPATION_TERMS:
                 row[f"power_{e}_W"] = E[k] / max(duration, 1e-12)

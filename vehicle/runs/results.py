@@ -94,8 +94,7 @@ def drive_class():
             st = self.initial_state()
             t = np.array([0.0])
             block = self._block_outputs(st.x[:, None], self.inputs(t), t, t)
-            row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)),
-                                  st.x[self.T_index])
+            row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
             return block, row, st.as_dict()
 
     return RunDrive
@@ -135,7 +134,10 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
     m = drive.model
     x = res.state.x
     values = {f"energy_{e}_J": np.asarray(x[idx], float) for e, idx in m.energy_index.items()}
-    values["strut_temperature_K"] = np.asarray(x[drive.T_index], float)
+    values["strut_temperature_K"] = np.asarray(x[drive.T_index], float)          # the surface (pyrometer)
+    values["wall_temperature_K"] = np.asarray(x[drive.T_wall_index], float)
+    values["oil_temperature_K"] = np.asarray(x[drive.T_oil_index], float)
+    values["gas_temperature_K"] = np.asarray(x[drive.T_gas_index], float)
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(wall_s), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),

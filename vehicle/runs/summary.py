@@ -2,7 +2,10 @@
 results (a file through vehicle.runs.reader.open_results, or a MemorySink).
 
 Per axle, values are the mean of the left and right station:
-  T_start_C / T_end_C    strut temperature before / after the drive
+  T_start_C / T_end_C    strut temperature before / after the drive: the outer surface (what the
+                         seed-000 pyrometer read; the heat network's surface node)
+  T_surface_end_C, T_oil_end_C, T_gas_end_C   the surface (= T_end_C), oil and gas temperatures at
+                         the end (None in files written before the heat network)
   dh_mm                  hull height change at the axle, after-drive equilibrium minus
                          before-drive equilibrium (both standing on flat ground)
   N_before_daN / N_after_daN, dN_pct   wheel load in those two equilibria and its change
@@ -54,6 +57,12 @@ def dissipated_energy_J(r: ResultsView) -> np.ndarray | None:
     return total
 
 
+def _equilibrium_temperature(eq: dict):
+    """The standing strut temperature of an equilibrium group (oil_temperature; strut_temperature in files
+    written before the heat network)."""
+    return eq["oil_temperature"] if "oil_temperature" in eq else eq["strut_temperature"]
+
+
 def report(path: str | Path) -> dict:
     with open_results(path) as r:
         return report_from(r, str(path))
@@ -70,16 +79,25 @@ def report_from(r: ResultsView, name: str) -> dict:
         raise UserInputError(f"{name}: no before-drive equilibrium (the run stopped before it started)")
     charged = r.equilibrium("charged")
     Nc = _axle_mean(charged["wheel_load"]) if charged is not None else np.full(len(axles), np.nan)
-    T0 = _axle_mean(before["strut_temperature"]) - 273.15
+    # before the drive every node of a strut is at the standing temperature (files before the heat
+    # network called it strut_temperature)
+    T0 = _axle_mean(_equilibrium_temperature(before)) - 273.15
     N0 = _axle_mean(before["wheel_load"])
     h0 = np.asarray(before["axle_height_change"], float)
+    final = r.summary_values()
+    T_end = {}
+    for key, name in (("surface", "strut_temperature"), ("oil", "oil_temperature"), ("gas", "gas_temperature")):
+        v = final.get(name) if after is not None else None
+        if v is None:
+            v = _last_row(r, name)
+        T_end[key] = _axle_mean(v) - 273.15 if v is not None else np.full(len(axles), np.nan)
+    if after is not None and final.get("strut_temperature") is None and "strut_temperature" in after:
+        T_end["surface"] = _axle_mean(after["strut_temperature"]) - 273.15     # a file without /summary values
+    T1 = T_end["surface"]
     if after is not None:
-        T1 = _axle_mean(after["strut_temperature"]) - 273.15
         N1 = _axle_mean(after["wheel_load"])
         h1 = np.asarray(after["axle_height_change"], float)
     else:
-        last_T = _last_row(r, "strut_temperature")
-        T1 = _axle_mean(last_T) - 273.15 if last_T is not None else np.full(len(axles), np.nan)
         N1 = np.full(len(axles), np.nan)
         h1 = np.full(len(axles), np.nan)
     E = dissipated_energy_J(r)
@@ -100,7 +118,9 @@ def report_from(r: ResultsView, name: str) -> dict:
 
     rows = []
     for k, a in enumerate(axles):
-        rows.append({"axle": k + 1, "T_start_C": num(T0[k]), "T_end_C": num(T1[k]), "dh_mm": num((h1[k] - h0[k]) * 1e3),
+        rows.append({"axle": k + 1, "T_start_C": num(T0[k]), "T_end_C": num(T1[k]),
+                     "T_surface_end_C": num(T_end["surface"][k]), "T_oil_end_C": num(T_end["oil"][k]),
+                     "T_gas_end_C": num(T_end["gas"][k]), "dh_mm": num((h1[k] - h0[k]) * 1e3),
                      "N_before_daN": num(N0[k] / 10.0), "N_after_daN": num(N1[k] / 10.0),
                      "dN_pct": num(100.0 * (N1[k] - N0[k]) / N0[k]), "energy_dissipated_MJ": num(E_ax[k]),
                      "N_charged_daN": num(Nc[k] / 10.0), "dN_charged_pct": num(100.0 * (N1[k] - Nc[k]) / Nc[k]),

@@ -81,7 +81,13 @@ VARIABLES: dict[str, Var | Split] = {
     "speed_m_per_s": Var("speed", "m s-1", "vehicle speed", None),
     "longitudinal_acceleration_m_per_s2": Var("longitudinal_acceleration", "m s-2",
                                               "longitudinal acceleration of the speed profile (+ forward)", None),
-    "strut_temperature_K": Var("strut_temperature", "K", "strut temperature (lumped heat node)", "station"),
+    # the strut heat network (vehicle.physics.thermal): "strut temperature" is the outer surface (pyrometer)
+    "strut_temperature_K": Var("strut_temperature", "K", "outer surface temperature of the strut (pyrometer)",
+                               "station"),
+    "wall_temperature_K": Var("wall_temperature", "K", "temperature of the oil-wetted steel of the strut (wall node)",
+                              "station"),
+    "oil_temperature_K": Var("oil_temperature", "K", "oil temperature in the strut", "station"),
+    "gas_temperature_K": Var("gas_temperature", "K", "gas temperature in the strut", "station"),
     "axle_height_change_m": Var("axle_height_change", "m",
                                 "hull height change at the axle against the charged state", "axle"),
     "hull_acceleration": Split(tuple(Var(f"{d}_acceleration", u, t, None) for d, u, t in _HULL)),
@@ -110,7 +116,9 @@ VARIABLES: dict[str, Var | Split] = {
     "strut_forces_N": Var("strut_force", "N", "force of the strut (positive pushing its ends apart)", "station"),
     "strut_deflections_m": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station"),
     "gas_pressures_Pa": Var("gas_pressure", "Pa", "absolute gas pressure in the strut", "station"),
-    "temperatures_K": Var("strut_temperature", "K", "strut temperature (lumped heat node)", "station"),
+    # the standing strut's oil and gas temperature (the statics' temperature; before the drive every
+    # node of the heat network is at it)
+    "temperatures_K": Var("oil_temperature", "K", "oil temperature in the strut", "station"),
     # the weighing bands (vehicle.physics.weighing): nominal = frictionless, low/high over all seal-friction states
     **{f"wheel_loads_{e}_N": Var(f"wheel_load_{e}", "N", f"wheel load of the standing vehicle ({e})", "station")
        for e in ("nominal", "low", "high")},

@@ -244,14 +244,25 @@ def _equilibria(data, th):
 
 
 def _temperatures(data, th):
-    """Strut temperatures against the seal and oil limits and the oil data's range."""
-    T, km_of = data.series("strut_temperature_K"), data.series("distance_m")
-    if T is None or km_of is None:             # time series not stored: the statistics rows
-        T, km_of = data.stats("strut_temperature_K"), data.km
-    else:
-        km_of = km_of / 1e3
-    if T is None:
+    """Strut temperatures against the seal and oil limits and the oil data's range. Which node of the heat
+    network (vehicle.physics.thermal): the seal sits in the bore, wetted by the oil and rubbing on the
+    wall, so its limit applies to the hotter of oil and wall; the oil's limits to the oil. Files written
+    before the heat network have one strut temperature for all."""
+    def read(key):
+        T, km_of = data.series(key), data.series("distance_m")
+        if T is None or km_of is None:             # time series not stored: the statistics rows
+            return data.stats(key), data.km
+        return T, km_of / 1e3
+
+    T_surface, km_of = read("strut_temperature_K")
+    if T_surface is None:
         return []
+    T_oil, _ = read("oil_temperature_K")
+    T_wall, _ = read("wall_temperature_K")
+    T_oil = T_surface if T_oil is None else T_oil
+    T_seal = T_oil if T_wall is None else np.maximum(T_oil, T_wall)
+    node_T = {"seal_temperature": (T_seal, "seal (hotter of oil and wall)"), "oil_temperature": (T_oil, "oil"),
+              "oil_data_range": (T_oil, "oil")}
     checks = []
     for st in data.struts:
         lim, oil = st.get("limits") or {}, st["oil"]
@@ -265,6 +276,7 @@ def _temperatures(data, th):
                                  ("oil_data_range", "note", "the range of the oil data (viscosity extrapolated)")):
         lo = np.array([np.nan if c[code][0] is None else c[code][0] for c in checks])
         hi = np.array([np.nan if c[code][1] is None else c[code][1] for c in checks])
+        T, node = node_T[code]
         with np.errstate(invalid="ignore"):
             above, below = T > hi, T < lo
         for flags, side, limit in ((above, "above", hi), (below, "below", lo)):
@@ -277,7 +289,7 @@ def _temperatures(data, th):
             lim = float(np.nanmin(limit[cols]) if side == "above" else np.nanmax(limit[cols]))
             km = float(km_of[rows[0]])
             out.append(_warning(code, severity, struts, km, worst - 273.15, lim - 273.15, "degC",
-                                f"strut temperature {worst - 273.15:.1f} degC is {side} {what} ({lim - 273.15:.0f} degC) "
+                                f"strut {node} temperature {worst - 273.15:.1f} degC is {side} {what} ({lim - 273.15:.0f} degC) "
                                 f"at {struts_text(struts, data.stations)}, first at {km:.3f} km"))
     return out
 
