@@ -11,7 +11,7 @@ from vehicle.runs.calibration import calibrate_heat
 def register(sub):
     p = sub.add_parser("calibrate", help="calibrate the heat-transfer parameter to a measured mean temperature rise")
     p.add_argument("scenario", help="scenario YAML (e.g. scenarios/mileage_106km.yaml)")
-    p.add_argument("--target-rise", required=True, help="mean strut temperature rise, e.g. 54K")
+    p.add_argument("--target-rise", required=True, help="mean rise of the strut outer surface temperature (pyrometer; the heat network's surface node), e.g. 54K")
     p.add_argument("--parameter", default="heat.air_speed_ratio")
     p.add_argument("--tolerance", default="0.1K", help="accepted error of the mean rise (default 0.1K)")
     p.add_argument("--json", action="store_true")
