@@ -113,8 +113,8 @@ def test_memory_sink_and_file_give_identical_datasets(runs):
 
 
 def test_a_drive_key_missing_from_the_table_is_a_clear_error():
-    with pytest.raises(UnknownDriveKey, match="vehicle/runs/variables.py.*'oil_temperature_K'.*add one line"):
-        file_variables("oil_temperature_K", (8,), "timeseries", 8, 4)
+    with pytest.raises(UnknownDriveKey, match="vehicle/runs/variables.py.*'seal_temperature_K'.*add one line"):
+        file_variables("seal_temperature_K", (8,), "timeseries", 8, 4)
     # a key with the table's default dim gets it from its width: stations or axles
     assert file_variables("wheel_load", (8,), "timeseries", 8, 4)[0].dims == ("time", "station")
     assert file_variables("axle_height_change_m", (4,), "stats", 8, 4)[0].dims == ("km", "axle")

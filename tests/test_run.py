@@ -115,9 +115,16 @@ def test_report_agrees_with_the_file(reference, capsys):
         E_last = sum(ts[f"energy_{e}"][-1] for e in ("valve", "friction", "gas", "end_stop"))
         for k, a in enumerate(rep["axles"]):
             l, r = 2 * k, 2 * k + 1
-            assert a["T_start_C"] == pytest.approx(0.5 * (before["strut_temperature"][l] + before["strut_temperature"][r]) - 273.15)
+            assert a["T_start_C"] == pytest.approx(0.5 * (before["oil_temperature"][l] + before["oil_temperature"][r]) - 273.15)
+            # T_end_C is the outer surface (pyrometer), the heat network's surface node
             assert a["T_end_C"] == pytest.approx(0.5 * (T_last[l] + T_last[r]) - 273.15)
-            assert a["T_end_C"] == pytest.approx(0.5 * (after["strut_temperature"][l] + after["strut_temperature"][r]) - 273.15)
+            assert a["T_surface_end_C"] == a["T_end_C"]
+            oil_last, gas_last = ts["oil_temperature"][-1], f["stats/gas_temperature"][-1]
+            assert a["T_oil_end_C"] == pytest.approx(0.5 * (oil_last[l] + oil_last[r]) - 273.15)
+            assert a["T_gas_end_C"] == pytest.approx(0.5 * (gas_last[l] + gas_last[r]) - 273.15)
+            # the after-drive statics stand at the oil temperature (the gas follows it at rest)
+            assert a["T_oil_end_C"] == pytest.approx(0.5 * (after["oil_temperature"][l] + after["oil_temperature"][r]) - 273.15)
+            assert a["T_oil_end_C"] > a["T_end_C"]          # the heat flows from the oil out through the surface
             assert a["dh_mm"] == pytest.approx(1e3 * (after["axle_height_change"][k] - before["axle_height_change"][k]))
             N0 = 0.5 * (before["wheel_load"][l] + before["wheel_load"][r])
             N1 = 0.5 * (after["wheel_load"][l] + after["wheel_load"][r])

@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import json
 
+import numpy as np
 import h5py
 import pytest
 
@@ -88,8 +89,12 @@ def test_hot_struts_rest_on_the_rebound_stop_and_exceed_their_limits(runs):
     for w in on_stop:
         assert "rebound stop" in w["message"] and w["struts"] == stations and w["value"] <= 0.5
     seal, = codes["seal_temperature"]
-    assert seal["value"] == pytest.approx(190.0, abs=1.0) and seal["limit"] == pytest.approx(limits.seal_max_temperature
-                                                                                             - 273.15)
+    # the seal limit applies to the hotter of the oil and the wall (heat network): the hottest seen, which
+    # the valves' heat raises above the 190 degC start during the drive
+    with h5py.File(runs["hot"], "r") as f:
+        hottest = np.max(np.maximum(f["timeseries/oil_temperature"][()], f["timeseries/wall_temperature"][()])) - 273.15
+    assert seal["value"] == pytest.approx(hottest) and hottest >= 190.0
+    assert seal["limit"] == pytest.approx(limits.seal_max_temperature - 273.15)
     assert "above the seal limit (100 degC)" in seal["message"] and seal["km"] < 0.01
     assert codes["oil_temperature"][0]["limit"] == pytest.approx(135.0)
     assert codes["oil_data_range"][0]["severity"] == "note"

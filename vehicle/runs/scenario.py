@@ -42,7 +42,8 @@ STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
 DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSettings.validate
 
 # time series a drive produces (vehicle.runs.drive.Drive._block_outputs); `output.store` picks from these
-SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperature_K", "axle_height_change_m",
+SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperature_K", "wall_temperature_K",
+          "oil_temperature_K", "axle_height_change_m",
           "hull_acceleration", "heave_m", "pitch_rad", "roll_rad", "oil_added_m3", "strut_force", "strut_deflection",
           "gas_pressure", "gas_temperature", "wheel_load", "energy_valve_J", "energy_friction_J", "energy_gas_J",
           "energy_end_stop_J", "energy_strut_work_J", "energy_tyre_work_J", "energy_road_work_J")
