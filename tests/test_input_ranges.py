@@ -12,6 +12,7 @@ import pytest
 
 from hpsim.errors import UserInputError
 from vehicle import cli
+from vehicle.physics.params import load_vehicle
 from vehicle.runs.scenario import prepare, read_scenario_text
 
 SCENARIO = """\
@@ -148,7 +149,7 @@ def synthetic_calibration(tmp_path, monkeypatch):
 
 def test_calibrate_stops_when_the_first_run_is_within_tolerance(synthetic_calibration):
     cal, path, calls = synthetic_calibration
-    shipped = 0.0649                            # vehicle/data/apc_8x8.yaml's heat.air_speed_ratio
+    shipped = load_vehicle("apc_8x8").heat.air_speed_ratio     # the calibrated value in vehicle/data/apc_8x8.yaml
     res = cal.calibrate_heat(path, 60.0 / (1 + 20 * shipped) + 0.05, tol_K=0.1, log=lambda m: None)
     assert len(calls) == 1 and len(res["runs"]) == 1 and res["value"] == pytest.approx(shipped)
 

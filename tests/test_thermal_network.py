@@ -50,7 +50,7 @@ def test_steady_state_matches_hand_computed_resistances(heat, strut):
     T = fsolve(lambda T: _rates(heat, env, strut, T, speed, v, P_valve, P_fric, Q_gas)[0] * 1e4,
                np.full(3, T_AMB + 40.0), xtol=1e-13)
     T_oil, T_wall, T_s = T
-    # outside: Churchill-Bernstein at 0.0649 x 5.56 m/s over the 0.13 m cylinder + 5 W/m2K natural; radiation
+    # outside: Churchill-Bernstein at air_speed_ratio x 5.56 m/s over the 0.13 m cylinder + 5 W/m2K natural; radiation
     # to the ambient with the view factor
     Re = heat.air_speed_ratio * speed * heat.diameter / heat.air_kinematic_viscosity
     Pr = heat.air_prandtl
