@@ -33,12 +33,18 @@ def strut():
 
 
 def _oil_props(strut, T_oil, T_wall):
-    Tf = 0.5 * (T_oil + T_wall)
-    return float(strut.oil_viscosity(Tf)), float(strut.oil_density(Tf)), strut.p.oil.expansion
+    """Oil properties as the model passes them: at the oil temperature."""
+    return float(strut.oil_viscosity(T_oil)), float(strut.oil_density(T_oil)), strut.p.oil.expansion
+
+
+def _prandtl_shape(heat, strut):
+    """The model's Pr of the natural-convection shape factor: the oil at its reference temperature."""
+    return float(thermal.oil_prandtl(heat, strut.oil_viscosity(strut.p.oil.reference_temperature), strut.p.oil.density))
 
 
 def _rates(heat, env, strut, T, speed, v, P_valve, P_fric, Q_gas, P_stop=0.0):
-    flows = thermal.network_flows(heat, env, T[0], T[1], T[2], T_AMB, speed, v, *_oil_props(strut, T[0], T[1]))
+    flows = thermal.network_flows(heat, env, T[0], T[1], T[2], T_AMB, speed, v, *_oil_props(strut, T[0], T[1]),
+                                  _prandtl_shape(heat, strut))
     return np.array([float(r) for r in thermal.network_rates(heat, flows, P_valve, P_fric, P_stop, Q_gas)]), flows
 
 
@@ -76,7 +82,9 @@ def test_steady_state_matches_hand_computed_resistances(heat, strut):
     dT = T_oil - T_wall
     Ra = 9.80665 * beta * math.sqrt(dT ** 2 + 0.1 ** 2) * heat.oil_column_height ** 3 / (nu * alpha)
     Pr_o = nu / alpha
-    h_nat = (0.825 + 0.387 * Ra ** (1 / 6) / (1 + (0.492 / Pr_o) ** (9 / 16)) ** (8 / 27)) ** 2 \
+    Pr_ref = strut.oil_viscosity(strut.p.oil.reference_temperature) * strut.p.oil.density * heat.oil_specific_heat \
+        / heat.oil_conductivity
+    h_nat = (0.825 + 0.387 * Ra ** (1 / 6) / (1 + (0.492 / Pr_ref) ** (9 / 16)) ** (8 / 27)) ** 2 \
         * heat.oil_conductivity / heat.oil_column_height
     Re_o = math.sqrt(v ** 2 + 1e-6) * heat.bore_diameter / nu
     h_f = 0.023 * Re_o ** 0.8 * Pr_o ** 0.4 * heat.oil_conductivity / heat.bore_diameter
@@ -93,6 +101,13 @@ def test_oil_film_coefficient_lies_in_the_reference_prior(heat, strut):
     for T_oil, dT, v in ((330.0, 5.0, 0.05), (350.0, 10.0, 0.15), (320.0, 15.0, 0.3)):
         h = float(thermal.oil_film_coefficient(heat, T_oil, T_oil - dT, v, *_oil_props(strut, T_oil, T_oil - dT)))
         assert 60.0 < h < 150.0
+    # the shape factor's Pr at the reference temperature (the model's run constant) against the exact one
+    Pr_ref = _prandtl_shape(heat, strut)
+    for T_oil in (293.15, 333.15, 373.15):
+        props = _oil_props(strut, T_oil, T_oil - 10.0)
+        exact = float(thermal.oil_film_coefficient(heat, T_oil, T_oil - 10.0, 0.0, *props))
+        assert float(thermal.oil_film_coefficient(heat, T_oil, T_oil - 10.0, 0.0, *props, Pr_ref)) == \
+            pytest.approx(exact, rel=0.025)     # 2.2 % at 100 degC, inside the oil film prior (0.6-1.5)
     # stroking adds to natural convection
     h0 = float(thermal.oil_film_coefficient(heat, 340.0, 330.0, 0.0, *_oil_props(strut, 340.0, 330.0)))
     h1 = float(thermal.oil_film_coefficient(heat, 340.0, 330.0, 0.5, *_oil_props(strut, 340.0, 330.0)))

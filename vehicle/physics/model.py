@@ -324,10 +324,14 @@ class VehicleModel:
             eq = strut.equations(sin, internal, dp)
             # the heat network (vehicle.physics.thermal): valve and gas heat into the oil, seal
             # friction and end stops into the wall, the surface to the station's air and the mounts
-            T_film = 0.5 * (T_oil + T_wall)
+            # oil properties at the oil temperature (the strut's own valve terms evaluate the same
+            # expressions: shared in the compiled step); the Prandtl number of the natural-convection
+            # shape factor at the oil's reference temperature (a run constant, thermal.churchill_chu_h)
+            Pr_shape = thermal.oil_prandtl(P.heat, strut.oil_viscosity(strut.p.oil.reference_temperature),
+                                           strut.p.oil.density)
             flows = thermal.network_flows(P.heat, thermal.station_environment(P.heat, P.axles[P.station_axle(i)].heat),
-                                          T_oil, T_wall, T_surf, T_amb, speed, vs, strut.oil_viscosity(T_film),
-                                          strut.oil_density(T_film), strut.p.oil.expansion)
+                                          T_oil, T_wall, T_surf, T_amb, speed, vs, strut.oil_viscosity(T_oil),
+                                          strut.oil_density(T_oil), strut.p.oil.expansion, Pr_shape)
             dT_nodes = thermal.network_rates(P.heat, flows, eq["power_valve"], eq["power_friction"],
                                              eq["power_end_stop"], eq["heat_gas"])
             Fs = eq["force"]

@@ -94,25 +94,30 @@ def convection_coefficient(heat, vehicle_speed_m_per_s, air_speed_ratio=None, fi
 
 
 # --- inside: oil ----------------------------------------------------------------------------
-def churchill_chu_h(dT_K, length_m, k, nu, alpha, beta):
+def churchill_chu_h(dT_K, length_m, k, nu, alpha, beta, prandtl_shape=None):
     """Natural convection [W/(m^2 K)] on a vertical surface of height L, all Rayleigh numbers
     (Churchill & Chu 1975; Incropera eq. 9.26):
-    Nu = (0.825 + 0.387 Ra^(1/6) / (1 + (0.492/Pr)^(9/16))^(8/27))^2, Ra = g beta |dT| L^3/(nu alpha)."""
-    dT = sym.sqrt(dT_K * dT_K + DT_SMOOTHING_K ** 2)
-    Ra = GRAVITY * beta * dT * length_m ** 3 / (nu * alpha)
-    Pr = nu / alpha
-    Nu = (0.825 + 0.387 * Ra ** (1.0 / 6.0) / (1.0 + (0.492 / Pr) ** (9.0 / 16.0)) ** (8.0 / 27.0)) ** 2
+    Nu = (0.825 + 0.387 Ra^(1/6) / (1 + (0.492/Pr)^(9/16))^(8/27))^2, Ra = g beta |dT| L^3/(nu alpha).
+
+    prandtl_shape: the Pr of the weak shape factor (1 + (0.492/Pr)^(9/16))^(8/27), 1.008-1.02 for an
+    oil's Pr = 60-350; default nu/alpha. The vehicle passes the oil's Pr at its reference temperature
+    (a run constant: the factor is then computed once per run instead of twice per step and station;
+    h differs from the exact factor's by at most 2.2 % over 20-100 degC, far inside the oil film
+    prior; tests/test_thermal_network.py). Ra^(1/6) is computed as (Ra^2)^(1/12): |dT| smoothed
+    without a square root. Both save powers in the compiled step (6.3 vs 7.2 us/step measured)."""
+    Pr = nu / alpha if prandtl_shape is None else prandtl_shape
+    Ra2 = (GRAVITY * beta * length_m ** 3 / (nu * alpha)) ** 2 * (dT_K * dT_K + DT_SMOOTHING_K ** 2)
+    Nu = (0.825 + 0.387 * Ra2 ** (1.0 / 12.0) / (1.0 + (0.492 / Pr) ** (9.0 / 16.0)) ** (8.0 / 27.0)) ** 2
     return Nu * k / length_m
 
 
 def dittus_boelter_h(speed_m_per_s, diameter_m, k, nu, alpha):
     """Forced convection [W/(m^2 K)] of a flow at `speed` in a duct of hydraulic diameter D
     (Dittus & Boelter 1930, heating of the wall: Nu = 0.023 Re^0.8 Pr^0.4; Incropera eq. 8.60).
-    Stated for Re > 1e4: the stroking flow (Re ~ 1e3) is outside it, covered by the oil film prior."""
-    v = sym.sqrt(speed_m_per_s * speed_m_per_s + V_SMOOTHING_M_S ** 2)
-    Re = v * diameter_m / nu
-    Pr = nu / alpha
-    return 0.023 * Re ** 0.8 * Pr ** 0.4 * k / diameter_m
+    Stated for Re > 1e4: the stroking flow (Re ~ 1e3) is outside it, covered by the oil film prior.
+    Re^0.8 Pr^0.4 = (v^2 D^2 / (nu alpha))^0.4: one power, |v| smoothed."""
+    v2 = speed_m_per_s * speed_m_per_s + V_SMOOTHING_M_S ** 2
+    return 0.023 * (v2 * diameter_m * diameter_m / (nu * alpha)) ** 0.4 * k / diameter_m
 
 
 def mixed_convection_h(h_natural, h_forced):
@@ -120,12 +125,20 @@ def mixed_convection_h(h_natural, h_forced):
     return (h_natural ** 3 + h_forced ** 3) ** (1.0 / 3.0)
 
 
-def oil_film_coefficient(heat, T_oil_K, T_wall_K, strut_velocity_m_s, nu_oil, rho_oil, beta_oil):
-    """Oil-side film coefficient [W/(m^2 K)]: natural convection mixed with the stroking flow,
-    oil properties at the film (mean) temperature (nu_oil, rho_oil from the strut file)."""
+def oil_prandtl(heat, nu_oil, rho_oil):
+    """Prandtl number of the oil: nu rho c_p / k."""
+    return nu_oil * rho_oil * heat.oil_specific_heat / heat.oil_conductivity
+
+
+def oil_film_coefficient(heat, T_oil_K, T_wall_K, strut_velocity_m_s, nu_oil, rho_oil, beta_oil,
+                         prandtl_shape=None):
+    """Oil-side film coefficient [W/(m^2 K)]: natural convection mixed with the stroking flow; the oil
+    properties (nu_oil, rho_oil from the strut file) at the bulk oil temperature, not the film's (a few
+    kelvin apart, within the oil film prior; the strut's valve already evaluates them there).
+    prandtl_shape: see churchill_chu_h."""
     alpha = heat.oil_conductivity / (rho_oil * heat.oil_specific_heat)
     h_nat = churchill_chu_h(T_oil_K - T_wall_K, heat.oil_column_height, heat.oil_conductivity, nu_oil, alpha,
-                            beta_oil)
+                            beta_oil, prandtl_shape)
     h_forced = dittus_boelter_h(strut_velocity_m_s, heat.bore_diameter, heat.oil_conductivity, nu_oil, alpha)
     return heat.oil_film_multiplier * mixed_convection_h(h_nat, h_forced)
 
@@ -172,10 +185,10 @@ def station_environment(heat, axle_heat=None) -> SimpleNamespace:
 
 # --- the network ---------------------------------------------------------------------------------
 def network_flows(heat, env, T_oil, T_wall, T_surface, T_ambient, vehicle_speed, strut_velocity,
-                  nu_oil, rho_oil, beta_oil) -> dict:
+                  nu_oil, rho_oil, beta_oil, prandtl_shape=None) -> dict:
     """Internal and external heat flows [W] of one strut's network (module docstring)."""
     T_local = T_ambient + env.ambient_offset
-    h_oil = oil_film_coefficient(heat, T_oil, T_wall, strut_velocity, nu_oil, rho_oil, beta_oil)
+    h_oil = oil_film_coefficient(heat, T_oil, T_wall, strut_velocity, nu_oil, rho_oil, beta_oil, prandtl_shape)
     h_out = convection_coefficient(heat, vehicle_speed, env.air_speed_ratio, env.film_coefficient)
     return dict(
         oil_to_wall=h_oil * heat.wetted_area * (T_oil - T_wall),
