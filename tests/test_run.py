@@ -107,7 +107,7 @@ def test_report_agrees_with_the_file(reference, capsys):
     assert rep["distance_km"] == pytest.approx(DISTANCE_M / 1e3)
     assert rep["simulated_s"] == pytest.approx(DISTANCE_M / SPEED)
     assert rep["wall_s"] > 0
-    assert [a["axle"] for a in rep["axles"]] == [1, 2, 3, 4]
+    assert [a["axle"] for a in rep["axles"]] == [1, 2, 3, 4] and rep["file"] == str(reference)
     with h5py.File(reference, "r") as f:
         before, after = f["equilibrium/before"], f["equilibrium/after"]
         ts = f["timeseries"]

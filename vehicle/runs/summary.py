@@ -86,10 +86,10 @@ def report_from(r: ResultsView, name: str) -> dict:
     h0 = np.asarray(before["axle_height_change"], float)
     final = r.summary_values()
     T_end = {}
-    for key, name in (("surface", "strut_temperature"), ("oil", "oil_temperature"), ("gas", "gas_temperature")):
-        v = final.get(name) if after is not None else None
+    for key, var in (("surface", "strut_temperature"), ("oil", "oil_temperature"), ("gas", "gas_temperature")):
+        v = final.get(var) if after is not None else None
         if v is None:
-            v = _last_row(r, name)
+            v = _last_row(r, var)
         T_end[key] = _axle_mean(v) - 273.15 if v is not None else np.full(len(axles), np.nan)
     if after is not None and final.get("strut_temperature") is None and "strut_temperature" in after:
         T_end["surface"] = _axle_mean(after["strut_temperature"]) - 273.15     # a file without /summary values
