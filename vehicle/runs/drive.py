@@ -71,13 +71,18 @@ class DriveState:
     def as_dict(self) -> dict:
         return {"t_s": self.t_s, "s_m": self.s_m, "x": self.x.copy(), "next_stats_m": self.next_stats_m,
                 "last_stats_t_s": self.last_stats["t_s"], "last_stats_q": self.last_stats["q"].copy(),
+                # the running sum of the gas temperature samples since the last boundary (its interval mean)
+                "last_stats_gas_sum": np.asarray(self.last_stats["gas_sum"], float).copy(),
+                "last_stats_gas_n": int(self.last_stats.get("gas_n", 0)),
                 "sample_index": self.sample_index, "solver_memory": np.asarray(self.solver_memory, float).copy()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "DriveState":
         return cls(t_s=float(d["t_s"]), s_m=float(d["s_m"]), x=np.asarray(d["x"], float),
                    next_stats_m=float(d["next_stats_m"]),
-                   last_stats={"t_s": float(d["last_stats_t_s"]), "q": np.asarray(d["last_stats_q"], float)},
+                   last_stats={"t_s": float(d["last_stats_t_s"]), "q": np.asarray(d["last_stats_q"], float),
+                               "gas_sum": np.asarray(d.get("last_stats_gas_sum", 0.0), float),
+                               "gas_n": int(d.get("last_stats_gas_n", 0))},
                    sample_index=int(d["sample_index"]),
                    solver_memory=np.atleast_1d(np.asarray(d.get("solver_memory", []), float)))
 
@@ -135,7 +140,8 @@ class Drive:
     def initial_state(self) -> DriveState:
         x = self.model.state_at_rest(self.initial_equilibrium(), self.gas_masses)
         return DriveState(t_s=0.0, s_m=0.0, x=x, next_stats_m=self.settings.stats_interval_m,
-                          last_stats={"t_s": 0.0, "q": x[self.quad_index].copy()},
+                          last_stats={"t_s": 0.0, "q": x[self.quad_index].copy(), "gas_sum": np.zeros(self.model.n),
+                                      "gas_n": 0},
                           solver_memory=np.zeros_like(self.solver.get_state()))
 
     def describe(self):
@@ -305,23 +311,34 @@ class Drive:
         T = X
         t_last, q_last = st.last_stats["t_s"], st.last_stats["q"]
         s0, t0, q0, T0 = st.s_m, st.t_s, st.x[self.quad_index], st.x
+        # the gas temperature swings by kelvins with every bump: its interval mean over the output samples
+        Tg = X[self.T_gas_index]
+        g_sum = np.broadcast_to(np.asarray(st.last_stats.get("gas_sum", 0.0), float), (self.model.n,)).copy()
+        g_n = int(st.last_stats.get("gas_n", 0))
         for j in range(len(t)):
+            g_sum += Tg[:, j]
+            g_n += 1
             while s[j] >= st.next_stats_m - 1e-9:
                 # the quadratures are smooth and monotone: interpolate them to the boundary
                 a = (st.next_stats_m - s0) / (s[j] - s0) if s[j] > s0 else 1.0
                 tb, qb, Tb = t0 + a * (t[j] - t0), q0 + a * (q[:, j] - q0), T0 + a * (T[:, j] - T0)
-                rows.append(self._stats_row(st.next_stats_m, tb - t_last, qb - q_last, Tb))
+                rows.append(self._stats_row(st.next_stats_m, tb - t_last, qb - q_last, Tb,
+                                            g_sum / g_n if g_n else Tg[:, j]))
                 t_last, q_last = tb, qb
+                g_sum, g_n = np.zeros(self.model.n), 0
                 st.next_stats_m += self.settings.stats_interval_m
             s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
         if t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 and t[-1] > t_last + 1e-9:
-            rows.append(self._stats_row(s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1]))
+            rows.append(self._stats_row(s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1],
+                                        g_sum / g_n if g_n else Tg[:, -1]))
             t_last, q_last = t[-1], q[:, -1]
-        st.last_stats = {"t_s": t_last, "q": q_last}
+            g_sum, g_n = np.zeros(self.model.n), 0
+        st.last_stats = {"t_s": t_last, "q": q_last, "gas_sum": g_sum, "gas_n": g_n}
         return rows
 
-    def _stats_row(self, s_end, duration, dq, x_end) -> dict:
-        """One statistics row; x_end: the state at the interval's end (its temperatures are reported)."""
+    def _stats_row(self, s_end, duration, dq, x_end, gas_mean=None) -> dict:
+        """One statistics row; x_end: the state at the interval's end (its temperatures are reported);
+        gas_mean: the interval mean of the gas temperature (default its value at the end)."""
         n = self.model.n
         nE = len(ENERGY_TERMS)
         E = dq[: nE * n].reshape(nE, n)
@@ -329,7 +346,8 @@ class Drive:
                "strut_temperature_K": x_end[self.T_index].copy(),
                "wall_temperature_K": x_end[self.T_wall_index].copy(),
                "oil_temperature_K": x_end[self.T_oil_index].copy(),
-               "gas_temperature_K": x_end[self.T_gas_index].copy()}
+               "mean_gas_temperature_K": np.array(x_end[self.T_gas_index] if gas_mean is None else gas_mean,
+                                                  float)}
         for k, e in enumerate(ENERGY_TERMS):
             if e in DISSIPATION_TERMS:
                 row[f"power_{e}_W"] = E[k] / max(duration, 1e-12)

@@ -137,7 +137,6 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
     values["strut_temperature_K"] = np.asarray(x[drive.T_index], float)          # the surface (pyrometer)
     values["wall_temperature_K"] = np.asarray(x[drive.T_wall_index], float)
     values["oil_temperature_K"] = np.asarray(x[drive.T_oil_index], float)
-    values["gas_temperature_K"] = np.asarray(x[drive.T_gas_index], float)
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(wall_s), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),

@@ -4,8 +4,9 @@ results (a file through vehicle.runs.reader.open_results, or a MemorySink).
 Per axle, values are the mean of the left and right station:
   T_start_C / T_end_C    strut temperature before / after the drive: the outer surface (what the
                          seed-000 pyrometer read; the heat network's surface node)
-  T_surface_end_C, T_oil_end_C, T_gas_end_C   the surface (= T_end_C), oil and gas temperatures at
-                         the end (None in files written before the heat network)
+  T_surface_end_C, T_oil_end_C, T_gas_end_C   the surface (= T_end_C) and oil temperatures at the end,
+                         the gas temperature's mean over the last statistics interval (it swings by
+                         kelvins with every bump); None in files written before the heat network
   dh_mm                  hull height change at the axle, after-drive equilibrium minus
                          before-drive equilibrium (both standing on flat ground)
   N_before_daN / N_after_daN, dN_pct   wheel load in those two equilibria and its change
@@ -86,11 +87,14 @@ def report_from(r: ResultsView, name: str) -> dict:
     h0 = np.asarray(before["axle_height_change"], float)
     final = r.summary_values()
     T_end = {}
-    for key, var in (("surface", "strut_temperature"), ("oil", "oil_temperature"), ("gas", "gas_temperature")):
+    for key, var in (("surface", "strut_temperature"), ("oil", "oil_temperature")):
         v = final.get(var) if after is not None else None
         if v is None:
             v = _last_row(r, var)
         T_end[key] = _axle_mean(v) - 273.15 if v is not None else np.full(len(axles), np.nan)
+    # the gas swings by kelvins with every bump: its mean over the last statistics interval
+    g = r.stats_series("mean_gas_temperature")
+    T_end["gas"] = _axle_mean(g[-1]) - 273.15 if g is not None and len(g) else np.full(len(axles), np.nan)
     if after is not None and final.get("strut_temperature") is None and "strut_temperature" in after:
         T_end["surface"] = _axle_mean(after["strut_temperature"]) - 273.15     # a file without /summary values
     T1 = T_end["surface"]

@@ -87,7 +87,8 @@ VARIABLES: dict[str, Var | Split] = {
     "wall_temperature_K": Var("wall_temperature", "K", "temperature of the oil-wetted steel of the strut (wall node)",
                               "station"),
     "oil_temperature_K": Var("oil_temperature", "K", "oil temperature in the strut", "station"),
-    "gas_temperature_K": Var("gas_temperature", "K", "gas temperature in the strut", "station"),
+    "mean_gas_temperature_K": Var("mean_gas_temperature", "K", "gas temperature in the strut, mean over the "
+                                  "interval's output samples (the gas swings with every bump)", "station"),
     "axle_height_change_m": Var("axle_height_change", "m",
                                 "hull height change at the axle against the charged state", "axle"),
     "hull_acceleration": Split(tuple(Var(f"{d}_acceleration", u, t, None) for d, u, t in _HULL)),
