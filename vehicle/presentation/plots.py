@@ -60,6 +60,7 @@ def dashboard(path, out: str | Path) -> Path:
         t_all = _series(f, "time")
         sample_dt = float(np.median(np.diff(t_all))) if t_all is not None and len(t_all) > 1 else 1.0
         T = _series(f, "strut_temperature")
+        T_oil = _series(f, "oil_temperature")       # the heat network's oil node (None in older files)
         h = _series(f, "axle_height_change")
         before, after = f.equilibrium("before"), f.equilibrium("after")
         N_before = np.asarray(before["wheel_load"], float)
@@ -102,11 +103,17 @@ def dashboard(path, out: str | Path) -> Path:
         Tax = 0.5 * (Ts[:, 0::2] + Ts[:, 1::2]) - 273.15
         for k, name in enumerate(axles):
             a.plot(x, Tax[:, k], color=colors[k % len(colors)], label=name, marker="o" if len(x) < 30 else None, ms=3)
+        if T is not None and s_km is not None and T_oil is not None and len(T_oil) == len(x):
+            Toax = 0.5 * (T_oil[:, 0::2] + T_oil[:, 1::2]) - 273.15
+            for k in range(len(axles)):
+                a.plot(x, Toax[:, k], color=colors[k % len(colors)], ls=":", lw=1.0)
+            a.annotate("dotted: oil", (x[-1], float(np.max(Toax[-1]))), textcoords="offset points", xytext=(-40, 4),
+                       fontsize=7, color="0.35")
         a.axhline(rep["ambient_C"], color="0.45", ls="--", lw=1.0)
         a.annotate(f"ambient {rep['ambient_C']:.0f} degC", (x[0], rep["ambient_C"]), textcoords="offset points",
                    xytext=(2, 3), fontsize=7, color="0.35")
-        a.set(xlabel="distance [km]", ylabel="strut surface temperature [degC]",
-              title="strut surface temperature (mean of left/right)")
+        a.set(xlabel="distance [km]", ylabel="strut temperature [degC]",
+              title="strut surface (pyrometer) and oil temperature (mean of left/right)")
 
     if (T is not None and s_km is not None and len(s_km)) or (T_stats is not None and len(T_stats)):
         panels.append(temperatures)
