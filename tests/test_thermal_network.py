@@ -232,3 +232,22 @@ def test_a_local_heat_source_warms_only_its_axle():
     T = res.state.x[d.T_index] - T_AMB
     assert np.all(T[6:] > 0.2 + np.max(T[:6]))
     np.testing.assert_allclose(T[:6], T[0], atol=1e-6)
+
+
+def test_scenario_overrides_reach_an_axles_heat_environment():
+    """A scenario sets one axle's environment by dotted override; a bad value names the key and its range."""
+    from vehicle.runs.scenario import prepare, read_scenario_text
+
+    text = """\
+description: per-axle heat
+vehicle: {name: apc_8x8, overrides: {axles.3.heat.heat_source: 150 W, axles.0.heat: {view_factor: 0.3}}}
+road: {iso_class: D, seed: 1}
+speed: 20 km/h
+distance: 0.1 km
+ambient_temperature: 25 degC
+"""
+    V = prepare(read_scenario_text(text, "s.yaml", ".")).vehicle
+    assert V.axles[3].heat.heat_source == 150.0 and V.axles[0].heat.view_factor == 0.3
+    assert V.axles[1].heat is None and V.axles[2].heat is None
+    with pytest.raises(UserInputError, match=r"axles.3.heat: view_factor must be in \[0, 1\]"):
+        prepare(read_scenario_text(text.replace("heat_source: 150 W", "view_factor: 1.5"), "s.yaml", "."))
