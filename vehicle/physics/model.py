@@ -51,6 +51,7 @@ from struts.params import load_strut
 
 from vehicle.physics import compensation as comp
 from vehicle.physics import hull as hull_eq
+from vehicle.physics import ride
 from vehicle.physics import thermal
 from vehicle.physics.params import GRAVITY, VehicleParams
 from vehicle.physics.tyre import tyre_force
@@ -60,6 +61,11 @@ DISSIPATION_TERMS = ("valve", "friction", "gas", "end_stop")
 HULL_ACCELERATIONS = ("heave_acc", "pitch_acc", "roll_acc")
 # time-varying inputs in the order of u: (name, per station?) (see the module doc)
 INPUTS = (("road", True), ("road_rate", True), ("speed", False), ("ambient", False), ("acceleration", False))
+# ride and road-holding quadratures per station (vehicle.physics.ride): int F dt, int F^2 dt of the tyre
+# load, time with the tyre lifted off, time on an end stop; then the time above each inner travel-bin
+# edge (TRAVEL_BINS bins of equal width over the stroke, the outer ones open: `travel_histogram`)
+STATION_QUADRATURES = ("F", "F2", "lift", "stop")
+TRAVEL_BINS = 20
 
 
 @dataclass
@@ -80,8 +86,12 @@ class Layout:
 
 
 class VehicleModel:
-    def __init__(self, params: VehicleParams):
+    def __init__(self, params: VehicleParams, ride_metrics: bool = True):
         self.params = params
+        # ride metrics: ISO 2631-1 filters at the seats and road-holding quadratures (a structural switch)
+        self.ride_metrics = bool(ride_metrics)
+        self.seat_filters = ride.SeatFilters.default()
+        self.seat_names = [st.name for st in params.seats] if self.ride_metrics else []
         self.n = params.n_stations
         self.station_names = params.station_names()
         # one strut model per distinct (file, overrides): (index, parameters, model)
@@ -157,7 +167,7 @@ class VehicleModel:
     @property
     def structure(self) -> str:
         """Fingerprint of the model's structure (a compiled model serves every model with the same one)."""
-        return f"s{self.n}_{self.parameters.structure}"
+        return f"s{self.n}_{self.parameters.structure}" + ("" if self.ride_metrics else "_noride")
 
     # --- layout ----------------------------------------------------------------------------------
     def _build_layout(self):
@@ -191,6 +201,19 @@ class VehicleModel:
             L.add(f"I_v2[{i}]")
         for nm in HULL_ACCELERATIONS:
             L.add(f"I_{nm}2")
+        if self.ride_metrics:
+            # explicit (slow) block: the seat filters' poles are at |lambda h| <= 0.32 for h = 4 ms without
+            # the 100 Hz band limit (ride.SeatFilters), inside the explicit trapezoid's stability region
+            for seat in self.seat_names:
+                for nm in self.seat_filters.state_names(seat):
+                    L.add(nm)
+                for q in ride.SeatFilters.QUADRATURES:
+                    L.add(f"I_{q}_{seat}")
+            for i in range(self.n):
+                for q in STATION_QUADRATURES:
+                    L.add(f"I_{q}[{i}]")
+                for k in range(1, TRAVEL_BINS):
+                    L.add(f"I_above{k}[{i}]")
         self.layout = L
         self.nx = len(L)
         self.nz = sum(len(st.algebraic_names) for st in self.struts)
@@ -381,8 +404,54 @@ class VehicleModel:
             rates[f"I_{nm}2"] = acc * acc
         out["hull_acc"] = [ddz, ddt, ddp]
         out["axle_height"] = [hull_eq.axle_height_change(zc, th, ax.position, K.a_cg) for ax in P.axles]
+        if self.ride_metrics:
+            rates.update(self._ride_rates(X, (ddz, ddt, ddp), out))
         ode = [rates[nm] for nm in self.layout.names]
         return ode, residuals, out
+
+    def _ride_rates(self, X, hull_acc, out) -> dict:
+        """Rates of the ride states (vehicle.physics.ride): per seat the ISO 2631-1 Wk (vertical) and Wd
+        (lateral) filters and the absorbed-power filter driven by the hull accelerations at the seat,
+        and the quadratures of a_w^2, a_w^4, a_wl^2 and P_abs; per station int F, int F^2 of the tyre
+        load, time lifted off (F = 0: the tyre law is exactly zero there), time on an end stop and the
+        time above each inner travel-bin edge."""
+        K = self.sym
+        ddz, ddt, ddp = hull_acc
+        rates = {}
+        for seat, st in zip(self.seat_names, K.params.seats):
+            a_v = ride.seat_vertical_acceleration(ddz, ddt, ddp, st.x_from_cg, st.y_from_cg)
+            a_l = ride.seat_lateral_acceleration(ddp, X["phi"], st.z_from_cg)
+            names = self.seat_filters.state_names(seat)
+            r, quad = self.seat_filters.rates([X[nm] for nm in names], a_v, a_l)
+            rates.update(zip(names, r))
+            rates.update({f"I_{q}_{seat}": v for q, v in quad.items()})
+        for i in range(self.n):
+            F, F2, lift = ride.tyre_integrands(out["tyre_force"][i])
+            xs = out["strut_deflection"][i]
+            stroke = K.struts[i].p.geometry.stroke
+            rates.update({f"I_F[{i}]": F, f"I_F2[{i}]": F2, f"I_lift[{i}]": lift,
+                          f"I_stop[{i}]": ride.end_stop_indicator(xs, stroke)})
+            above = ride.travel_exceedance_indicators(xs, [stroke * k / TRAVEL_BINS for k in range(1, TRAVEL_BINS)])
+            rates.update({f"I_above{k + 1}[{i}]": v for k, v in enumerate(above)})
+        return rates
+
+    def travel_bin_edges(self) -> np.ndarray:
+        """(n_stations, TRAVEL_BINS + 1) strut-travel bin edges [m]: equal bins over each strut's stroke
+        (the first and last bins also take the travel beyond the end stops)."""
+        return np.array([st.p.geometry.stroke * np.arange(TRAVEL_BINS + 1) / TRAVEL_BINS for st in self.struts])
+
+    @cached_property
+    def ride_index(self) -> dict:
+        """Indices of the ride quadratures: per seat quadrature (n_seats,), per station quadrature (n,),
+        'above' (TRAVEL_BINS - 1, n); {} without ride metrics."""
+        if not self.ride_metrics:
+            return {}
+        out = {q: np.array([self.idx(f"I_{q}_{s}") for s in self.seat_names], dtype=int)
+               for q in ride.SeatFilters.QUADRATURES}
+        out.update({q: np.array([self.idx(f"I_{q}[{i}]") for i in range(self.n)]) for q in STATION_QUADRATURES})
+        out["above"] = np.array([[self.idx(f"I_above{k}[{i}]") for i in range(self.n)]
+                                 for k in range(1, TRAVEL_BINS)])
+        return out
 
     # --- CasADi functions ------------------------------------------------------------------------
     @cached_property

@@ -364,3 +364,39 @@ def travel_bin_indicators(deflection_m, bin_edges_m):
         below = 1.0 if k == len(edges) - 2 else sym.if_else(deflection_m < edges[k + 1], 1.0, 0.0)
         out.append(above * below)
     return out
+
+
+def travel_exceedance_indicators(deflection_m, inner_edges_m):
+    """One indicator per inner travel-bin edge: 1 while the deflection is at or above it.
+
+    Integrated, they give the time above each edge, from which `travel_histogram` gives the time in
+    every bin of `travel_bin_indicators` with one comparison per edge instead of two per bin."""
+    from hpsim import symbolic as sym
+
+    return [sym.if_else(deflection_m >= e, 1.0, 0.0) for e in inner_edges_m]
+
+
+def travel_histogram(time_above_s, duration_s):
+    """Time in each travel bin [s] (..., n_bins) from the time above each inner edge (n_bins - 1, ...)
+    over a duration: bin 0 = T - above_1, bin k = above_k - above_k+1, last bin = above_last (the
+    outer bins open, as in `travel_bin_indicators`)."""
+    above = np.asarray(time_above_s, float)
+    T = np.broadcast_to(np.asarray(duration_s, float), above.shape[1:])
+    cum = np.concatenate([T[None], above, np.zeros((1,) + above.shape[1:])], axis=0)
+    return np.moveaxis(np.maximum(cum[:-1] - cum[1:], 0.0), 0, -1)
+
+
+def travel_range(time_in_bins_s, bin_edges_m):
+    """(min, max) strut travel [m] to the bin resolution from the time in each bin (..., n_bins) and
+    the edges (..., n_bins + 1): the lower edge of the first and the upper edge of the last bin with
+    time (NaN without time). The outer bins are open: a minimum at the first edge or a maximum at
+    the last one means 'at or beyond it'."""
+    h = np.asarray(time_in_bins_s, float)
+    edges = np.broadcast_to(np.asarray(bin_edges_m, float), h.shape[:-1] + (h.shape[-1] + 1,))
+    used = h > 1e-9 * np.sum(np.abs(h), axis=-1, keepdims=True)    # round-off of T - above_1 is no time
+    any_ = used.any(axis=-1)
+    first = np.argmax(used, axis=-1)
+    last = h.shape[-1] - 1 - np.argmax(used[..., ::-1], axis=-1)
+    lo = np.take_along_axis(edges, first[..., None], -1)[..., 0]
+    hi = np.take_along_axis(edges, last[..., None] + 1, -1)[..., 0]
+    return np.where(any_, lo, np.nan), np.where(any_, hi, np.nan)

@@ -21,6 +21,7 @@ from hpsim.errors import SimulationError, UserInputError
 
 from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
+from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.numerics.solvers import Ros2
 from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
@@ -131,6 +132,14 @@ class Drive:
         # the gas node: the strut's T_gas state (energy-equation gas), else the gas is at the oil temperature
         self.T_gas_index = np.array([model.idx(f"T_gas[{i}]") if "T_gas" in model.struts[i].state_names
                                      else model.idx(f"T_oil[{i}]") for i in range(n)])
+        # the ride quadratures after them (vehicle.physics.model.VehicleModel.ride_index): positions in quad_index
+        self.ride_slots, k = {}, len(self.quad_index)
+        for q, idx in model.ride_index.items():
+            self.ride_slots[q] = k + np.arange(idx.size).reshape(idx.shape)
+            k += idx.size
+        if model.ride_index:
+            self.quad_index = np.concatenate([self.quad_index] + [idx.ravel() for idx in model.ride_index.values()])
+        self.travel_bin_edges_m = model.travel_bin_edges()
 
     # --- initial state --------------------------------------------------------------------------
     def initial_equilibrium(self):
@@ -352,7 +361,30 @@ class Drive:
             if e in DISSIPATION_TERMS:
                 row[f"power_{e}_W"] = E[k] / max(duration, 1e-12)
         row["rms_strut_velocity_m_per_s"] = np.sqrt(np.maximum(dq[nE * n: nE * n + n], 0) / max(duration, 1e-12))
-        row["rms_hull_acceleration"] = np.sqrt(np.maximum(dq[nE * n + n:], 0) / max(duration, 1e-12))
+        row["rms_hull_acceleration"] = np.sqrt(np.maximum(dq[nE * n + n: nE * n + n + len(HULL_ACCELERATIONS)], 0)
+                                               / max(duration, 1e-12))
+        if self.ride_slots:
+            row.update(self._ride_row(duration, dq, E[ENERGY_TERMS.index("end_stop")]))
+        return row
+
+    def _ride_row(self, duration, dq, end_stop_energy_J) -> dict:
+        """Ride and road-holding statistics of an interval from the differences of the ride quadratures
+        (vehicle.physics.ride; the keys vehicle.runs.ride_metrics reads)."""
+        Q = {q: dq[k] for q, k in self.ride_slots.items()}
+        T = max(duration, 1e-12)
+        row = {}
+        if len(self.model.seat_names):
+            row["weighted_rms_acceleration_m_s2"] = ride.weighted_rms(Q["aw2"], T)
+            row["weighted_rms_lateral_acceleration_m_s2"] = ride.weighted_rms(Q["awl2"], T)
+            row["vdv_m_s175"] = ride.vibration_dose_value(Q["aw4"])
+            row["absorbed_power_W"] = np.maximum(Q["pabs"], 0.0) / T
+        row["dynamic_load_coefficient"] = ride.dynamic_load_coefficient(Q["F"], Q["F2"], T)
+        row["lift_off_share"] = np.clip(Q["lift"] / T, 0.0, 1.0)
+        row["end_stop_time_s"] = np.maximum(Q["stop"], 0.0)
+        row["end_stop_energy_J"] = np.asarray(end_stop_energy_J, float).copy()
+        hist = ride.travel_histogram(Q["above"], duration)
+        row["strut_travel_min_m"], row["strut_travel_max_m"] = ride.travel_range(hist, self.travel_bin_edges_m)
+        row["strut_travel_histogram_s"] = hist
         return row
 
 

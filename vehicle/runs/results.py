@@ -126,6 +126,9 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
                         # the weighing as a measurement: what seal friction lets a standing vehicle show
                         "before_band": weighing_band_datasets(drive, before.temperatures_K)},
         "summary": {"status": "running", "complete": False, "build_s": float(drive.build_s)},
+        # ride metrics (vehicle.runs.ride_metrics): the seat labels and the strut-travel bin edges
+        "seats": list(getattr(model, "seat_names", [])),
+        "stats_attrs": {"strut_travel_histogram": {"bin_edges_m": drive.travel_bin_edges_m}},
     }
 
 
@@ -137,6 +140,8 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
     values["strut_temperature_K"] = np.asarray(x[drive.T_index], float)          # the surface (pyrometer)
     values["wall_temperature_K"] = np.asarray(x[drive.T_wall_index], float)
     values["oil_temperature_K"] = np.asarray(x[drive.T_oil_index], float)
+    if getattr(m, "ride_metrics", False):
+        values["strut_travel_bin_edges_m"] = np.asarray(drive.travel_bin_edges_m, float)
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(wall_s), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),

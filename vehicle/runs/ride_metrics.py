@@ -13,7 +13,7 @@ filter states and quadratures, vehicle.physics.ride), under these drive keys:
     strut_travel_min_m, strut_travel_max_m   per station
     strut_travel_histogram_s          per station x travel bin: time in each bin (edges: attribute
                                       bin_edges_m of the dataset, or the summary value
-                                      strut_travel_bin_edges_m)
+                                      strut_travel_bin_edges_m; one row of edges, or one per station)
     rms_strut_velocity_m_per_s, rms_hull_acceleration   (as before)
 
 Over the drive: a_w = sqrt(sum T_i a_w,i^2 / T) (ISO 2631-1 eq. 1 over the whole time); VDV =
@@ -115,7 +115,11 @@ def summarise(view) -> dict:
     edges = _bin_edges(view) if hist is not None else None
     if hist is not None and edges is not None:
         found = True
-        p = ride.travel_percentiles(hist.sum(axis=0), edges, PERCENTILES)
+        total = hist.sum(axis=0)
+        if edges.ndim == 1:
+            p = ride.travel_percentiles(total, edges, PERCENTILES)
+        else:          # edges per station (struts of different strokes)
+            p = np.array([ride.travel_percentiles(h, e, PERCENTILES) for h, e in zip(total, edges)])
         for st, row in zip(stations, p):
             st.update({f"strut_travel_p{q}_m": _num(v) for q, v in zip(PERCENTILES, row)})
     if found:

@@ -108,12 +108,26 @@ def _dimension_only(g: h5py.Group, name: str, size: int) -> h5py.Dataset:
     return ds
 
 
-def _attach(ds: h5py.Dataset, dims, scales: dict) -> None:
+def _attach(ds: h5py.Dataset, dims, scales: dict, seats=None) -> None:
+    """Attach the dimension scales of `dims`; a free dimension (variables.FREE_DIMS: seat, travel_bin)
+    gets its scale when first used: the seat names when known (and of the right number), else a
+    netCDF dimension without a coordinate variable."""
     for i, d in enumerate(dims):
+        if d not in scales:
+            g, size = ds.parent, ds.shape[i]
+            if d == "seat" and seats is not None and len(seats) == size:
+                sc = g.create_dataset(d, data=np.array([str(s) for s in seats], dtype=h5py.string_dtype()))
+                sc.make_scale(d)
+                for k, v in label_attrs(d).items():
+                    sc.attrs[k] = v
+            else:
+                sc = _dimension_only(g, d, size)
+            scales[d] = sc
         ds.dims[i].attach_scale(scales[d])
 
 
-def write_static_group(parent: h5py.Group, name: str, arrays: dict, stations, axles, attrs: dict | None = None):
+def write_static_group(parent: h5py.Group, name: str, arrays: dict, stations, axles, attrs: dict | None = None,
+                       seats=None):
     """An equilibrium or the summary: drive-keyed arrays ((width,) or scalars) as labelled variables."""
     if name in parent:
         del parent[name]
@@ -123,7 +137,7 @@ def write_static_group(parent: h5py.Group, name: str, arrays: dict, stations, ax
         a = np.asarray(value, float)
         for v in file_variables(key, a.shape, "static", len(stations), len(axles)):
             ds = g.create_dataset(v.name, data=v.take(a, False))
-            _attach(ds, v.dims, scales)
+            _attach(ds, v.dims, scales, seats)
             for k, val in v.attrs.items():
                 ds.attrs[k] = val
     for k, v in (attrs or {}).items():
@@ -131,8 +145,8 @@ def write_static_group(parent: h5py.Group, name: str, arrays: dict, stations, ax
     return g
 
 
-def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, stations, axles
-                  ) -> dict[str, list[FileVariable]]:
+def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, stations, axles, seats=None,
+                  attrs: dict | None = None) -> dict[str, list[FileVariable]]:
     """/timeseries or /stats: every variable empty and resizable along the record dimension."""
     g = f.create_group(group)
     scales = _labels(g, stations, axles)
@@ -141,16 +155,16 @@ def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, 
     ordered = sorted(((key, v) for key, vs in plan.items() for v in vs), key=lambda kv: kv[1].role != "record")
     coords = " ".join(v.name for _, v in ordered if v.role == "coord")
     for key, v in ordered:
-        width = tuple(len(stations) if d == "station" else len(axles) for d in v.dims[1:])
+        width = v.take(np.asarray(sample[key], float), True).shape[1:]
         ds = g.create_dataset(v.name, shape=(0,) + width, maxshape=(None,) + width, dtype="f8",
                               chunks=(chunk,) + width, **kw)
-        for k, val in v.attrs.items():
+        for k, val in {**v.attrs, **(attrs or {}).get(v.name, {})}.items():
             ds.attrs[k] = val
         if v.role == "record":
             ds.make_scale(v.name)
             scales[v.name] = ds
         else:
-            _attach(ds, v.dims, scales)
+            _attach(ds, v.dims, scales, seats)
             if v.role == "data" and coords:
                 ds.attrs["coordinates"] = coords
     return plan
@@ -220,7 +234,7 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
     """The whole file before the drive starts (SWMR mode cannot create objects): root and /scenario
     attributes, the charged and before-drive equilibria, /summary (status running), every (empty)
     time-series and statistics variable and the checkpoint slots."""
-    stations, axles = info["stations"], info["axles"]
+    stations, axles, seats = info["stations"], info["axles"], info.get("seats")
     kw = {"compression": "gzip", "compression_opts": int(compression), "shuffle": True} if compression else {}
     kw["fletcher32"] = True        # a checksum per chunk: damaged data is reported, not read as numbers
     with create_h5(path) as f:
@@ -233,9 +247,9 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
         for name, arrays in info["equilibrium"].items():
             write_static_group(e, name, arrays, stations, axles)
         _record_group(f, "timeseries", {k: v for k, v in block.items() if k in stored}, chunk_rows, kw,
-                      stations, axles)
+                      stations, axles, seats)
         _record_group(f, "stats", {k: np.asarray(v, float)[..., None] for k, v in row.items()}, STATS_CHUNK_ROWS,
-                      kw, stations, axles)
+                      kw, stations, axles, seats, info.get("stats_attrs"))
         Checkpoint.create(f, state)
         write_static_group(f, "summary", {}, stations, axles, info["summary"])
 
@@ -486,7 +500,7 @@ class MemorySink(ResultsView):
             return require_xr().Dataset(attrs=self.scenario_attrs)
         arrays = self._group_arrays(group) or {}
         attrs = self.summary_attrs() if group == "summary" else {}
-        return group_dataset(group, arrays, self.stations, self.axles, attrs)
+        return group_dataset(group, arrays, self.stations, self.axles, attrs, self.info.get("seats"))
 
     def groups(self) -> list[str]:
         out = ["scenario", "timeseries", "stats"]

@@ -26,13 +26,17 @@ EQUILIBRIA = ("charged", "before", "after", "before_band", "after_band")
 STATIC_GROUPS = tuple(f"equilibrium/{e}" for e in EQUILIBRIA) + ("summary",)
 DATA_GROUPS = ("timeseries", "stats") + STATIC_GROUPS
 LABEL_DIMS = ("station", "axle")
+# dimensions whose size is the value's width (not the number of stations or axles): the seats of the
+# vehicle file (labelled with their names when known), the strut-travel bins and their edges
+FREE_DIMS = ("seat", "travel_bin", "travel_bin_edge")
 
 AUTO = "auto"
 
 
 @dataclass(frozen=True)
 class Var:
-    """A results variable. dim: "station", "axle", None (no extra dimension) or AUTO (from the width).
+    """A results variable. dim: "station", "axle", "seat", None (no extra dimension), AUTO (from the width) or
+    a tuple of two of them (("station", "travel_bin"): a (n_stations, n_bins) value).
     role: "data", "record" (the group's record coordinate: time, km) or "coord" (a coordinate along
     the record dimension: distance). scale multiplies the drive's SI value (km = m * 1e-3)."""
 
@@ -108,6 +112,31 @@ VARIABLES: dict[str, Var | Split] = {
     **{f"power_{e}_W": Var(f"power_{e}", "W", f"mean {text} over the interval", "station") for e, text in _POWER.items()},
     "rms_strut_velocity_m_per_s": Var("rms_strut_velocity", "m s-1", "RMS strut velocity over the interval",
                                       "station"),
+    # ride and road holding (vehicle.physics.ride, vehicle.runs.ride_metrics)
+    "weighted_rms_acceleration_m_s2": Var("weighted_rms_acceleration", "m s-2", "ISO 2631-1 Wk frequency-weighted "
+                                          "RMS vertical acceleration at the seat over the interval", "seat"),
+    "weighted_rms_lateral_acceleration_m_s2": Var("weighted_rms_lateral_acceleration", "m s-2",
+                                                  "ISO 2631-1 Wd frequency-weighted RMS lateral acceleration at the "
+                                                  "seat (hull roll) over the interval", "seat"),
+    "vdv_m_s175": Var("vibration_dose_value", "m s-1.75", "ISO 2631-1 vibration dose value (Wk) at the seat over "
+                      "the interval", "seat"),
+    "absorbed_power_W": Var("absorbed_power", "W", "mean vertical absorbed power at the seat over the interval",
+                            "seat"),
+    "dynamic_load_coefficient": Var("dynamic_load_coefficient", "1", "standard deviation over mean of the tyre "
+                                    "load over the interval", "station"),
+    "lift_off_share": Var("lift_off_share", "1", "share of the interval with the tyre off the ground", "station"),
+    "end_stop_time_s": Var("end_stop_time", "s", "time on an end stop of the strut in the interval", "station"),
+    "end_stop_energy_J": Var("end_stop_energy", "J", "energy dissipated in the end stops in the interval",
+                             "station"),
+    "strut_travel_min_m": Var("strut_travel_min", "m", "smallest strut deflection in the interval (to the "
+                              "travel-bin width)", "station"),
+    "strut_travel_max_m": Var("strut_travel_max", "m", "largest strut deflection in the interval (to the "
+                              "travel-bin width)", "station"),
+    "strut_travel_histogram_s": Var("strut_travel_histogram", "s", "time in each strut-travel bin in the interval "
+                                    "(bin edges: strut_travel_bin_edges; the outer bins open)",
+                                    ("station", "travel_bin")),
+    "strut_travel_bin_edges_m": Var("strut_travel_bin_edges", "m", "edges of the strut-travel bins",
+                                    ("station", "travel_bin_edge")),
     "rms_hull_acceleration": Split(tuple(Var(f"rms_{d}_acceleration", u, f"RMS {t} over the interval", None)
                                          for d, u, t in _HULL)),
     # equilibria (vehicle.physics.equilibrium.Equilibrium fields; heave_m, pitch_rad, roll_rad as above)
@@ -170,8 +199,8 @@ class FileVariable:
         a = np.asarray(value, float)
         if self.row is not None:
             a = a[self.row]
-        if record and a.ndim == 2:
-            a = a.T
+        if record and a.ndim >= 2:
+            a = np.moveaxis(a, -1, 0)
         return a * self.scale if self.scale != 1.0 else a
 
 
@@ -180,10 +209,19 @@ def _width_dim(key: str, var: Var, shape: tuple, n_stations: int, n_axles: int) 
         if var.dim not in (None, AUTO):
             raise ValueError(f"drive key {key!r}: the table gives dim {var.dim!r} but the value has no width")
         return ()
+    sizes = {"station": n_stations, "axle": n_axles}
+    if isinstance(var.dim, tuple):
+        if len(shape) != len(var.dim):
+            raise ValueError(f"drive key {key!r}: values of shape {shape} do not match the table's dims {var.dim}")
+        for d, width in zip(var.dim, shape):
+            if d not in FREE_DIMS and sizes.get(d) != width:
+                raise ValueError(f"drive key {key!r}: width {width} does not match the table's dim {d!r}")
+        return var.dim
     if len(shape) > 1:
         raise ValueError(f"drive key {key!r}: values of shape {shape} are not supported (at most one width axis)")
     width = shape[0]
-    sizes = {"station": n_stations, "axle": n_axles}
+    if var.dim in FREE_DIMS:
+        return (var.dim,)
     if var.dim == AUTO:
         dims = [d for d, n in sizes.items() if n == width]
         if len(dims) != 1:
@@ -211,10 +249,11 @@ def file_variables(key: str, width_shape: tuple, group: str, n_stations: int, n_
 
 def label_attrs(dim: str) -> dict:
     return {"station": {"long_name": "wheel station (axle-major, left first)"},
-            "axle": {"long_name": "axle (front first)"}}[dim]
+            "axle": {"long_name": "axle (front first)"},
+            "seat": {"long_name": "seat on the hull (vehicle file's seats)"}}[dim]
 
 
-def group_dataset(group: str, arrays: dict, stations, axles, attrs: dict | None = None):
+def group_dataset(group: str, arrays: dict, stations, axles, attrs: dict | None = None, seats=None):
     """An xarray.Dataset of one group from drive-keyed arrays (record groups: drive-shaped (..., n)
     arrays; static groups: (width,) or scalars) -- the same names, dims, coordinates and attributes
     that the HDF5 file holds (tests/test_results_xarray.py checks both)."""
@@ -235,6 +274,8 @@ def group_dataset(group: str, arrays: dict, stations, axles, attrs: dict | None 
                 data_vars[v.name] = (v.dims, arr, v.attrs)
     coords["station"] = (("station",), np.array([str(s) for s in stations]), label_attrs("station"))
     coords["axle"] = (("axle",), np.array([str(a) for a in axles]), label_attrs("axle"))
+    if seats and any("seat" in v[0] for v in data_vars.values()):
+        coords["seat"] = (("seat",), np.array([str(s) for s in seats]), label_attrs("seat"))
     return xr.Dataset(data_vars, coords=coords, attrs=dict(attrs or {}))
 
 
