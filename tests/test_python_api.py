@@ -38,6 +38,23 @@ def test_memory_and_file_give_identical_results(runs):
             assert dm[name].dims == df[name].dims and dm[name].attrs.get("units") == df[name].attrs.get("units")
 
 
+def test_ride_metrics_in_memory_and_file(runs):
+    """The ride metrics are the same read from memory and from the file, per seat and per station, and the
+    whole-drive values of /summary (the quadratures since the start) agree with the rows' totals."""
+    _, mem, disk, _ = runs
+    a, b = mem.ride(), disk.ride()
+    assert [s["seat"] for s in a["seats"]] == ["driver", "rear_crew"]
+    assert a == b
+    hist = disk.stats("strut_travel_histogram")
+    assert hist.shape[1:] == (8, len(a["stations"][0]["bin_edges_m"]) - 1)
+    total = disk.to_xarray("summary")
+    for k, seat in enumerate(a["seats"]):
+        assert float(total["weighted_rms_acceleration"][k]) == pytest.approx(seat["weighted_rms_acceleration_m_s2"],
+                                                                             rel=1e-9)
+        assert str(total["seat"].values[k]) == seat["seat"]
+    np.testing.assert_allclose(total["strut_travel_histogram"].values.sum(axis=1), a["duration_s"], rtol=1e-9)
+
+
 def test_overrides_are_applied_and_validated(runs):
     sim, mem, _, _ = runs
     assert sim.scenario.distance == pytest.approx(250.0)

@@ -33,7 +33,7 @@ output: {interval: 1 s, stats_interval: 0.1 km, chunk_samples: 30}
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"   # written by hpsim before format 2
 GROUPS = ("timeseries", "stats", "equilibrium/charged", "equilibrium/before", "equilibrium/after", "summary")
 TIMING = {"wall_s", "build_s", "integration_s", "finished_at", "created", "history"}
-UDUNITS = {"s", "m", "km", "m s-1", "m s-2", "rad", "rad s-2", "K", "Pa", "N", "J", "W", "m3"}
+UDUNITS = {"s", "m", "km", "m s-1", "m s-2", "rad", "rad s-2", "K", "Pa", "N", "J", "W", "m3", "1", "m s-1.75"}
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,9 @@ def test_every_group_opens_in_xarray_with_named_dims_and_units(runs, group):
         assert v.attrs["units"] in UDUNITS, (group, name, v.attrs)
         assert v.attrs["long_name"]
         assert not name.endswith(("_K", "_m", "_N", "_J", "_W", "_s", "_Pa")), name
-        assert set(v.dims) <= {"time", "km", "station", "axle"}
+        assert set(v.dims) <= {"time", "km", "station", "axle", "seat", "travel_bin", "travel_bin_edge"}
+        if "seat" in v.dims:            # the ride metrics: labelled with the vehicle file's seats
+            assert list(ds["seat"].values) == ["driver", "rear_crew"]
     if group == "timeseries":
         assert ds["time"].attrs["units"] == "s" and ds["distance"].attrs["units"] == "m"
         assert "distance" in ds.coords and ds["distance"].dims == ("time",)

@@ -44,6 +44,20 @@ class Results:
             print(text)
         return text
 
+    def ride(self) -> dict:
+        """Ride and road holding over the drive (what `hpsim report` tables and `--json` "ride" hold): per seat
+        the ISO 2631-1 weighted RMS accelerations (Wk vertical, Wd lateral), comfort band, VDV and absorbed
+        power; per station the dynamic load coefficient, lift-off share, end-stop time and energy, strut
+        travel min/max/percentiles and histogram (vehicle.runs.ride_metrics)."""
+        from vehicle.runs.ride_metrics import summarise
+
+        return summarise(self.view)
+
+    def stats(self, name: str):
+        """One per-interval statistics variable by its file name (e.g. "weighted_rms_acceleration",
+        "dynamic_load_coefficient", "strut_travel_histogram"): (km, ...) array."""
+        return self.view.stats_series(name)
+
     def to_xarray(self, group: str | None = None):
         """All groups as an xarray.DataTree, or one group (`"timeseries"`, `"stats"`, `"equilibrium/after"`, ...)
         as an xarray.Dataset: named dimensions, coordinates and units, as xarray reads the HDF5 file."""

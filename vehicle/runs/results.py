@@ -117,7 +117,8 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
         "scenario": {"yaml": src.text, "source": src.name, "base_dir": str(src.base_dir),
                      "resolved_json": json.dumps(resolved, indent=1, default=float),
                      "hpsim_version": code_version(), "created": _now(), "stations": stations, "axles": axles,
-                     "distance_m": float(prep.scenario.distance), "total_time_s": float(drive.total_time_s)},
+                     "distance_m": float(prep.scenario.distance), "total_time_s": float(drive.total_time_s),
+                     **({"seats": list(model.seat_names)} if getattr(model, "seat_names", None) else {})},
         "stations": stations, "axles": axles,
         "equilibrium": {"charged": {"wheel_loads_N": np.asarray(model.charged_wheel_loads, float),
                                     "axle_height_change_m": np.zeros(len(axles)),
@@ -141,6 +142,8 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
     values["wall_temperature_K"] = np.asarray(x[drive.T_wall_index], float)
     values["oil_temperature_K"] = np.asarray(x[drive.T_oil_index], float)
     if getattr(m, "ride_metrics", False):
+        # the whole drive's ride metrics: the quadratures since the start (zero in the state at rest)
+        values.update(drive._ride_row(float(res.state.t_s), x[drive.quad_index], x[m.energy_index["end_stop"]]))
         values["strut_travel_bin_edges_m"] = np.asarray(drive.travel_bin_edges_m, float)
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(wall_s), "build_s": float(drive.build_s),

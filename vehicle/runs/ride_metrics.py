@@ -115,13 +115,16 @@ def summarise(view) -> dict:
     edges = _bin_edges(view) if hist is not None else None
     if hist is not None and edges is not None:
         found = True
-        total = hist.sum(axis=0)
+        time_in_bins = hist.sum(axis=0)
         if edges.ndim == 1:
-            p = ride.travel_percentiles(total, edges, PERCENTILES)
+            p = ride.travel_percentiles(time_in_bins, edges, PERCENTILES)
         else:          # edges per station (struts of different strokes)
-            p = np.array([ride.travel_percentiles(h, e, PERCENTILES) for h, e in zip(total, edges)])
-        for st, row in zip(stations, p):
+            p = np.array([ride.travel_percentiles(h, e, PERCENTILES) for h, e in zip(time_in_bins, edges)])
+        per_station_edges = np.broadcast_to(edges, (len(stations), time_in_bins.shape[-1] + 1))
+        for st, row, h, e in zip(stations, p, time_in_bins, per_station_edges):
             st.update({f"strut_travel_p{q}_m": _num(v) for q, v in zip(PERCENTILES, row)})
+            st["strut_travel_histogram_s"] = [float(v) for v in h]
+            st["bin_edges_m"] = [float(v) for v in e]
     if found:
         out["stations"] = stations
     acc = _rows(view, "rms_hull_acceleration")

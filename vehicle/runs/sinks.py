@@ -263,12 +263,13 @@ def finish_file(path: Path, final: dict) -> None:
         with h5py.File(tmp, "r+", libver=LIBVER) as f:
             stations = [str(s) for s in f["scenario"].attrs["stations"]]
             axles = [str(a) for a in f["scenario"].attrs["axles"]]
+            seats = [str(s) for s in f["scenario"].attrs.get("seats", [])]
             for name, arrays in final.get("equilibrium", {}).items():
                 write_static_group(f["equilibrium"], name, arrays, stations, axles)
             old = dict(f["summary"].attrs) if "summary" in f else {}
             arrays = final.get("summary_values")
             if arrays is not None:
-                write_static_group(f, "summary", arrays, stations, axles, old)
+                write_static_group(f, "summary", arrays, stations, axles, old, seats)
             for k, v in final.get("summary", {}).items():
                 f["summary"].attrs[k] = v
             if "history" in final:
@@ -500,7 +501,12 @@ class MemorySink(ResultsView):
             return require_xr().Dataset(attrs=self.scenario_attrs)
         arrays = self._group_arrays(group) or {}
         attrs = self.summary_attrs() if group == "summary" else {}
-        return group_dataset(group, arrays, self.stations, self.axles, attrs, self.info.get("seats"))
+        ds = group_dataset(group, arrays, self.stations, self.axles, attrs, self.info.get("seats"))
+        if group == "stats":        # attributes the file's stats variables get at creation (travel-bin edges)
+            for name, extra in (self.info.get("stats_attrs") or {}).items():
+                if name in ds:
+                    ds[name].attrs.update(extra)
+        return ds
 
     def groups(self) -> list[str]:
         out = ["scenario", "timeseries", "stats"]
