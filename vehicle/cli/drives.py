@@ -42,6 +42,9 @@ def register(sub):
     pp = sub.add_parser("report", help="per-axle summary of a results file")
     pp.add_argument("results", help="HDF5 file written by `hpsim run`")
     pp.add_argument("--json", action="store_true", help="print JSON only")
+    pp.add_argument("--psd", default=None, metavar="PNG",
+                    help="response PSDs (hull heave/pitch/roll acceleration, strut forces; Welch) to this figure, "
+                         "peak frequencies in the table / JSON; needs series stored with output.interval <= 1/30 s, e.g. 0.02 s")
     pp.set_defaults(func=cmd_report)
 
     pc = sub.add_parser("compare", help="compare results files side by side (load redistribution, heights, temperatures)")
@@ -136,10 +139,28 @@ def cmd_report(args):
     from vehicle.presentation.report import format_report, report
 
     rep = report(args.results)
+    if args.psd:
+        from vehicle.presentation.plots import psd_plot
+        from vehicle.presentation.report import format_psd
+        from vehicle.runs.psd import response_psd
+
+        from vehicle.runs.reader import open_results
+
+        check_figure_file(args.psd, "--psd", make_parents=True)
+        with open_results(args.results) as r:
+            psd = response_psd(r)
+            stations = r.stations
+        figure = psd_plot(psd, args.psd, stations, f"{Path(args.results).name}: response PSDs (Welch, "
+                                                   f"{psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz)")
+        rep["psd"] = {"figure": str(figure), "fs_hz": psd["fs_hz"], "duration_s": psd["duration_s"],
+                      "peaks_hz": psd["peaks"], "rms": psd["rms"], "units": psd["units"], "signal_units": psd["signal_units"]}
     if args.json:
         print_json(rep)
     else:
         print(format_report(rep))
+        if args.psd:
+            print()
+            print(format_psd(rep["psd"]))
     return 0
 
 

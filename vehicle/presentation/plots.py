@@ -328,3 +328,35 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def psd_plot(psd: dict, out: str | Path, stations=None, title: str = "") -> Path:
+    """Response PSDs (vehicle.runs.psd.response_psd): hull heave, pitch and roll acceleration and the strut
+    forces (one curve per station), log-log, with the peak frequency marked."""
+    plt = _plt()
+    out = Path(out)
+    f = psd["f_hz"]
+    sel = f > 0
+    names = [n for n in ("heave_acceleration", "pitch_acceleration", "roll_acceleration", "strut_force")
+             if n in psd["psd"]]
+    fig, axs = plt.subplots(1, len(names), figsize=(4.6 * len(names), 4.0), constrained_layout=True, squeeze=False)
+    for a, name in zip(axs[0], names):
+        P = np.atleast_2d(psd["psd"][name])
+        labels = stations if P.shape[0] > 1 and stations is not None else [None] * P.shape[0]
+        for row, lab in zip(P, labels):
+            a.loglog(f[sel], row[sel], lw=0.9, label=lab)
+        for fp in sorted(set(round(v, 2) for v in psd["peaks"][name]))[:3]:
+            a.axvline(fp, color="0.5", lw=0.7, ls=":")
+        peaks = psd["peaks"][name]
+        where = f"{peaks[0]:.2f}" if len(peaks) == 1 else f"{min(peaks):.2f}-{max(peaks):.2f}"
+        a.set(xlabel="frequency [Hz]", ylabel=f"PSD [{psd['units'][name]}]",
+              title=f"{name.replace('_', ' ')}, peak {where} Hz")
+        a.title.set_fontsize(9)
+        a.grid(alpha=0.3, which="both")
+        if P.shape[0] > 1 and stations is not None:
+            a.legend(fontsize=6, ncol=2, frameon=False)
+    fig.suptitle(title or f"response PSDs (Welch, {psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

@@ -105,6 +105,24 @@ def format_ride(ride: dict, n_axles: int) -> str:
     return "\n".join(parts)
 
 
+def format_psd(psd: dict) -> str:
+    """Peak frequency and RMS of each response PSD (`hpsim report --psd`); strut forces: the range over the
+    stations."""
+    from hpsim.tables import format_table
+
+    rows = []
+    for name, peaks in psd["peaks_hz"].items():
+        rms = psd["rms"][name]
+        unit = psd["signal_units"][name]
+        if len(peaks) == 1:
+            rows.append([name.replace("_", " "), f"{peaks[0]:.2f}", f"{rms[0]:.3g} {unit}"])
+        else:
+            rows.append([f"{name.replace('_', ' ')} ({len(peaks)} struts)", f"{min(peaks):.2f}-{max(peaks):.2f}",
+                         f"{min(rms):.3g}-{max(rms):.3g} {unit}"])
+    head = (f"response PSDs (Welch, {psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz): {psd['figure']}")
+    return head + "\n" + format_table(["signal", "peak [Hz]", "RMS"], rows)
+
+
 def format_compare(cmp: dict, labels=None) -> str:
     from hpsim.tables import format_table
 
