@@ -409,6 +409,10 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
         counts = (meta["n_samples"], meta["n_stats"], meta["wall_s"])
     _copy_truncated(out, counts[0], counts[1])      # first: a full disk is found before the model is built
     model, drive = prep.drive(drive_class())
+    if state is not None and state.x.size != model.nx:
+        raise UserInputError(f"{out}: its checkpoint holds {state.x.size} states, this hpsim's model has {model.nx} "
+                             f"(the model changed since the run started with hpsim {stored_version or '?'}, e.g. the "
+                             "ride-metric states); it can be read but not resumed: run it again with --overwrite")
     if state is not None:
         log(f"{out}: resuming at {state.s_m / 1e3:.3f} km of {prep.scenario.distance / 1e3:.6g} km")
     return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)
