@@ -205,7 +205,7 @@ class VehicleModel:
             # explicit (slow) block: the seat filters' poles are at |lambda h| <= 0.32 for h = 4 ms without
             # the 100 Hz band limit (ride.SeatFilters), inside the explicit trapezoid's stability region
             for seat in self.seat_names:
-                for nm in self.seat_filters.state_names(seat):
+                for nm in self.seat_filters.velocity_state_names(seat):
                     L.add(nm)
                 for q in ride.SeatFilters.QUADRATURES:
                     L.add(f"I_{q}_{seat}")
@@ -419,10 +419,12 @@ class VehicleModel:
         ddz, ddt, ddp = hull_acc
         rates = {}
         for seat, st in zip(self.seat_names, K.params.seats):
-            a_v = ride.seat_vertical_acceleration(ddz, ddt, ddp, st.x_from_cg, st.y_from_cg)
-            a_l = ride.seat_lateral_acceleration(ddp, X["phi"], st.z_from_cg)
-            names = self.seat_filters.state_names(seat)
-            r, quad = self.seat_filters.rates([X[nm] for nm in names], a_v, a_l)
+            # driven by the seat's velocities (states; ride.SeatFilters.rates_from_velocity): the same
+            # kinematics as the accelerations (seat_vertical_acceleration, seat_lateral_acceleration)
+            v_v = ride.seat_vertical_acceleration(X["dz"], X["dtheta"], X["dphi"], st.x_from_cg, st.y_from_cg)
+            v_l = -st.z_from_cg * X["dphi"]
+            names = self.seat_filters.velocity_state_names(seat)
+            r, quad = self.seat_filters.rates_from_velocity([X[nm] for nm in names], v_v, v_l, GRAVITY * X["phi"])
             rates.update(zip(names, r))
             rates.update({f"I_{q}_{seat}": v for q, v in quad.items()})
         for i in range(self.n):

@@ -333,6 +333,31 @@ class SeatFilters:
         yk2 = yk * yk
         return rk + rd + rp, {"aw2": yk2, "aw4": yk2 * yk2, "awl2": yd * yd, "pabs": yp * yp}
 
+    # --- velocity-driven form (what the vehicle model integrates) ---------------------------------
+    # The seat's accelerations are the rates of the hull velocities. A fixed-step solver evaluates them
+    # at its stages, the second at a predicted state, where stiff seal friction and end stops make
+    # them unreliable; the velocities are states, accurate at every stage. W(s) a = (W(s) s) v
+    # (`derivative_input`): the same weighted signal from the velocity. The lateral reading
+    # a_l = -z phi'' + g phi (seat_lateral_acceleration) is split: the roll velocity term through
+    # Wd s, the gravity term g phi (a state) through Wd; the outputs add (a linear filter).
+    def velocity_state_names(self, seat: str) -> list[str]:
+        return ([f"wk_{seat}[{j}]" for j in range(self.vertical.n_states)]
+                + [f"wd_{seat}[{j}]" for j in range(self.lateral.n_states)]
+                + [f"wdg_{seat}[{j}]" for j in range(self.lateral.n_states)]
+                + [f"ap_{seat}[{j}]" for j in range(self.power.n_states)])
+
+    def rates_from_velocity(self, states, v_vertical, v_lateral, a_lateral_rest):
+        """(state rates in `velocity_state_names` order, {quadrature: integrand}) from the seat's vertical
+        velocity [m/s], the velocity part of its lateral motion [m/s] (-z phi') and the rest of its
+        lateral reading [m/s^2] (g phi)."""
+        nk, nd = self.vertical.n_states, self.lateral.n_states
+        rk, yk = derivative_input(self.vertical).rates(states[:nk], v_vertical)
+        rd, yd1 = derivative_input(self.lateral).rates(states[nk:nk + nd], v_lateral)
+        rg, yd2 = self.lateral.rates(states[nk + nd:nk + 2 * nd], a_lateral_rest)
+        rp, yp = derivative_input(self.power).rates(states[nk + 2 * nd:], v_vertical)
+        yk2, yd = yk * yk, yd1 + yd2
+        return rk + rd + rg + rp, {"aw2": yk2, "aw4": yk2 * yk2, "awl2": yd * yd, "pabs": yp * yp}
+
 
 def tyre_integrands(tyre_force_N, lift_off_force_N=0.0):
     """Integrands of a wheel's road-holding quadratures: (F, F^2, 1 while lifted off).
@@ -400,3 +425,16 @@ def travel_range(time_in_bins_s, bin_edges_m):
     lo = np.take_along_axis(edges, first[..., None], -1)[..., 0]
     hi = np.take_along_axis(edges, last[..., None] + 1, -1)[..., 0]
     return np.where(any_, lo, np.nan), np.where(any_, hi, np.nan)
+
+
+def derivative_input(flt: LinearFilter) -> LinearFilter:
+    """The filter H(s) s: driven by the integral of the signal (a velocity instead of an acceleration),
+    it gives the same output. The first strictly proper section takes the s into its numerator
+    (b1 s + b2 -> b1 s^2 + b2 s), so the cascade stays proper; the filter must have one."""
+    sections = list(flt.sections)
+    for k, sec in enumerate(sections):
+        if sec.num[0] == 0.0:
+            sections[k] = Section(tuple(sec.num[1:]) + (0.0,), sec.den)
+            return LinearFilter(flt.name + "_v", tuple(sections), flt.gain, flt.input_unit.replace("/s^2", "/s"),
+                                flt.output_unit)
+    raise ValueError(f"filter {flt.name}: no strictly proper section to take a derivative")
