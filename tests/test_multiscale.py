@@ -43,7 +43,7 @@ def test_multiscale_matches_the_full_run_within_its_stated_error(pair):
     (full_sink, full), (ms_sink, ms) = pair
     assert full["solver_mode"] == "full" and ms["solver_mode"] == "multiscale"
     est = ms["estimated_error"]
-    assert est["windows"] == 5 and est["sigmas"] == 2.0
+    assert est["windows"] == 5 and est["sigmas"] > 2.0     # Student t with 3 degrees of freedom: 3.18
     # it drove less than half the road with the full model
     assert est["covered_km"] < 0.5 * ms["distance_km"]
     for a_full, a_ms, eT, eN in zip(full["axles"], ms["axles"], est["T_end_K"], est["dN_pct"]):

@@ -166,7 +166,7 @@ class SolverSpec(Model):
     window: float | None = None              # multiscale: averaged stretch of each window (default 500 m)
     spacing: float | None = None             # multiscale: one window per this much road (default 5 km)
     warm_up: float | None = None             # multiscale: stretch before the averaged one (default 50 m)
-    placement: Literal["systematic", "stratified"] | None = None   # multiscale: where in its stretch a window is
+    placement: Literal["systematic", "stratified", "weighted"] | None = None   # multiscale: where the windows go
     seed: StrictInt | None = Field(None, ge=0)   # multiscale: of the stratified placement
 
     @field_validator("dt", mode="before")
@@ -208,7 +208,7 @@ class SolverSpec(Model):
         from vehicle.runs.multiscale import MultiscaleSettings
 
         return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
-                                  placement=self.placement or "systematic", seed=self.seed or 0)
+                                  placement=self.placement or "weighted", seed=self.seed or 0)
 
 
 class OutputSpec(Model):

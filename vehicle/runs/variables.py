@@ -110,11 +110,11 @@ VARIABLES: dict[str, Var | Split] = {
                           "stretch (the row's interval ends at km)", None, "coord", 1e-3),
     # summary of a multiscale run (vehicle.runs.multiscale): a-posteriori error of the sampled road
     "estimated_error_strut_temperature_K": Var("estimated_error_strut_temperature", "K", "multiscale mode: "
-                                               "estimated error (2 sigma) of the final strut temperature", "station"),
+                                               "estimated error (95 % interval) of the final strut temperature", "station"),
     "estimated_error_axle_temperature_K": Var("estimated_error_axle_temperature", "K", "multiscale mode: estimated "
-                                              "error (2 sigma) of the final mean strut temperature of the axle", "axle"),
+                                              "error (95 % interval) of the final mean strut temperature of the axle", "axle"),
     "estimated_error_load_change_pct": Var("estimated_error_load_change", "percent", "multiscale mode: estimated "
-                                           "error (2 sigma) of the wheel load change of the axle", "axle"),
+                                           "error (95 % interval) of the wheel load change of the axle", "axle"),
     "rms_strut_velocity_m_per_s": Var("rms_strut_velocity", "m s-1", "RMS strut velocity over the interval",
                                       "station"),
     "rms_hull_acceleration": Split(tuple(Var(f"rms_{d}_acceleration", u, f"RMS {t} over the interval", None)
