@@ -111,7 +111,7 @@ def main(argv=None):
     base_dir = str(Path(args.scenario).resolve().parent) if args.scenario else "."
     data = scenario_data(args)
     distance = parse_quantity(data["distance"], "m", where="distance")
-    window = args.window or (f"{min(500.0, distance / 25):.0f} m")
+    window = args.window or (f"{max(50.0, min(500.0, distance / 25)):.0f} m")
     spacing = args.spacing or (f"{min(5000.0, distance / 5):.0f} m")
     out = {"distance_km": distance / 1e3}
     out["full"] = run(data, base_dir)

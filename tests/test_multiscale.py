@@ -34,6 +34,18 @@ def _run(solver: dict, **changes):
     return sink, report_from(sink, "ms")
 
 
+def test_the_python_api_runs_the_multiscale_mode(pair):
+    """vehicle.Simulation with the scenario key gives the same run as the runner (deterministic windows)."""
+    import vehicle
+
+    res = vehicle.Simulation({**BASE, "solver": MULTISCALE}).run()
+    rep = res.summary()
+    _, (_, ms) = pair
+    assert rep["solver_mode"] == "multiscale"
+    assert [a["T_end_C"] for a in rep["axles"]] == pytest.approx([a["T_end_C"] for a in ms["axles"]], abs=1e-9)
+    assert "solver mode multiscale" in res.report(print_it=False)
+
+
 @pytest.fixture(scope="module")
 def pair():
     return _run({}), _run(MULTISCALE)
