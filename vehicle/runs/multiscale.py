@@ -107,7 +107,7 @@ class MultiscaleSettings:
         dens = self.WEIGHT_FLOOR + np.exp(-(t_total_s - tg) / max(tau_s, 1e-9))
         W = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(tg))])
         out, last_end = [], first_end_m
-        # strata of equal weight; a window at the start of each (the last stratum, the densest, ends the drive)
+        # strata of equal weight, one window in the middle (by weight) of each; the last strata are the shortest
         for k in range(n - 1):
             t_start = float(np.interp(W[-1] * (k + 0.5) / (n - 1), W, tg))
             c = max(float(s_of_t(t_start)), last_end)
