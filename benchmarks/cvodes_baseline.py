@@ -3,7 +3,12 @@ BDF, Newton with the exact Jacobian by CasADi AD, right-hand side and Jacobian c
 JIT), against the production engine (compiled fixed-step ROS2, 4 ms), both checked against a tight
 reference (ROS2 at 1 ms), in one run (issue 11 §4).
 
-    python benchmarks/cvodes_baseline.py [--distance 200m] [--rtol 1e-6] [--atol 1e-8] [--json]
+    python benchmarks/cvodes_baseline.py [--distance 200m] [--rtol 1e-2] [--atol 1e-4] [--json]
+
+The default tolerances give CVODES the 4 ms engine's accuracy (measured over 200 m: 0.0018 K against
+0.0017 K, dissipated energy 0.59 % against 0.51 %): 28x the engine's integration time; rtol 1e-3 is
+2x more accurate and 53x slower, 1e-4 63x. The JIT compilation of the right-hand side and its
+Jacobian takes another 60-110 s (not in the ratio).
 
 The explicit-ODE form: the valve pressure drops are eliminated inside the right-hand side by the
 struts' bracketed Newton solve from a cold start (`valve_pressure_drop`, --newton iterations), because
@@ -111,8 +116,8 @@ def compare(drive, x, ref_drive, x_ref) -> dict:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--distance", default="200m")
-    ap.add_argument("--rtol", type=float, default=1e-6)
-    ap.add_argument("--atol", type=float, default=1e-8)
+    ap.add_argument("--rtol", type=float, default=1e-2)
+    ap.add_argument("--atol", type=float, default=1e-4)
     ap.add_argument("--newton", type=int, default=12, help="valve Newton iterations from a cold start")
     ap.add_argument("--no-jit", action="store_true", help="CasADi's virtual machine instead of compiled C")
     ap.add_argument("--json", action="store_true")

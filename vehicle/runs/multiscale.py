@@ -265,7 +265,7 @@ class MultiscaleDrive(Drive):
         row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index],
                               xb[self.T_index])
         row["window_start_m"] = float(self.distance_at(T[a]))
-        return {"x_end": xb.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]), "A": A, "r": r, "xbar": xbar,
+        return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]), "A": A, "r": r, "xbar": xbar,
                 "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy()}
 
     # --- the drive -------------------------------------------------------------------------------
@@ -301,6 +301,15 @@ class MultiscaleDrive(Drive):
                 w["tau_slow_s"] = float(tau)
                 windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self._time_at,
                                                                   self.distance_at, t_total)
+            if k > 0:
+                # the warm-up settles the start from rest (the tyres meet a road that is not flat): its extra
+                # dissipation is not the road's. The slow states and totals cross it as they cross a gap, by the
+                # window's averaged model; the averaged stretch adds its own change
+                x_start = x
+                tw = w["t_avg0"] - t0
+                Phi, forced, _ = _propagators(w["A"], w["b"], tw)
+                w["x_end"][self.slow_index] += (Phi @ x_start[self.slow_index] + forced) - w["x_avg0"][self.slow_index]
+                w["x_end"][self.ext_index] += (x_start[self.ext_index] + w["q_rate"] * tw) - w["x_avg0"][self.ext_index]
             # the gap: to the next window's start, or to the end of the drive
             t_next = self._time_at(windows[k + 1][0]) if k + 1 < len(windows) else t_total
             tau = max(t_next - w["t_end"], 0.0)
