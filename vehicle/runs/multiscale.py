@@ -10,8 +10,10 @@ The vehicle's states fall in three time scales:
 A window is a stretch of the real road driven with the full model and the compiled ROS2 stepper
 (`Drive.inputs`, `solver.advance`, the same as a full run): it starts from the vehicle standing
 in equilibrium at the current slow states (`EquilibriumSolver`, `VehicleModel.state_at_rest`),
-drives a warm-up stretch that settles the start transient (in the slow evolution, out of the
-averages) and then the averaged stretch. From the averaged stretch it takes
+drives a warm-up stretch that settles the start transient (the tyres meet a road that is not
+flat: its extra dissipation is not the road's, so the slow states cross the warm-up by the
+window's averaged model, as they cross a gap; the first window, which is the drive's own start,
+keeps it) and then the averaged stretch. From the averaged stretch it takes
   r   = mean rate of the slow states (x_b - x_a) / (t_b - t_a): exactly the slow equations under
         the window-averaged dissipation (the slow rates are linear in the dissipated powers, e.g.
         C dT/dt = P_valve + P_friction + P_gas + P_end_stop - losses(T));
