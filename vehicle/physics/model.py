@@ -426,7 +426,7 @@ class VehicleModel:
     # base names of the slow states (minutes to hours): what the multiscale mode (vehicle.runs.multiscale)
     # advances between its windows of road; everything else in x[:n_dynamic] is fast. A model that adds
     # slow states (e.g. thermal nodes) lists their base names here.
-    SLOW_STATES = ("T_strut", "xf", "V_oil")
+    SLOW_STATES = tuple(f"T_{node}" for node in thermal.NODES) + ("xf", "V_oil")
 
     def slow_state_indices(self) -> list[int]:
         """Indices in x of the slow states (`SLOW_STATES`, any station)."""

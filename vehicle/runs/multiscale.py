@@ -188,7 +188,7 @@ class MultiscaleDrive(Drive):
     def _rest_state(self, x_prev: np.ndarray) -> np.ndarray:
         """The vehicle standing in equilibrium at x_prev's slow states, with x_prev's slow states and quadratures."""
         m = self.model
-        eq = self.equilibrium_solver.solve(x_prev[self.T_index], self.gas_masses, x_prev[self.oil_index])
+        eq = self.equilibrium_solver.solve(x_prev[self.T_oil_index], self.gas_masses, x_prev[self.oil_index])
         x = m.state_at_rest(eq, self.gas_masses)
         x[self.slow_index] = x_prev[self.slow_index]
         x[self.ext_index] = x_prev[self.ext_index]
@@ -264,8 +264,8 @@ class MultiscaleDrive(Drive):
         r = (xb[self.slow_index] - xa[self.slow_index]) / dur
         xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
         q_rate = (xb[self.ext_index] - xa[self.ext_index]) / dur
-        row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index],
-                              xb[self.T_index])
+        row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
+                              X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
         return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]), "A": A, "r": r, "xbar": xbar,
                 "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy()}
@@ -325,19 +325,21 @@ class MultiscaleDrive(Drive):
             if sink is not None:
                 sink.stats([w["row"]])
                 st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=D + 1.0,
-                                last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy()},
+                                last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+                                            "gas_sum": np.zeros(self.model.n), "gas_n": 0},
                                 solver_memory=w["memory"])
                 sink.checkpoint(st.as_dict())
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
         self.estimate = self.error_estimate(records, t_total)
         final = DriveState(t_s=float(t_total), s_m=float(self.distance_at(t_total)), x=x, next_stats_m=D + 1.0,
-                           last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy()},
+                           last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy(),
+                                       "gas_sum": np.zeros(self.model.n), "gas_n": 0},
                            solver_memory=np.zeros_like(self.solver.get_state()))
         if sink is not None:
             sink.checkpoint(final.as_dict())
         V_oil = x[self.oil_index]
-        after = self.equilibrium_solver.solve(x[self.T_index], self.gas_masses, V_oil)
+        after = self.equilibrium_solver.solve(x[self.T_oil_index], self.gas_masses, V_oil)
         self.window_log = records
         self.estimate.update(self.load_error(final, after))
         return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
@@ -381,7 +383,8 @@ class MultiscaleDrive(Drive):
         m = self.model
         cov = self.estimate["cov"]
         pos = {int(j): k for k, j in enumerate(self.slow_index)}
-        iT = [pos[int(j)] for j in self.T_index]
+        iT = [pos[int(j)] for j in self.T_index]             # the reported strut temperature (Drive.T_index)
+        iT_eq = [pos[int(j)] for j in self.T_oil_index]      # the temperature the standing vehicle's loads follow
         iV = [pos[int(j)] for j in self.oil_index if int(j) in pos]
         n, n_ax = m.n, m.params.n_axles
         axle_of = np.array([m.params.station_axle(i) for i in range(n)])
@@ -392,7 +395,7 @@ class MultiscaleDrive(Drive):
         sig_T_station = np.sqrt(np.maximum(np.diag(cov_T), 0.0))
         sig_T_axle = np.sqrt(np.maximum(np.diag(W_ax @ cov_T @ W_ax.T), 0.0))
         G = self._load_sensitivity(final.x, after, W_ax)
-        idx = iT + (iV if len(iV) == n else [])
+        idx = iT_eq + (iV if len(iV) == n else [])
         G = G[:, :len(idx)]
         sig_dN = np.sqrt(np.maximum(np.diag(G @ cov[np.ix_(idx, idx)] @ G.T), 0.0))
         k = error_factor(self.estimate["dof"])
@@ -403,7 +406,7 @@ class MultiscaleDrive(Drive):
         """d(per-axle wheel load change [pp of the before-drive load])/d(final T per station, V_oil per station)."""
         m = self.model
         N0 = W_ax @ np.asarray(self.initial_equilibrium().wheel_loads_N, float)
-        T, V = x_end[self.T_index].copy(), x_end[self.oil_index].copy()
+        T, V = x_end[self.T_oil_index].copy(), x_end[self.oil_index].copy()
         N1 = W_ax @ np.asarray(after.wheel_loads_N, float)
         cols = []
         for i in range(m.n):
