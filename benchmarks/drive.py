@@ -136,7 +136,8 @@ def main(argv=None):
     # overheads, small for 500 m windows, aside)
     out["projected_106km"] = {"full_integration_s": MILEAGE_S / out["full"]["rtf"],
                               "multiscale_integration_s": share * MILEAGE_S / out["full"]["rtf"]}
-    out["speedup_multiscale_vs_full_here"] = out["full"]["integration_s"] / max(out["multiscale"]["integration_s"], 1e-9)
+    out["speedup_multiscale_vs_full_here"] = (out["full"]["integration_s"]
+                                              / max(out["multiscale"]["integration_s"], 1e-9))
     if args.json:
         print(json.dumps(out, indent=2))
         return

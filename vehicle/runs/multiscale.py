@@ -87,8 +87,8 @@ class MultiscaleSettings:
     window_m: float = 500.0          # averaged stretch of each window
     spacing_m: float = 5000.0        # one window per this much road (stratum)
     warm_up_m: float = 50.0          # stretch driven before the averaged one (start transient)
-    placement: str = "weighted"      # window at the start of each stratum ("systematic"), "stratified" (random in it) or
-    #                                  "weighted" (denser where the final slow states remember more)
+    placement: str = "weighted"      # "weighted" (denser where the final slow states remember more), "systematic"
+    #                                  (at the start of each stratum) or "stratified" (random in it)
     seed: int = 0                    # of the stratified placement
 
     WEIGHT_FLOOR = 0.15      # weighted placement: share of the window density that stays uniform
@@ -267,7 +267,8 @@ class MultiscaleDrive(Drive):
         row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
                               X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
-        return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]), "A": A, "r": r, "xbar": xbar,
+        return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
+                "A": A, "r": r, "xbar": xbar,
                 "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy()}
 
     # --- the drive -------------------------------------------------------------------------------
@@ -375,10 +376,12 @@ class MultiscaleDrive(Drive):
             _, _, Gam = _propagators(A_mean, np.zeros(ns), w["tau"])
             P = expm(A_mean * max(t_end - w["t_gap_end"], 0.0)) @ Gam
             cov += f * P @ Cb @ P.T
-        return {"cov": cov, "n_windows": nw, "dof": dof, "covered_m": float(sum(w["s_end"] - w["s_start"] for w in records))}
+        return {"cov": cov, "n_windows": nw, "dof": dof,
+                "covered_m": float(sum(w["s_end"] - w["s_start"] for w in records))}
 
     def load_error(self, final: DriveState, after) -> dict:
-        """Per-station and per-axle temperature errors and the per-axle wheel-load-change error (95 % interval, `error_factor` sigma)
+        """Per-station and per-axle temperature errors and the per-axle wheel-load-change error (95 % interval,
+        `error_factor` sigma)
         from the slow states' covariance, through the after-drive equilibrium."""
         m = self.model
         cov = self.estimate["cov"]
