@@ -381,8 +381,7 @@ class MultiscaleDrive(Drive):
 
     def load_error(self, final: DriveState, after) -> dict:
         """Per-station and per-axle temperature errors and the per-axle wheel-load-change error (95 % interval,
-        `error_factor` sigma)
-        from the slow states' covariance, through the after-drive equilibrium."""
+        `error_factor` sigma) from the slow states' covariance, through the after-drive equilibrium."""
         m = self.model
         cov = self.estimate["cov"]
         pos = {int(j): k for k, j in enumerate(self.slow_index)}
