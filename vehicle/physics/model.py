@@ -494,6 +494,15 @@ class VehicleModel:
             k += 1
         return dps
 
+    # base names of the slow states (minutes to hours): what the multiscale mode (vehicle.runs.multiscale)
+    # advances between its windows of road; everything else in x[:n_dynamic] is fast. A model that adds
+    # slow states (e.g. thermal nodes) lists their base names here.
+    SLOW_STATES = tuple(f"T_{node}" for node in thermal.NODES) + ("xf", "V_oil")
+
+    def slow_state_indices(self) -> list[int]:
+        """Indices in x of the slow states (`SLOW_STATES`, any station)."""
+        return [k for k, nm in enumerate(self.layout.names[:self.n_dynamic]) if nm.split("[")[0] in self.SLOW_STATES]
+
     @property
     def n_memory(self) -> int:
         """Warm-start values a fixed-step solver carries between steps (valve pressure drops)."""

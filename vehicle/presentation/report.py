@@ -33,6 +33,17 @@ def format_report(rep: dict) -> str:
                     f"against the charged loads {rep['load_shift_vs_charged_pct']:.2f} %")
     if rep.get("mean_temperature_rise_K") is not None:
         tail.append(f"mean strut (surface) temperature rise {rep['mean_temperature_rise_K']:.1f} K")
+    est = rep.get("estimated_error")
+    if rep.get("solver_mode") == "multiscale" and est:
+        def worst(v):
+            v = [x for x in v if x is not None]
+            return max(v) if v else float("nan")
+        tail.append(f"solver mode multiscale: {est['windows']} windows of {est['window_m']:.0f} m, one per "
+                    f"{est['spacing_m'] / 1e3:.3g} km ({est['covered_km']:.3g} km driven with the full model); "
+                    f"estimated error (95 %, {est['sigmas']:.2g} sigma, road sampling): T end "
+                    + ", ".join("-" if x is None else f"{x:.2f}" for x in est["T_end_K"]) + " K, dN "
+                    + ", ".join("-" if x is None else f"{x:.3f}" for x in est["dN_pct"])
+                    + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp)")
     if rep.get("error"):
         tail.append(f"stopped: {rep['error']}")
     ride = format_ride(rep.get("ride") or {}, len(rep["axles"]))

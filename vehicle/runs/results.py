@@ -148,7 +148,12 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(wall_s), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),
-               "finished_at": _now(), "status": "complete", "complete": True}
+               "finished_at": _now(), "status": "complete", "complete": True,
+               "solver_mode": str(getattr(drive, "mode", "full"))}
+    extra = drive.summary_extra() if hasattr(drive, "summary_extra") else None   # multiscale: error estimate
+    if extra:
+        summary.update(extra["attrs"])
+        values.update(extra["values"])
     after_band = weighing_band_datasets(drive, res.after.temperatures_K,
                                         np.array([x[m.idx(f"V_oil[{i}]")] for i in range(m.n)]))
     return {"equilibrium": {"after": dict(res.after.__dict__), "after_band": after_band},

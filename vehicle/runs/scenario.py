@@ -40,6 +40,11 @@ SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
 AMBIENT_RANGE_K = (273.15 - 60, 273.15 + 60)  # -60 .. 60 degC
 STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
 DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSettings.validate
+# multiscale window layout (solver.window, .spacing, .warm_up): a window must hold some seconds of ride
+# (50 m: 9 s at 20 km/h); at most the longest drive
+MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
+MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed")
+MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
 
 # time series a drive produces (vehicle.runs.drive.Drive._block_outputs); `output.store` picks from these
 SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperature_K", "wall_temperature_K",
@@ -155,11 +160,55 @@ class CompensationSpec(Model):
 class SolverSpec(Model):
     dt: float = 0.004                        # fixed step of the ROS2 solver
     samples_per_block: StrictInt = Field(10, ge=1, le=1000)   # output samples per compiled call
+    # full: the whole road with the full model; multiscale: windows of the road with the full model, the
+    # slow states advanced between them, with an error estimate (vehicle.runs.multiscale)
+    mode: Literal["full", "multiscale"] = "full"
+    window: float | None = None              # multiscale: averaged stretch of each window (default 500 m)
+    spacing: float | None = None             # multiscale: one window per this much road (default 5 km)
+    warm_up: float | None = None             # multiscale: stretch before the averaged one (default 50 m)
+    placement: Literal["systematic", "stratified", "weighted"] | None = None   # multiscale: where the windows go
+    seed: StrictInt | None = Field(None, ge=0)   # multiscale: of the stratified placement
 
     @field_validator("dt", mode="before")
     @classmethod
     def _dt(cls, v):
         return _in_range(_quantity("s", v), *DT_RANGE_S, "ms", 1e3)
+
+    @field_validator("window", "spacing", "warm_up", mode="before")
+    @classmethod
+    def _window_lengths(cls, v, info: ValidationInfo):
+        return None if v is None else _in_range(_quantity("m", v), *MULTISCALE_RANGES_M[info.field_name], "m")
+
+    @model_validator(mode="after")
+    def _multiscale_keys(self):
+        given = [k for k in MULTISCALE_KEYS if getattr(self, k) is not None]
+        if self.mode != "multiscale":
+            if given:
+                raise ValueError(f"{', '.join(given)}: only with mode: multiscale (mode is {self.mode!r})")
+            return self
+        if self.spacing_m < self.window_m + self.warm_up_m - 1e-9:
+            raise ValueError(f"spacing ({self.spacing_m:g} m) must be at least window + warm_up "
+                             f"({self.window_m:g} m + {self.warm_up_m:g} m): the windows would overlap")
+        return self
+
+    # the multiscale layout with its defaults (vehicle.runs.multiscale.MultiscaleSettings)
+    @property
+    def window_m(self) -> float:
+        return 500.0 if self.window is None else self.window
+
+    @property
+    def spacing_m(self) -> float:
+        return 5000.0 if self.spacing is None else self.spacing
+
+    @property
+    def warm_up_m(self) -> float:
+        return 50.0 if self.warm_up is None else self.warm_up
+
+    def multiscale_settings(self):
+        from vehicle.runs.multiscale import MultiscaleSettings
+
+        return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
+                                  placement=self.placement or "weighted", seed=self.seed or 0)
 
 
 class OutputSpec(Model):
@@ -273,6 +322,12 @@ class Scenario(Model):
         if abs(k - round(k)) > 1e-6:
             raise ValueError(f"output.interval ({self.output.interval:g} s) must be a whole number of solver "
                              f"steps of {self.solver.dt * 1e3:g} ms")
+        if self.solver.mode == "multiscale":
+            n = int(np.ceil(self.distance / self.solver.spacing_m - 1e-9))
+            if n < MULTISCALE_MIN_WINDOWS:
+                raise ValueError(f"solver.spacing ({self.solver.spacing_m:g} m) gives {n} window(s) over the "
+                                 f"{self.distance:g} m drive: the multiscale mode needs at least "
+                                 f"{MULTISCALE_MIN_WINDOWS} (spacing at most {self.distance / MULTISCALE_MIN_WINDOWS:.6g} m)")
         return self
 
 
@@ -403,6 +458,10 @@ class Prepared:
         road = self.road()
         cls = drive_class or Drive
         try:
+            if self.scenario.solver.mode == "multiscale":
+                from vehicle.runs.multiscale import MultiscaleDrive
+
+                return model, MultiscaleDrive(model, road, self.settings(), self.scenario.solver.multiscale_settings())
             return model, cls(model, road, self.settings())
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: {exc}") from None

@@ -149,12 +149,38 @@ def report_from(r: ResultsView, name: str) -> dict:
            "compensation": compensation,
            "ambient_C": ambient_C,
            "hpsim_version": str(sc.get("hpsim_version", ""))}
+    out.update(solver_mode_summary(r, summ, len(axles)))
     if "error" in summ:
         out["error"] = str(summ["error"])
     from vehicle.runs import ride_metrics, warnings as validity
 
     out["ride"] = ride_metrics.summarise(r)
     out["warnings"] = validity.check(r)
+    return out
+
+
+def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
+    """`solver_mode` (full or multiscale) and, for a multiscale run (vehicle.runs.multiscale), its window layout
+    and a-posteriori error estimate: per axle, the error of T_end [K] and of dN [pp] (estimated_error_sigmas
+    standard deviations of the road-sampling error)."""
+    mode = str(summ.get("solver_mode", "full"))
+    out = {"solver_mode": mode}
+    if mode != "multiscale":
+        return out
+    values = r.summary_values() or {}
+
+    def per_axle(name):
+        v = values.get(name)
+        return [None] * n_axles if v is None else [float(x) for x in np.asarray(v, float)]
+
+    out["estimated_error"] = {
+        "sigmas": float(summ.get("estimated_error_sigmas", 2.0)),
+        "T_end_K": per_axle("estimated_error_axle_temperature"),
+        "dN_pct": per_axle("estimated_error_load_change"),
+        "windows": int(summ.get("multiscale_windows", 0)),
+        "window_m": float(summ.get("multiscale_window_m", np.nan)),
+        "spacing_m": float(summ.get("multiscale_spacing_m", np.nan)),
+        "covered_km": float(summ.get("multiscale_covered_km", np.nan))}
     return out
 
 

@@ -1,0 +1,128 @@
+"""Multiscale mode (vehicle.runs.multiscale, issue 11 §2): windows of the road with the full model, the slow
+states advanced between them, an a-posteriori error estimate.
+
+- on a short drive the multiscale result matches the full run within the error the multiscale run states
+  (per axle: final strut temperature and wheel load change), and the estimate is not vacuous;
+- the slow linear model between windows integrates the model's own slow equations: with the ride switched
+  off (flat road) the multiscale mode reproduces the full run's cooling/warming far inside its error;
+- bad multiscale keys are refused before any work (exit code 2, file and key named).
+"""
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+import yaml
+
+from hpsim.errors import UserInputError
+from vehicle import cli
+from vehicle.runs.results import run_in_memory
+from vehicle.runs.scenario import load_prepared, read_scenario_text
+from vehicle.runs.summary import report_from
+
+BASE = {"description": "multiscale test", "vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 3},
+        "speed": "20 km/h", "distance": "3 km", "ambient_temperature": "25 degC",
+        "initial_temperatures": ["45 degC", "40 degC", "35 degC", "30 degC"],
+        "output": {"interval": "1 s", "stats_interval": "0.5 km"}}
+MULTISCALE = {"mode": "multiscale", "window": "200 m", "spacing": "600 m", "warm_up": "40 m"}
+
+
+def _run(solver: dict, **changes):
+    data = {**BASE, **changes, "solver": solver}
+    sink = run_in_memory(read_scenario_text(yaml.safe_dump(data), "ms.yaml", "."))
+    return sink, report_from(sink, "ms")
+
+
+def test_the_python_api_runs_the_multiscale_mode(pair):
+    """vehicle.Simulation with the scenario key gives the same run as the runner (deterministic windows)."""
+    import vehicle
+
+    res = vehicle.Simulation({**BASE, "solver": MULTISCALE}).run()
+    rep = res.summary()
+    _, (_, ms) = pair
+    assert rep["solver_mode"] == "multiscale"
+    assert [a["T_end_C"] for a in rep["axles"]] == pytest.approx([a["T_end_C"] for a in ms["axles"]], abs=1e-9)
+    assert "solver mode multiscale" in res.report(print_it=False)
+
+
+@pytest.fixture(scope="module")
+def pair():
+    return _run({}), _run(MULTISCALE)
+
+
+def test_multiscale_matches_the_full_run_within_its_stated_error(pair):
+    (full_sink, full), (ms_sink, ms) = pair
+    assert full["solver_mode"] == "full" and ms["solver_mode"] == "multiscale"
+    est = ms["estimated_error"]
+    assert est["windows"] == 5 and est["sigmas"] > 2.0     # Student t with 3 degrees of freedom: 3.18
+    # it drove less than half the road with the full model
+    assert est["covered_km"] < 0.5 * ms["distance_km"]
+    for a_full, a_ms, eT, eN in zip(full["axles"], ms["axles"], est["T_end_K"], est["dN_pct"]):
+        rise = a_full["T_end_C"] - a_full["T_start_C"]
+        assert rise > 2.0                                     # the struts did warm up: something to estimate
+        assert abs(a_ms["T_end_C"] - a_full["T_end_C"]) <= eT, (a_ms, a_full, eT)
+        assert abs(a_ms["dN_pct"] - a_full["dN_pct"]) <= eN, (a_ms, a_full, eN)
+        # the estimate is informative: well below the temperature rise it qualifies
+        assert 0 < eT < 0.2 * rise
+    # the dissipated energy is extrapolated over the gaps as well (within 10 % of the full run)
+    assert ms["energy_dissipated_MJ"] == pytest.approx(full["energy_dissipated_MJ"], rel=0.1)
+    # time and distance of the stored samples jump over the gaps but never go back
+    t = np.asarray(ms_sink.series("time"))
+    assert np.all(np.diff(t) > 0) and np.max(np.diff(t)) > 10.0
+    # the results say which mode wrote them, in the file's own terms
+    assert ms_sink.summary_attrs()["solver_mode"] == "multiscale"
+    assert full_sink.summary_attrs()["solver_mode"] == "full"
+    ds = ms_sink.to_xarray("summary")
+    assert ds["estimated_error_axle_temperature"].dims == ("axle",)
+
+
+def test_slow_model_between_windows_follows_the_model_on_a_flat_road():
+    """On a smooth road the ride dissipates next to nothing: the temperatures relax towards ambient through the
+    model's own heat-loss equations, which the gaps integrate by the windows' linearisation."""
+    changes = {"road": {"iso_class": "A", "seed": 3}, "initial_temperatures": ["60 degC", "50 degC", "40 degC",
+                                                                                 "30 degC"]}
+    _, full = _run({}, **changes)
+    _, ms = _run(MULTISCALE, **changes)
+    for a_full, a_ms in zip(full["axles"], ms["axles"]):
+        change = a_full["T_end_C"] - a_full["T_start_C"]
+        assert abs(change) > 0.1
+        assert a_ms["T_end_C"] == pytest.approx(a_full["T_end_C"], abs=0.05 * abs(change) + 0.01)
+
+
+def _scenario(tmp_path, solver: str):
+    text = textwrap.dedent(f"""\
+        vehicle: {{name: apc_8x8}}
+        road: {{iso_class: D, seed: 1}}
+        speed: 20 km/h
+        distance: 3 km
+        ambient_temperature: 25 degC
+        solver: {solver}
+        """)
+    p = tmp_path / "bad.yaml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("solver, key, words", [
+    ("{mode: multiscale, window: 10 m}", "solver.window", ["[50, 1e+06] m", "10"]),
+    ("{mode: multiscale, warm_up: -5 m}", "solver.warm_up", ["[0, 10000] m"]),
+    ("{mode: fast}", "solver.mode", ["'full'", "'multiscale'"]),
+    ("{window: 200 m}", "solver", ["only with mode: multiscale"]),
+    ("{mode: multiscale, window: 400 m, spacing: 420 m}", "solver", ["spacing", "window + warm_up"]),
+    ("{mode: multiscale, spacing: 2 km}", "solver.spacing", ["at least 3", "1000 m"]),
+    ("{mode: multiscale, placement: everywhere}", "solver.placement", ["systematic", "stratified"]),
+])
+def test_bad_multiscale_keys_exit_2(tmp_path, capsys, solver, key, words):
+    path = _scenario(tmp_path, solver)
+    with pytest.raises(UserInputError) as err:
+        load_prepared(path)
+    msg = str(err.value)
+    assert str(path) in msg and key in msg, msg
+    for w in words:
+        assert w in msg, msg
+    out = tmp_path / "out.h5"
+    code = cli.main(["run", str(path), "-o", str(out), "--no-progress"])
+    _, err_text = capsys.readouterr()
+    assert code == 2 and key in err_text and "Traceback" not in err_text
+    assert not out.exists()

@@ -1,0 +1,447 @@
+"""Multiscale drive (`solver: {mode: multiscale}`): the ride on short windows of the real road, the
+slow states advanced between them (issue 11 §2).
+
+The vehicle's states fall in three time scales:
+  fast       hull, wheels, strut internals (gas temperature, chamber pressures): seconds or less;
+  slow       `VehicleModel.SLOW_STATES` (strut temperature or thermal nodes, filtered deflection,
+             levelling oil): minutes to hours;
+  extensive  the energy and RMS quadratures (model.n_dynamic onwards): they only accumulate.
+
+A window is a stretch of the real road driven with the full model and the compiled ROS2 stepper
+(`Drive.inputs`, `solver.advance`, the same as a full run): it starts from the vehicle standing
+in equilibrium at the current slow states (`EquilibriumSolver`, `VehicleModel.state_at_rest`),
+drives a warm-up stretch that settles the start transient (the tyres meet a road that is not
+flat: its extra dissipation is not the road's, so the slow states cross the warm-up by the
+window's averaged model, as they cross a gap; the first window, which is the drive's own start,
+keeps it) and then the averaged stretch. From the averaged stretch it takes
+  r   = mean rate of the slow states (x_b - x_a) / (t_b - t_a): exactly the slow equations under
+        the window-averaged dissipation (the slow rates are linear in the dissipated powers, e.g.
+        C dT/dt = P_valve + P_friction + P_gas + P_end_stop - losses(T));
+  A   = mean over the window's samples of d(slow rates)/d(slow states) (model.ode_function by
+        CasADi AD): how the averaged slow rates change with the slow states (heat loss to ambient,
+        conduction between thermal nodes, the temperature dependence of the dissipation);
+  q'  = mean rates of the quadratures.
+Between windows the slow states follow the linear model dx_s/dt = r + A (x_s - xbar_s) from
+the window's mean slow state xbar_s, integrated exactly (matrix exponential), and the
+quadratures grow at q'. The next window starts there. Generic: no state is named here, the
+slow/fast split is the model's `slow_state_indices()`.
+
+Where the windows go. The error of the mode is the sampling of the road (a window's mean
+dissipation against the mean over the stretch it stands for), not the averaging. There are
+ceil(distance / spacing) windows, the first at the start of the drive; `placement`:
+  weighted (default)  denser towards the end: the density of windows follows the weight an instant
+                      has on the final slow states, e^{-(t_end - t)/tau} (tau: the slowest decay time
+                      of the slow states' linearisation in the first window, ~50 min for the apc's
+                      strut temperatures) plus a uniform floor; this minimises the sampling variance of
+                      the final state for the given number of windows (about half the variance of the
+                      systematic layout on the 106 km test);
+  systematic          one window at the start of each stretch of `spacing`;
+  stratified          one window at a random place in each stretch (`seed`).
+
+A-posteriori error estimate. The window forcings b_k = r_k - A_k xbar_k (the slow rates with
+the slow-state dependence taken out: dissipation and ambient terms) scatter from window to
+window because each window sees a different piece of road; their covariance C_b over the
+windows estimates the sampling error of one window's forcing, reduced by the finite-population
+factor (1 - L/S) for a window of length L standing for a stretch of S (a window covering its
+whole stretch has no sampling error). Propagated through the linear slow model to the end of
+the drive,
+    Cov(x_s,end) = sum_k (1 - L_k/S_k) Phi_k C_b Phi_k^T,   Phi_k = e^{A (t_end - t_k,gap end)}
+                                                                      int_0^tau_k e^{A s} ds,
+gives the 1-sigma error of each slow state; the results state a 95 % interval (Student t with the
+number of windows less 2 degrees of freedom, as the scatter is estimated) per axle for the
+temperature and, through the sensitivity of the after-drive equilibrium to the final
+temperatures and oil volumes, for the wheel-load change. The estimate assumes independent
+windows (windows much longer than the road's correlation length, true for ISO 8608 roads) and a
+stationary road and speed within each stratum: a speed profile that changes inside a stratum
+is an error the estimate does not see (shorter spacing then).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.linalg import expm
+
+from hpsim.errors import UserInputError
+
+from vehicle.runs.drive import Drive, DriveResult, DriveState
+
+MODE = "multiscale"
+ERROR_COVERAGE = 0.95       # the stated error: a 95 % interval of the sampling error (Student t, see error_factor)
+
+
+def error_factor(dof: int) -> float:
+    """Standard deviations in the stated error: the two-sided ERROR_COVERAGE quantile of Student's t with the
+    estimate's degrees of freedom (the windows' scatter is estimated from few windows: 3.2 for 3, 2.1 for 20)."""
+    from scipy.stats import t
+
+    return float(t.ppf(0.5 + ERROR_COVERAGE / 2, max(int(dof), 1)))
+
+
+@dataclass
+class MultiscaleSettings:
+    """Window layout of a multiscale drive (scenario `solver:` keys; ranges in vehicle.runs.scenario)."""
+
+    window_m: float = 500.0          # averaged stretch of each window
+    spacing_m: float = 5000.0        # one window per this much road (stratum)
+    warm_up_m: float = 50.0          # stretch driven before the averaged one (start transient)
+    placement: str = "weighted"      # "weighted" (denser where the final slow states remember more), "systematic"
+    #                                  (at the start of each stratum) or "stratified" (random in it)
+    seed: int = 0                    # of the stratified placement
+
+    WEIGHT_FLOOR = 0.15      # weighted placement: share of the window density that stays uniform
+
+    def weighted_windows(self, distance_m: float, first_end_m: float, tau_s: float, t_of_s, s_of_t,
+                         t_total_s: float) -> list[tuple[float, float]]:
+        """Windows after the first (which ends at first_end_m) placed by the weight of each instant on the final
+        slow states: density proportional to WEIGHT_FLOOR + e^{-(t_end - t)/tau} (tau: the slowest decay time of the
+        slow states, from the first window), same number of windows as the systematic layout. The variance of
+        the final state is sum over windows of (weight x stretch)^2 x (sampling variance), smallest for a density
+        proportional to the weight; the floor keeps the early drive sampled (energy totals, long gaps)."""
+        span = self.warm_up_m + self.window_m
+        n = max(1, int(np.ceil(distance_m / self.spacing_m - 1e-9)))
+        if n == 1:
+            return []
+        t0 = t_of_s(first_end_m)
+        tg = np.linspace(t0, t_total_s, 2001)
+        dens = self.WEIGHT_FLOOR + np.exp(-(t_total_s - tg) / max(tau_s, 1e-9))
+        W = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(tg))])
+        out, last_end = [], first_end_m
+        # strata of equal weight, one window in the middle (by weight) of each; the last strata are the shortest
+        for k in range(n - 1):
+            t_start = float(np.interp(W[-1] * (k + 0.5) / (n - 1), W, tg))
+            c = max(float(s_of_t(t_start)), last_end)
+            if c + span > distance_m:
+                break
+            out.append((c, c + span))
+            last_end = c + span
+        return out
+
+    def windows(self, distance_m: float) -> list[tuple[float, float]]:
+        """(start, end) of each window (warm-up included) along the drive; the first starts at 0."""
+        span = self.warm_up_m + self.window_m
+        n = max(1, int(np.ceil(distance_m / self.spacing_m - 1e-9)))
+        rng = np.random.default_rng(self.seed)
+        out = []
+        for k in range(n):
+            lo = k * self.spacing_m
+            hi = min((k + 1) * self.spacing_m, distance_m)
+            if k == 0 or self.placement == "systematic" or hi - lo <= span:
+                c = lo
+            else:
+                c = lo + rng.uniform(0.0, hi - lo - span)
+            out.append((c, min(c + span, distance_m)))
+        return out
+
+
+def slow_rate_jacobian(model):
+    """J(x, memory, u, p) = d(rates of the slow states)/d(all states) (CasADi AD of model.ode_function)."""
+    key = "_multiscale_slow_jacobian"
+    fn = model.__dict__.get(key)
+    if fn is None:
+        idx = model.slow_state_indices()
+        x, _, u, p = model.symbols
+        mem = model.memory_symbol
+        f, _ = model.ode_function(x, mem, u, p)
+        fs = ca.vertcat(*[f[i] for i in idx])
+        fn = ca.Function("J_slow", [x, mem, u, p], [ca.jacobian(fs, x)])
+        model.__dict__[key] = fn
+    return fn
+
+
+def _propagators(A: np.ndarray, b: np.ndarray, tau: float):
+    """(e^{A tau}, int_0^tau e^{A s} ds b, int_0^tau e^{A s} ds) by one augmented matrix exponential."""
+    n = A.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = A * tau
+    M[:n, n:] = np.eye(n) * tau
+    E = expm(M)
+    Phi, Gam = E[:n, :n], E[:n, n:]
+    return Phi, Gam @ b, Gam
+
+
+class MultiscaleDrive(Drive):
+    """A Drive that integrates windows of the road with the full model and the slow states between them."""
+
+    mode = MODE
+
+    def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):
+        super().__init__(model, road, settings, **kw)
+        self.ms = multiscale
+        t0 = time.perf_counter()
+        self.slow_index = np.asarray(model.slow_state_indices(), int)
+        self.ext_index = np.arange(model.n_dynamic, model.nx)
+        self.J_slow = slow_rate_jacobian(model)
+        self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
+        self.build_s += time.perf_counter() - t0
+        self.estimate: dict | None = None
+        self.window_log: list[dict] = []
+
+    # --- layout for the sink: the full drive's, plus where each window's averages start ------------
+    def describe(self):
+        block, row, state = super().describe()
+        row["window_start_m"] = 0.0
+        return block, row, state
+
+    def _rest_state(self, x_prev: np.ndarray) -> np.ndarray:
+        """The vehicle standing in equilibrium at x_prev's slow states, with x_prev's slow states and quadratures."""
+        m = self.model
+        eq = self.equilibrium_solver.solve(x_prev[self.T_oil_index], self.gas_masses, x_prev[self.oil_index])
+        x = m.state_at_rest(eq, self.gas_masses)
+        x[self.slow_index] = x_prev[self.slow_index]
+        x[self.ext_index] = x_prev[self.ext_index]
+        return x
+
+    def _slaving(self, x: np.ndarray) -> np.ndarray:
+        """S = dx/dx_slow (nx, ns) on the manifold of the vehicle at rest (`_rest_state`): the slow states
+        themselves move one to one, the fast ones as the standing vehicle's do (gas temperatures with the strut
+        temperature, deflections with gas expansion and oil), the quadratures not at all. Finite differences,
+        computed once per drive (it changes little with the slow states)."""
+        if getattr(self, "_S", None) is not None:
+            return self._S
+        base = self._rest_state(x)
+        S = np.zeros((self.model.nx, len(self.slow_index)))
+        for k, j in enumerate(self.slow_index):
+            h = 1e-4 * max(abs(x[j]), 1e-3)
+            xp = x.copy()
+            xp[j] += h
+            S[:, k] = (self._rest_state(xp) - base) / h
+        self._S = S
+        return S
+
+    def _time_at(self, s_m: float) -> float:
+        return float(np.interp(s_m, self.s_grid, self.t_grid))
+
+    # --- one window ------------------------------------------------------------------------------
+    def _window(self, x0, t0, t_warm, t_end, sink, integ):
+        """Drive the full model from (x0, t0) to t_end (whole sample intervals); returns the window record."""
+        S = self.settings
+        dt, K, M = S.dt_s, self.K, self.M
+        sample_dt = K * dt
+        self.solver.set_state(np.zeros_like(self.solver.get_state()))
+        n_samples = max(int(np.ceil((t_end - t0) / sample_dt - 1e-9)), 1)
+        n_warm = min(int(np.ceil((t_warm - t0) / sample_dt - 1e-9)), n_samples - 1)
+        xs, ts, mems, Us = [x0[:, None]], [np.array([t0])], [np.zeros((self.model.n_memory, 1))], []
+        x, t = x0, t0
+        done = 0
+        while done < n_samples:
+            t_cols = t + dt * np.arange(K * M + 1)
+            U = self.inputs(t_cols)
+            ti = time.perf_counter()
+            X = self.solver.advance(x, U, self.p)
+            memory = self.solver.memory_samples
+            integ[0] += time.perf_counter() - ti
+            t_s = t + sample_dt * np.arange(1, M + 1)
+            s_s = self.distance_at(t_s)
+            self._check(X, t_s, s_s, x)
+            take = min(M, n_samples - done)
+            X, t_s, s_s, memory = X[:, :take], t_s[:take], s_s[:take], memory[:, :take]
+            U_s = U[:, K * np.arange(1, take + 1)]
+            if sink is not None:
+                sink.samples(self._block_outputs(X, U_s, t_s, s_s, memory))
+            xs.append(X)
+            ts.append(t_s)
+            mems.append(memory)
+            Us.append(U_s)
+            x, t = X[:, -1].copy(), float(t_s[-1])
+            done += take
+        X = np.concatenate(xs, axis=1)
+        T = np.concatenate(ts)
+        MEM = np.concatenate(mems, axis=1)
+        U = np.concatenate(Us, axis=1)
+        a = n_warm                       # first sample of the averaged stretch (index into X, T)
+        avg = slice(a + 1, None)         # samples inside the averaged stretch (U has no column for sample 0)
+        N = X.shape[1] - a - 1
+        J = np.asarray(self.J_slow.map(N)(X[:, avg], MEM[:, avg], U[:, a:], np.repeat(self.p[:, None], N, axis=1)))
+        ns = len(self.slow_index)
+        # d(slow rates)/d(all states), averaged, times how the state moves with the slow states (fast states
+        # slaved to them: a gas temperature follows its strut's): A = mean(J) S
+        A = J.reshape(ns, N, self.model.nx).mean(axis=1) @ self._slaving(X[:, -1])
+        dur = T[-1] - T[a]
+        xa, xb = X[:, a], X[:, -1]
+        r = (xb[self.slow_index] - xa[self.slow_index]) / dur
+        xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
+        q_rate = (xb[self.ext_index] - xa[self.ext_index]) / dur
+        row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
+                              X[self.T_gas_index, a + 1:].mean(axis=1))
+        row["window_start_m"] = float(self.distance_at(T[a]))
+        return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
+                "A": A, "r": r, "xbar": xbar,
+                "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy()}
+
+    # --- the drive -------------------------------------------------------------------------------
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+        if state is not None and state.s_m > 0:
+            raise UserInputError("solver.mode multiscale: a multiscale run cannot be resumed (it takes seconds): "
+                                 "run it again with --overwrite")
+        S = self.settings
+        D = S.distance_m
+        # the drive ends at the last output sample within the distance, as a full drive does
+        sample_dt = self.K * S.dt_s
+        t_total = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
+        wall0 = time.perf_counter()
+        integ = [0.0]
+        st = self.initial_state()
+        x = st.x.copy()
+        windows = self.ms.windows(D)
+        records = []
+        k = -1
+        while k + 1 < len(windows):
+            k += 1
+            c0, c1 = windows[k]
+            t0 = self._time_at(c0)
+            if k > 0:
+                x = self._rest_state(x)
+            t_end = min(self._time_at(c1), t_total)
+            t_warm = min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end)
+            w = self._window(x, t0, t_warm, t_end, sink, integ)
+            if k == 0 and self.ms.placement == "weighted":
+                lam = np.linalg.eigvals(w["A"]).real
+                lam = lam[lam < -1e-12]
+                tau = -1.0 / np.max(lam) if len(lam) else t_total
+                w["tau_slow_s"] = float(tau)
+                windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self._time_at,
+                                                                  self.distance_at, t_total)
+            if k > 0:
+                # the warm-up settles the start from rest (the tyres meet a road that is not flat): its extra
+                # dissipation is not the road's. The slow states and totals cross it as they cross a gap, by the
+                # window's averaged model; the averaged stretch adds its own change
+                x_start = x
+                tw = w["t_avg0"] - t0
+                Phi, forced, _ = _propagators(w["A"], w["b"], tw)
+                w["x_end"][self.slow_index] += (Phi @ x_start[self.slow_index] + forced) - w["x_avg0"][self.slow_index]
+                w["x_end"][self.ext_index] += (x_start[self.ext_index] + w["q_rate"] * tw) - w["x_avg0"][self.ext_index]
+            # the gap: to the next window's start, or to the end of the drive
+            t_next = self._time_at(windows[k + 1][0]) if k + 1 < len(windows) else t_total
+            tau = max(t_next - w["t_end"], 0.0)
+            x = w["x_end"].copy()
+            Phi, forced, _ = _propagators(w["A"], w["b"], tau)
+            x[self.slow_index] = Phi @ x[self.slow_index] + forced
+            x[self.ext_index] = x[self.ext_index] + w["q_rate"] * tau
+            w.update(t_start=t0, t_gap_end=t_next, tau=tau, s_start=c0, s_end=float(self.distance_at(w["t_end"])),
+                     s_gap_end=float(self.distance_at(t_next)), s_avg0=float(self.distance_at(w["t_avg0"])))
+            records.append(w)
+            if sink is not None:
+                sink.stats([w["row"]])
+                st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=D + 1.0,
+                                last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+                                            "gas_sum": np.zeros(self.model.n), "gas_n": 0},
+                                solver_memory=w["memory"])
+                sink.checkpoint(st.as_dict())
+            if progress is not None:
+                progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
+        self.estimate = self.error_estimate(records, t_total)
+        final = DriveState(t_s=float(t_total), s_m=float(self.distance_at(t_total)), x=x, next_stats_m=D + 1.0,
+                           last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy(),
+                                       "gas_sum": np.zeros(self.model.n), "gas_n": 0},
+                           solver_memory=np.zeros_like(self.solver.get_state()))
+        if sink is not None:
+            sink.checkpoint(final.as_dict())
+        V_oil = x[self.oil_index]
+        after = self.equilibrium_solver.solve(x[self.T_oil_index], self.gas_masses, V_oil)
+        self.window_log = records
+        self.estimate.update(self.load_error(final, after))
+        return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
+
+    # --- a-posteriori error ----------------------------------------------------------------------
+    def error_estimate(self, records, t_end: float) -> dict:
+        """Covariance of the final slow states from the scatter of the window forcings b_k = r_k - Abar xbar_k
+        (Abar: the mean of the windows' A), propagated through the linear slow model (module docstring)."""
+        ns = len(self.slow_index)
+        nw = len(records)
+        A_mean = np.mean([w["A"] for w in records], axis=0)
+        B = np.array([w["r"] - A_mean @ w["xbar"] for w in records])
+        # the sampling error is the scatter about the forcing's slow drift along the drive (each gap follows its
+        # own window, so a drift is followed): residuals of a straight line in time, 2 degrees of freedom
+        t = np.array([w["t_avg0"] for w in records])
+        if nw >= 4:
+            T = np.column_stack([np.ones(nw), t - t.mean()])
+            res = B - T @ np.linalg.lstsq(T, B, rcond=None)[0]
+            Cb = res.T @ res / (nw - 2)
+            dof = nw - 2
+        elif nw >= 2:
+            Cb = np.atleast_2d(np.cov(B.T, ddof=1))
+            dof = nw - 1
+        else:
+            Cb = np.full((ns, ns), np.nan)
+            dof = 1
+        cov = np.zeros((ns, ns))
+        for w in records:
+            if w["tau"] <= 0:
+                continue
+            L = w["t_end"] - w["t_avg0"]
+            f = max(0.0, 1.0 - L / (L + w["tau"]))       # finite-population factor of the window in its stretch
+            _, _, Gam = _propagators(A_mean, np.zeros(ns), w["tau"])
+            P = expm(A_mean * max(t_end - w["t_gap_end"], 0.0)) @ Gam
+            cov += f * P @ Cb @ P.T
+        return {"cov": cov, "n_windows": nw, "dof": dof,
+                "covered_m": float(sum(w["s_end"] - w["s_start"] for w in records))}
+
+    def load_error(self, final: DriveState, after) -> dict:
+        """Per-station and per-axle temperature errors and the per-axle wheel-load-change error (95 % interval,
+        `error_factor` sigma) from the slow states' covariance, through the after-drive equilibrium."""
+        m = self.model
+        cov = self.estimate["cov"]
+        pos = {int(j): k for k, j in enumerate(self.slow_index)}
+        iT = [pos[int(j)] for j in self.T_index]             # the reported strut temperature (Drive.T_index)
+        iT_eq = [pos[int(j)] for j in self.T_oil_index]      # the temperature the standing vehicle's loads follow
+        iV = [pos[int(j)] for j in self.oil_index if int(j) in pos]
+        n, n_ax = m.n, m.params.n_axles
+        axle_of = np.array([m.params.station_axle(i) for i in range(n)])
+        W_ax = np.zeros((n_ax, n))
+        for i in range(n):
+            W_ax[axle_of[i], i] = 1.0 / np.sum(axle_of == axle_of[i])
+        cov_T = cov[np.ix_(iT, iT)]
+        sig_T_station = np.sqrt(np.maximum(np.diag(cov_T), 0.0))
+        sig_T_axle = np.sqrt(np.maximum(np.diag(W_ax @ cov_T @ W_ax.T), 0.0))
+        G = self._load_sensitivity(final.x, after, W_ax)
+        idx = iT_eq + (iV if len(iV) == n else [])
+        G = G[:, :len(idx)]
+        sig_dN = np.sqrt(np.maximum(np.diag(G @ cov[np.ix_(idx, idx)] @ G.T), 0.0))
+        k = error_factor(self.estimate["dof"])
+        return {"sigmas": k, "strut_temperature_K": k * sig_T_station, "axle_temperature_K": k * sig_T_axle,
+                "load_change_pct": k * sig_dN}
+
+    def _load_sensitivity(self, x_end, after, W_ax, dT: float = 0.5, dV: float = 1e-6) -> np.ndarray:
+        """d(per-axle wheel load change [pp of the before-drive load])/d(final T per station, V_oil per station)."""
+        m = self.model
+        N0 = W_ax @ np.asarray(self.initial_equilibrium().wheel_loads_N, float)
+        T, V = x_end[self.T_oil_index].copy(), x_end[self.oil_index].copy()
+        N1 = W_ax @ np.asarray(after.wheel_loads_N, float)
+        cols = []
+        for i in range(m.n):
+            Tp = T.copy()
+            Tp[i] += dT
+            e = self.equilibrium_solver.solve(Tp, self.gas_masses, V)
+            cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dT)
+        if self.settings.compensation:
+            for i in range(m.n):
+                Vp = V.copy()
+                Vp[i] += dV
+                e = self.equilibrium_solver.solve(T, self.gas_masses, Vp)
+                cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dV)
+        else:
+            cols += [np.zeros(len(N0))] * m.n
+        return np.array(cols).T
+
+    def summary_extra(self) -> dict:
+        """What the results add for this mode: /summary attributes and per-station/axle error variables."""
+        e = self.estimate or {}
+        ms = self.ms
+        attrs = {"solver_mode": MODE, "multiscale_windows": int(e.get("n_windows", 0)),
+                 "multiscale_window_m": float(ms.window_m), "multiscale_spacing_m": float(ms.spacing_m),
+                 "multiscale_warm_up_m": float(ms.warm_up_m), "multiscale_placement": ms.placement,
+                 "multiscale_covered_km": float(e.get("covered_m", 0.0)) / 1e3,
+                 "estimated_error_sigmas": float(e.get("sigmas", np.nan)),
+                 "estimated_error_coverage": ERROR_COVERAGE}
+        if e:
+            attrs["estimated_error_temperature_K"] = float(np.max(e["axle_temperature_K"]))
+            attrs["estimated_error_load_change_pct"] = float(np.max(e["load_change_pct"]))
+        values = {}
+        if e:
+            values = {"estimated_error_strut_temperature_K": e["strut_temperature_K"],
+                      "estimated_error_axle_temperature_K": e["axle_temperature_K"],
+                      "estimated_error_load_change_pct": e["load_change_pct"]}
+        return {"attrs": attrs, "values": values}
