@@ -23,6 +23,7 @@ from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
+from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.numerics.solvers import Ros2
 from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
 
@@ -38,6 +39,10 @@ class DriveSettings:
     output_interval_s: float = 1.0
     samples_per_block: int = 10
     stats_interval_m: float = 1000.0
+    # step-doubling error estimate (vehicle.numerics.error_estimate): tolerance on the relative error of
+    # the strut heat, and every how many sample blocks one window is checked (0: no estimate)
+    tolerance: float = 0.01
+    error_check_every: int = 10
 
     def validate(self):
         if not self.distance_m > 0:
@@ -140,6 +145,15 @@ class Drive:
         if model.ride_index:
             self.quad_index = np.concatenate([self.quad_index] + [idx.ravel() for idx in model.ride_index.values()])
         self.travel_bin_edges_m = model.travel_bin_edges()
+        self.heat_index = [model.energy_index[e] for e in DISSIPATION_TERMS]
+        self.error_estimate = None
+        self._probes = {}
+        if settings.error_check_every > 0 and hasattr(self.solver, "refined"):
+            self.error_estimate = StepDoublingEstimate(settings.dt_s, settings.tolerance, settings.output_interval_s,
+                                                       n, names=[str(s) for s in model.station_names])
+            t0 = time.perf_counter()
+            self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
+            self.build_s += time.perf_counter() - t0
 
     # --- initial state --------------------------------------------------------------------------
     def initial_equilibrium(self):
@@ -182,6 +196,37 @@ class Drive:
         return m.input_matrix(len(t), road=road, road_rate=rate, speed=v, ambient=self.settings.ambient_K,
                               acceleration=self.settings.speed.acceleration(s))
 
+    # --- error estimate -------------------------------------------------------------------------
+    def _probe(self, factor: int):
+        if factor not in self._probes:
+            self._probes[factor] = self.solver.refined(self.model, factor)
+        return self._probes[factor]
+
+    def _heat(self, x) -> np.ndarray:
+        """Energy each strut has dissipated (valve, friction, gas, end stops) [J] in state(s) x."""
+        return sum(x[idx] for idx in self.heat_index)
+
+    def _check_error(self, st: "DriveState", x_coarse: np.ndarray) -> None:
+        """Step doubling on this block's first sample: integrate it again from the same start with dt/2 (and
+        dt/4 once the estimate exceeds the tolerance) and add the differences to the estimate."""
+        est = self.error_estimate
+        factors = (2, 4) if est.exceeded() else (2,)
+        probes = [self._probe(f) for f in factors]        # a first dt/4 probe compiles here: not counted as cost
+        t0 = time.perf_counter()
+        dt, K = self.settings.dt_s, self.K
+        levels = [(1, x_coarse)]
+        for factor, probe in zip(factors, probes):
+            t_cols = st.t_s + (dt / factor) * np.arange(K * factor + 1)
+            probe.set_state(st.solver_memory)
+            x = probe.advance(st.x, self.inputs(t_cols), self.p)[:, -1]
+            if not np.all(np.isfinite(x)):
+                break
+            levels.append((factor, x))
+        for level, ((_, xc), (_, xf)) in enumerate(zip(levels, levels[1:])):
+            est.add(level, self._heat(xc) - self._heat(st.x), self._heat(xf) - self._heat(st.x),
+                    self.model.strut_deflections(xc[:, None])[:, 0], self.model.strut_deflections(xf[:, None])[:, 0])
+        est.cost_s += time.perf_counter() - t0
+
     # --- run --------------------------------------------------------------------------------------
     def run(self, sink: DriveSink | None = None, state: DriveState | None = None,
             progress: Callable[[float, float, float], None] | None = None,
@@ -202,6 +247,10 @@ class Drive:
             X = self.solver.advance(st.x, U, self.p)
             memory = self.solver.memory_samples
             integ_s += time.perf_counter() - ti
+            # (the first block is left out: the start from rest is a transient unlike the drive, with little of its heat)
+            if self.error_estimate is not None and blocks >= 1 \
+                    and (blocks - 1) % self.settings.error_check_every == 0 and np.all(np.isfinite(X[:, 0])):
+                self._check_error(st, X[:, 0])
             t_samples = st.t_s + dt * self.K * np.arange(1, self.M + 1)
             s_samples = self.distance_at(t_samples)
             self._check(X, t_samples, s_samples, st.x)
@@ -231,7 +280,8 @@ class Drive:
         final_T = st.x[self.T_oil_index]
         V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
         after = self.equilibrium_solver.solve(final_T, self.gas_masses, V_oil)
-        return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s)
+        error = None if self.error_estimate is None else self.error_estimate.summary(integ_s)
+        return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s, solver_error=error)
 
     # a state this far outside physics means the integration has failed, whatever the solver says
     PHYSICAL_TEMPERATURE_K = (150.0, 273.15 + 400.0)
@@ -394,3 +444,4 @@ class DriveResult:
     after: object
     wall_s: float
     integration_s: float
+    solver_error: dict | None = None         # the step-doubling estimate's summary entries (None: not estimated)

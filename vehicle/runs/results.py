@@ -150,6 +150,8 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),
                "finished_at": _now(), "status": "complete", "complete": True,
                "solver_mode": str(getattr(drive, "mode", "full"))}
+    if getattr(res, "solver_error", None):
+        summary.update(res.solver_error)          # the step-doubling estimate (vehicle.numerics.error_estimate)
     extra = drive.summary_extra() if hasattr(drive, "summary_extra") else None   # multiscale: error estimate
     if extra:
         summary.update(extra["attrs"])

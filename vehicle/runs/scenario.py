@@ -45,6 +45,7 @@ DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSetti
 MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
 MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed")
 MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
+TOLERANCE_RANGE = (1e-4, 1.0)                 # solver.tolerance: 0.01 .. 100 % relative error of the strut heat
 
 # time series a drive produces (vehicle.runs.drive.Drive._block_outputs); `output.store` picks from these
 SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperature_K", "wall_temperature_K",
@@ -168,6 +169,11 @@ class SolverSpec(Model):
     warm_up: float | None = None             # multiscale: stretch before the averaged one (default 50 m)
     placement: Literal["systematic", "stratified", "weighted"] | None = None   # multiscale: where the windows go
     seed: StrictInt | None = Field(None, ge=0)   # multiscale: of the stratified placement
+    # step-doubling error estimate (vehicle.numerics.error_estimate): the largest relative error of a strut's
+    # heat (its temperature rise rate) accepted without a warning, and every how many sample blocks one output
+    # sample is integrated again at dt/2 (cost about 2 / (samples_per_block * error_check_every); 0: no estimate)
+    tolerance: float = 0.01
+    error_check_every: StrictInt = Field(10, ge=0, le=100_000)
 
     @field_validator("dt", mode="before")
     @classmethod
@@ -209,6 +215,11 @@ class SolverSpec(Model):
 
         return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
                                   placement=self.placement or "weighted", seed=self.seed or 0)
+
+    @field_validator("tolerance", mode="before")
+    @classmethod
+    def _tolerance(cls, v):
+        return _in_range(_quantity("dimensionless", v), *TOLERANCE_RANGE, "%", 1e2)
 
 
 class OutputSpec(Model):
@@ -425,7 +436,8 @@ class Prepared:
                              initial_temperatures_K=self.initial_temperatures_K.copy(),
                              compensation=S.compensation.enabled, dt_s=S.solver.dt,
                              output_interval_s=S.output.interval, samples_per_block=S.solver.samples_per_block,
-                             stats_interval_m=S.output.stats_interval)
+                             stats_interval_m=S.output.stats_interval, tolerance=S.solver.tolerance,
+                             error_check_every=S.solver.error_check_every)
 
     def model(self):
         from vehicle.physics.model import VehicleModel

@@ -150,6 +150,9 @@ def report_from(r: ResultsView, name: str) -> dict:
            "ambient_C": ambient_C,
            "hpsim_version": str(sc.get("hpsim_version", ""))}
     out.update(solver_mode_summary(r, summ, len(axles)))
+    for k in ("solver_error_estimate", "solver_tolerance", "solver_advice"):
+        if k in summ:
+            out[k] = num(summ[k]) if k != "solver_advice" else str(summ[k])
     if "error" in summ:
         out["error"] = str(summ["error"])
     from vehicle.runs import ride_metrics, warnings as validity

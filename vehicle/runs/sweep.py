@@ -304,6 +304,8 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
                             "load_shift_vs_charged_pct": rep["load_shift_vs_charged_pct"],
                             "mean_temperature_rise_K": rep["mean_temperature_rise_K"],
                             "energy_dissipated_MJ": rep["energy_dissipated_MJ"]})
+                if "solver_error_estimate" in rep:          # the step-doubling estimate and its advice
+                    row.update({k: rep.get(k) for k in ("solver_error_estimate", "solver_tolerance", "solver_advice")})
                 for a in rep["axles"]:
                     for q in ("dN_pct", "dN_charged_pct", "dh_mm", "T_end_C"):
                         row[f"{q}_axle{a['axle']}"] = a[q]
