@@ -32,7 +32,7 @@ output: {interval: 1 s, stats_interval: 0.1 km, chunk_samples: 30}
 """
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"   # written by hpsim before format 2
 GROUPS = ("timeseries", "stats", "equilibrium/charged", "equilibrium/before", "equilibrium/after", "summary")
-TIMING = {"wall_s", "build_s", "integration_s", "finished_at", "created", "history"}
+TIMING = {"wall_s", "solver_error_cost_pct", "build_s", "integration_s", "finished_at", "created", "history"}
 UDUNITS = {"s", "m", "km", "m s-1", "m s-2", "rad", "rad s-2", "K", "Pa", "N", "J", "W", "m3", "1", "m s-1.75"}
 
 

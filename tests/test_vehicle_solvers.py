@@ -89,10 +89,11 @@ def test_a_parameter_change_reuses_the_compiled_model(monkeypatch):
         return m, d, d.run()
 
     m0, d0, r0 = run(None)
-    assert len(calls) == 1
+    n0 = len(calls)                 # the block function and the error estimate's half-step one
+    assert n0 == 2
     m1, d1, r1 = run({"heat.capacity": "20 kJ/K", "tyre.stiffness": "1.2 MN/m",
                       **{f"axles.{k}.strut_overrides": {"valve.bleed_area": "1.5e-5 m^2"} for k in range(4)}})
-    assert len(calls) == 1, "a parameter change must not generate or compile code"
+    assert len(calls) == n0, "a parameter change must not generate or compile code"
     assert m1.structure == m0.structure
     assert d1.solver.fn is d0.solver.fn
     # ... and the new values are really used: a smaller heat capacity heats faster
@@ -107,7 +108,8 @@ def test_a_parameter_change_reuses_the_compiled_model(monkeypatch):
     # a structural change: the leakage path switched on adds terms -> new code
     m3, _, _ = run({f"axles.{k}.strut_overrides": {"valve.leakage": "1e-13 m^3/(Pa*s)"} for k in range(4)})
     assert m3.structure != m0.structure
-    assert calls[1] == calls[0] and calls[-1] != calls[0]   # (calls[1]: the rebuild after clearing the memo)
+    # (calls[n0:2 n0]: the rebuild after clearing the memo)
+    assert calls[n0:2 * n0] == calls[:n0] and calls[-1] not in calls[:n0]
 
 
 def test_the_idas_reference_is_a_solver_object_the_drive_accepts():
@@ -123,3 +125,56 @@ def test_the_idas_reference_is_a_solver_object_the_drive_accepts():
     assert abs(out["ros2"][z] - out["idas"][z]) < 5e-4   # 0.5 mm: the O(h^2) error of 4 ms steps over 6 m
     nodes = [m.idx(f"T_{node}[{i}]") for node in ("oil", "wall", "surface") for i in range(m.n)]
     assert np.max(np.abs(out["ros2"][nodes] - out["idas"][nodes])) < 1e-3
+
+
+def _estimate(model, road, dt, distance_m=200.0):
+    d = Drive(model, road, DriveSettings(distance_m=distance_m, speed=SpeedProfile.constant(20 / 3.6),
+                                         error_check_every=1), solver=solvers.Ros2(dt))
+    res = d.run()
+    assert res.solver_error["solver_error_windows"] >= 3
+    return res.solver_error
+
+
+def test_the_error_estimate_flags_the_integrated_strut_at_4_ms_and_advises_2_ms():
+    """Step doubling (vehicle.numerics.error_estimate) on the known case: yin2023 struts on the 8x8 at 4 ms
+    over-predict the valve heat many times (the chamber-pressure relaxation is under-resolved; 2 ms is converged,
+    see the test above): the estimate exceeds the default tolerance by orders of magnitude and the advice is
+    2 ms. At 2 ms the same drive passes."""
+    m = VehicleModel(_yin_vehicle())
+    road = build_road(RoadSpec(iso_class="C", length=260.0, seed=0))
+    tol = DriveSettings(distance_m=1.0, speed=SpeedProfile.constant(1.0)).tolerance
+    coarse = _estimate(m, road, 0.004)
+    assert coarse["solver_error_estimate"] > 100 * tol
+    assert coarse["solver_advice"].endswith("reduce solver.dt to 2 ms") or "reduce solver.dt to 2 ms " in \
+        coarse["solver_advice"]
+    fine = _estimate(m, road, 0.002)
+    assert fine["solver_error_estimate"] < tol
+    assert "meets the tolerance" in fine["solver_advice"]
+
+
+def test_the_error_estimate_passes_the_default_strut_at_4_ms_and_falls_with_the_order():
+    """The apc strut at the default 4 ms is within the default tolerance, and the step-doubling estimate falls
+    about 4x when the step halves (ROS2 is of order 2: Richardson's assumption holds for it)."""
+    m = VehicleModel(load_vehicle("apc_8x8"))
+    road = build_road(RoadSpec(iso_class="D", length=360.0, seed=3))
+    e4 = _estimate(m, road, 0.004, 300.0)
+    e2 = _estimate(m, road, 0.002, 300.0)
+    assert e4["solver_error_estimate"] < e4["solver_tolerance"]
+    assert "meets the tolerance" in e4["solver_advice"]
+    assert 2.5 < e4["solver_error_estimate"] / e2["solver_error_estimate"] < 6.5
+    # the worst pointwise deflection falls too, more slowly (2.2x measured: the seal friction's stick-slip is not
+    # smooth, which lowers the observed order of a pointwise error; the heat is an integral and keeps order 2)
+    assert 1.5 < e4["solver_error_deflection_m"] / e2["solver_error_deflection_m"] < 6.5
+    assert 0 < e4["solver_error_deflection_m"] < 1e-3          # heights: well below a millimetre
+
+
+def test_the_error_estimate_costs_a_few_percent_at_the_defaults():
+    """At the defaults (every 10th block of 10 samples) the extra half-step integrations cost about 2 % of the
+    integration (2 / (samples_per_block * every)); measured by wall time, so only bounded loosely."""
+    d = make_drive(distance_m=700.0)
+    res = d.run()
+    err = res.solver_error
+    assert err["solver_error_windows"] >= 1
+    # 700 m = 12 blocks, 2 checked (blocks 1 and 11): 2 * 2 / (12 * 10) = 3.3 % of the steps, plus the inputs of the
+    # half-step windows; the 2 % holds for long drives
+    assert err["solver_error_cost_pct"] < 15.0

@@ -300,7 +300,8 @@ def _solver(data, th):
         return []
     err = float(np.max(np.asarray(err, float)))
     tol = data.summary_value("solver_tolerance")
-    tol = th.solver_error if tol is None else float(tol)
+    # the run's own tolerance (solver.tolerance) unless the caller set a threshold of its own
+    tol = th.solver_error if tol is None or th.solver_error != Thresholds.solver_error else float(tol)
     if not err > tol:
         return []
     hint = data.summary_value("solver_advice")
