@@ -41,7 +41,7 @@ class DriveSettings:
     stats_interval_m: float = 1000.0
     # step-doubling error estimate (vehicle.numerics.error_estimate): tolerance on the relative error of
     # the strut heat, and every how many sample blocks one window is checked (0: no estimate)
-    tolerance: float = 0.05
+    tolerance: float = 0.10
     error_check_every: int = 10
 
     def validate(self):
