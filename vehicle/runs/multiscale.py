@@ -332,7 +332,7 @@ class MultiscaleDrive(Drive):
                 sink.checkpoint(st.as_dict())
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
-        self.estimate = self.error_estimate(records, t_total)
+        self.estimate = self.road_sampling_error(records, t_total)
         final = DriveState(t_s=float(t_total), s_m=float(self.distance_at(t_total)), x=x, next_stats_m=D + 1.0,
                            last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy(),
                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
@@ -346,7 +346,7 @@ class MultiscaleDrive(Drive):
         return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
 
     # --- a-posteriori error ----------------------------------------------------------------------
-    def error_estimate(self, records, t_end: float) -> dict:
+    def road_sampling_error(self, records, t_end: float) -> dict:
         """Covariance of the final slow states from the scatter of the window forcings b_k = r_k - Abar xbar_k
         (Abar: the mean of the windows' A), propagated through the linear slow model (module docstring)."""
         ns = len(self.slow_index)
