@@ -55,7 +55,7 @@ EXAMPLES = {
   hpsim plot demo.h5 -o dashboard.png""",
     "calibrate": """\
   hpsim calibrate scenarios/mileage_106km.yaml --target-rise 54K
-  hpsim calibrate scenarios/quick_demo.yaml --target-rise 6K --tolerance 0.2K --json""",
+  hpsim calibrate scenarios/quick_demo.yaml --target-rise 4K --tolerance 0.2K --json""",
     "uq": """\
   hpsim uq scenarios/quick_demo.yaml --list                 # the parameters with priors
   hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2 -o uq_out""",
