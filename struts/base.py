@@ -28,6 +28,17 @@ class StrutBase:
     def check_parameters(params: StrutParams) -> None:
         """Consistency checks a layout needs beyond the parameter schema (UserInputError naming keys)."""
 
+    # --- states both strut types may carry -----------------------------------------------------
+    def shared_state_names(self) -> tuple[str, ...]:
+        """The optional internal states of the gas and seal models: T_gas (energy-equation gas) and
+        z_bristle (LuGre friction), in that order after a strut's own chamber states."""
+        names = ()
+        if self.p.gas.process == "energy":
+            names += ("T_gas",)
+        if self.p.friction.model == "lugre":
+            names += ("z_bristle",)
+        return names
+
     # --- charge -------------------------------------------------------------------------------
 
     @cached_property

@@ -101,12 +101,7 @@ class IntegratedStrut(StrutBase):
     # --- structure ------------------------------------------------------------------------
     @property
     def state_names(self) -> tuple[str, ...]:
-        names = ("V_gas", "p_r")
-        if self.p.gas.process == "energy":
-            names += ("T_gas",)
-        if self.p.friction.model == "lugre":
-            names += ("z_bristle",)
-        return names
+        return ("V_gas", "p_r") + self.shared_state_names()
 
     @property
     def stiff_state_names(self) -> tuple[str, ...]:

@@ -27,14 +27,8 @@ class SeparatedStrut(StrutBase):
     # --- structure ------------------------------------------------------------------------
     @property
     def state_names(self) -> tuple[str, ...]:
-        names = ()
-        if self.p.valve.oil_model == "compressible":
-            names += ("dp_valve",)
-        if self.p.gas.process == "energy":
-            names += ("T_gas",)
-        if self.p.friction.model == "lugre":
-            names += ("z_bristle",)
-        return names
+        own = ("dp_valve",) if self.p.valve.oil_model == "compressible" else ()
+        return own + self.shared_state_names()
 
     @property
     def stiff_state_names(self) -> tuple[str, ...]:
