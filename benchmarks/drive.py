@@ -19,10 +19,10 @@ shared 2-core machine are noisy: compare the ratios of one run.
 JSON keys per mode (full, multiscale, reference): build_s, wall_s, integration_s, rtf (simulated
 seconds per second of integration), T_end_K (per axle), dN_pct (per axle), and for full and
 multiscale max_temperature_error_K, max_load_error_pp against the reference; multiscale also
-estimated_error_K / estimated_error_pp (its own a-posteriori estimate, 2 sigma) and covered_km.
+estimated_error_K / estimated_error_pp (its own a-posteriori estimate, a 95 % interval) and covered_km.
 projected_106km: the 106 km mileage drive's integration time at the full run's rate (full: 19080 s /
-rtf; multiscale: the share of the 106 km road its default layout drives, 22 windows of 500 m + 50 m
-warm-up). A short --distance gives short windows whose warm-up and per-window work weigh more: the
+rtf; multiscale: the share of the road the multiscale run drove, at the same rate). drive_s: the drive's
+wall time without the build (set-up, compilation). A short --distance gives short windows whose warm-up and per-window work weigh more: the
 multiscale speed-up measured there is not the 106 km one (run --scenario scenarios/mileage_106km.yaml).
 """
 from __future__ import annotations
@@ -74,7 +74,7 @@ def run(data: dict, base_dir: str) -> dict:
         return np.array([v[ax == k].mean() for k in range(model.params.n_axles)])
 
     N0, N1 = axle_mean(before.wheel_loads_N), axle_mean(res.after.wheel_loads_N)
-    out = {"build_s": build, "wall_s": wall, "integration_s": res.integration_s,
+    out = {"build_s": build, "wall_s": wall, "drive_s": res.wall_s, "integration_s": res.integration_s,
            "simulated_s": res.state.t_s, "rtf": res.state.t_s / max(res.integration_s, 1e-9),
            "T_end_K": axle_mean(res.state.x[drive.T_index]).tolist(),
            "dN_pct": (100.0 * (N1 - N0) / N0).tolist()}
@@ -84,6 +84,7 @@ def run(data: dict, base_dir: str) -> dict:
         out["estimated_error_pp"] = float(np.max(est["load_change_pct"]))
         out["covered_km"] = est["covered_m"] / 1e3
         out["windows"] = est["n_windows"]
+        out["control_variate"] = bool(est.get("control_variate", False))
     return out
 
 
@@ -102,6 +103,7 @@ def main(argv=None):
     ap.add_argument("--window", default=None, help="multiscale window (default: 500 m, or distance/25)")
     ap.add_argument("--spacing", default=None, help="multiscale spacing (default: 5 km, or distance/5)")
     ap.add_argument("--warm-up", default="50m")
+    ap.add_argument("--no-control-variate", action="store_true", help="multiscale without the road-proxy regression")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--warm-cache", action="store_true")
     args = ap.parse_args(argv)
@@ -117,7 +119,7 @@ def main(argv=None):
     out = {"distance_km": distance / 1e3}
     out["full"] = run(data, base_dir)
     ms_data = {**data, "solver": {**data["solver"], "mode": "multiscale", "window": window, "spacing": spacing,
-                                  "warm_up": args.warm_up}}
+                                  "warm_up": args.warm_up, "control_variate": not args.no_control_variate}}
     out["multiscale"] = run(ms_data, base_dir)
     out["multiscale"]["layout"] = {"window": window, "spacing": spacing, "warm_up": args.warm_up}
     if not args.no_reference:
@@ -130,8 +132,8 @@ def main(argv=None):
     out["full"].update(errors(out["full"], ref))
     out["multiscale"].update(errors(out["multiscale"], ref))
     out["reference_is"] = "full mode" if args.no_reference else f"ROS2 at {args.reference_dt}"
-    # the 106 km test: full at the full run's rate; multiscale: its default layout's share of the road
-    share = 22 * 550.0 / 106e3          # 22 windows of 500 m + 50 m warm-up over 106 km: 0.114 of the road
+    # the 106 km test: full at the full run's rate; multiscale: the share of the road this layout drives
+    share = out["multiscale"]["covered_km"] / out["distance_km"]
     # the windows run the same engine: the share of the road they drive at the full run's rate (per-window
     # overheads, small for 500 m windows, aside)
     out["projected_106km"] = {"full_integration_s": MILEAGE_S / out["full"]["rtf"],
@@ -146,7 +148,7 @@ def main(argv=None):
         r = out.get(mode)
         if r is None:
             continue
-        line = (f"  {mode:10s} build {r['build_s']:6.2f} s  wall {r['wall_s']:7.2f} s  integration "
+        line = (f"  {mode:10s} build {r['build_s']:6.2f} s  drive {r['drive_s']:7.2f} s  wall {r['wall_s']:7.2f} s  integration "
                 f"{r['integration_s']:7.2f} s  rtf {r['rtf']:7.0f}")
         if "max_temperature_error_K" in r and mode != "reference":
             line += f"  dT {r['max_temperature_error_K']:.3f} K  dN {r['max_load_error_pp']:.4f} pp"
@@ -157,7 +159,7 @@ def main(argv=None):
     p = out["projected_106km"]
     print(f"  speed-up of the multiscale run here: {out['speedup_multiscale_vs_full_here']:.1f}x; projected 106 km "
           f"integration: full {p['full_integration_s']:.1f} s, multiscale {p['multiscale_integration_s']:.1f} s "
-          f"(500 m windows every 5 km)")
+          f"({out['multiscale']['layout']['window']} windows every {out['multiscale']['layout']['spacing']})")
 
 
 if __name__ == "__main__":

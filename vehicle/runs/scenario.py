@@ -43,7 +43,7 @@ DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSetti
 # multiscale window layout (solver.window, .spacing, .warm_up): a window must hold some seconds of ride
 # (50 m: 9 s at 20 km/h); at most the longest drive
 MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
-MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed")
+MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control_variate")
 MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
 TOLERANCE_RANGE = (1e-4, 1.0)                 # solver.tolerance: 0.01 .. 100 % relative error of the strut heat
 
@@ -169,6 +169,8 @@ class SolverSpec(Model):
     warm_up: float | None = None             # multiscale: stretch before the averaged one (default 50 m)
     placement: Literal["systematic", "stratified", "weighted"] | None = None   # multiscale: where the windows go
     seed: StrictInt | None = Field(None, ge=0)   # multiscale: of the stratified placement
+    # multiscale: regression on a road proxy known for the whole road (variance reduction, default true)
+    control_variate: StrictBool | None = None
     # step-doubling error estimate (vehicle.numerics.error_estimate): the largest relative error of a strut's
     # heat (its temperature rise rate) accepted without a warning, and every how many sample blocks one output
     # sample is integrated again at dt/2 (cost about 2 / (samples_per_block * error_check_every); 0: no estimate)
@@ -217,7 +219,8 @@ class SolverSpec(Model):
         from vehicle.runs.multiscale import MultiscaleSettings
 
         return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
-                                  placement=self.placement or "weighted", seed=self.seed or 0)
+                                  placement=self.placement or "weighted", seed=self.seed or 0,
+                                  control_variate=True if self.control_variate is None else self.control_variate)
 
     @field_validator("tolerance", mode="before")
     @classmethod

@@ -183,7 +183,8 @@ def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
         "windows": int(summ.get("multiscale_windows", 0)),
         "window_m": float(summ.get("multiscale_window_m", np.nan)),
         "spacing_m": float(summ.get("multiscale_spacing_m", np.nan)),
-        "covered_km": float(summ.get("multiscale_covered_km", np.nan))}
+        "covered_km": float(summ.get("multiscale_covered_km", np.nan)),
+        "control_variate": bool(summ.get("multiscale_control_variate", False))}
     return out
 
 
