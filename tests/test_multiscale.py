@@ -55,7 +55,8 @@ def test_multiscale_matches_the_full_run_within_its_stated_error(pair):
     (full_sink, full), (ms_sink, ms) = pair
     assert full["solver_mode"] == "full" and ms["solver_mode"] == "multiscale"
     est = ms["estimated_error"]
-    assert est["windows"] == 5 and est["sigmas"] > 2.0     # Student t with 3 degrees of freedom: 3.18
+    # 5 windows: the road-proxy control variate is on (Student t with 5 - 3 = 2 degrees of freedom: 4.3)
+    assert est["windows"] == 5 and est["control_variate"] and est["sigmas"] > 4.0
     # it drove less than half the road with the full model
     assert est["covered_km"] < 0.5 * ms["distance_km"]
     for a_full, a_ms, eT, eN in zip(full["axles"], ms["axles"], est["T_end_K"], est["dN_pct"]):
@@ -112,6 +113,8 @@ def _scenario(tmp_path, solver: str):
     ("{mode: multiscale, window: 400 m, spacing: 420 m}", "solver", ["spacing", "window + warm_up"]),
     ("{mode: multiscale, spacing: 2 km}", "solver.spacing", ["at least 3", "1000 m"]),
     ("{mode: multiscale, placement: everywhere}", "solver.placement", ["systematic", "stratified"]),
+    ("{mode: multiscale, control_variate: maybe}", "solver.control_variate", ["boolean", "maybe"]),
+    ("{control_variate: false}", "solver", ["only with mode: multiscale"]),
 ])
 def test_bad_multiscale_keys_exit_2(tmp_path, capsys, solver, key, words):
     path = _scenario(tmp_path, solver)
