@@ -84,16 +84,29 @@ class StrutBase:
         """Oil flow [m^3/s] the deflection rate v [m/s] forces through the valves (incompressible liquid)."""
         raise NotImplementedError
 
-    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40, warm: bool = False):
+    def valve_demand(self, u, states: dict):
+        """(flow [m^3/s] the valves must pass, keyword arguments of `struts.valves.valve_flow`) at one instant.
+
+        Default: the deflection rate's flow with the oil at the body temperature (seed 000 eq. 2), a function of
+        (v, T_wall) only; a strut whose flow balance involves its internal states (the integrated strut with
+        quasi-steady chambers, `struts.integrated`) overrides it."""
+        return self.valve_flow_demand(u.v), self.valve_arguments(u.T_wall)
+
+    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40, warm: bool = False,
+                            u=None, states: dict | None = None):
         """Eliminates the algebraic dp_valve: solves valve_flow(dp) = A_v v.
 
         warm=True: a few plain Newton steps from dp_guess (the previous time step's value).
+        u, states (StrutInputs and internal states): the flow balance of `valve_demand` at that instant
+        instead of (v, T_wall) (needed when it depends on the internal states).
         """
+        if u is None:
+            q, kw = self.valve_flow_demand(v), self.valve_arguments(T_wall)
+        else:
+            q, kw = self.valve_demand(u, states)
         if warm:
-            return valves.valve_pressure_drop_warm(self.valve_flow_demand(v), dp_guess, newton_iterations,
-                                                   **self.valve_arguments(T_wall))
-        return valves.valve_pressure_drop(self.valve_flow_demand(v), newton_iterations=newton_iterations,
-                                          dp_guess=dp_guess, **self.valve_arguments(T_wall))
+            return valves.valve_pressure_drop_warm(q, dp_guess, newton_iterations, **kw)
+        return valves.valve_pressure_drop(q, newton_iterations=newton_iterations, dp_guess=dp_guess, **kw)
 
 
     # --- friction -----------------------------------------------------------------------------

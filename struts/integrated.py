@@ -93,6 +93,11 @@ class IntegratedStrut(StrutBase):
             raise UserInputError(
                 f"{src}: geometry.piston_chamber_oil_volume ({g.piston_chamber_oil_volume} m^3) and "
                 f"geometry.rod_chamber_volume ({g.rod_chamber_volume} m^3) must be > 0 for layout: integrated")
+        if params.valve.oil_model == "incompressible":
+            raise UserInputError(
+                f"{src}: valve.oil_model: incompressible is for layout: separated; an integrated strut takes "
+                "compressible (chamber pressures as states, seed 001 eq. 5-7) or quasi_steady (their relaxation "
+                "through the valves taken as instantaneous, the emulsion compressibility kept)")
         if g.piston_chamber_oil_volume <= annulus * g.stroke:
             raise UserInputError(
                 f"{src}: geometry.piston_chamber_oil_volume ({g.piston_chamber_oil_volume} m^3) must exceed the volume "
@@ -100,20 +105,30 @@ class IntegratedStrut(StrutBase):
 
     # --- structure ------------------------------------------------------------------------
     @property
+    def quasi_steady(self) -> bool:
+        """valve.oil_model quasi_steady: the chamber-pressure relaxation through the valves taken as
+        instantaneous (module docstring, "Quasi-steady chambers"); p_r is then p_c - dp_valve, not a state."""
+        return self.p.valve.oil_model == "quasi_steady"
+
+    @property
     def state_names(self) -> tuple[str, ...]:
-        return ("V_gas", "p_r") + self.shared_state_names()
+        own = ("V_gas",) if self.quasi_steady else ("V_gas", "p_r")
+        return own + self.shared_state_names()
 
     @property
     def stiff_state_names(self) -> tuple[str, ...]:
+        """Compressible chambers: V_gas and p_r (the relaxation through the valves, 0.01-1 ms). Quasi-steady:
+        V_gas, which then carries the gas spring (coupled to the stiff wheel station, as the separated strut's
+        gas spring is through its stiffness), and z_bristle for the LuGre seal."""
         return tuple(n for n in self.state_names if n in ("V_gas", "p_r", "z_bristle"))
 
     @property
     def algebraic_names(self) -> tuple[str, ...]:
-        return ()
+        return ("dp_valve",) if self.quasi_steady else ()
 
     @property
     def compressible(self) -> bool:
-        return True
+        return not self.quasi_steady
 
     @property
     def piston_area(self) -> float:
@@ -261,20 +276,19 @@ class IntegratedStrut(StrutBase):
         """Flow [m^3/s] through the valves with incompressible liquid: (A_c - A_r) v."""
         return self.annulus_area * v
 
-    # valve_pressure_drop (inherited): quasi-steady p_c - p_r for a velocity, incompressible liquid
+    # valve_pressure_drop (inherited): with (v, T_wall) only, the quasi-steady p_c - p_r of incompressible
+    # liquid at the oil density (an initial guess); with (u, states) the quasi-steady flow balance of
+    # `valve_demand` (chambers quasi_steady)
 
     # --- the equations ----------------------------------------------------------------------------
-    def equations(self, u: StrutInputs, states: dict, dp_valve=None) -> dict:
-        """All strut equations at one instant (see the module docstring); dp_valve is ignored."""
+    def _gas_side(self, u: StrutInputs, states: dict) -> dict:
+        """Chamber c's gas at one instant: p_c [Pa], T_gas [K], V_g [m^3], the gas process's dp_c/dt =
+        b dV_g/dt + a_th (b [Pa/m^3], a_th [Pa/s]), heat_gas [W] and the liquid r_ext [m^3/s] pushed in by the
+        oil's thermal expansion and levelling (seed 000 eq. 6)."""
         P = self.p
-        A_c, A_r, A_a = self.piston_area, self.rod_area, self.annulus_area
-        g = P.geometry
         m_gas = u.m_gas
-        V_gas, p_r = states["V_gas"], states["p_r"]
-        V_g = V_gas - self._thermal_gas_volume_loss(u.T_wall, u.dV_oil)
-        # liquid pushed into chamber c by the oil's thermal expansion and levelling (seed 000 eq. 6)
-        r_ext = g.oil_volume * P.oil.expansion * u.dT_wall_rate + u.dV_oil_rate
-        rates = {}
+        V_g = states["V_gas"] - self._thermal_gas_volume_loss(u.T_wall, u.dV_oil)
+        r_ext = P.geometry.oil_volume * P.oil.expansion * u.dT_wall_rate + u.dV_oil_rate
         if P.gas.process == "energy":
             T_gas = states["T_gas"]
             v_spec = V_g / m_gas
@@ -293,6 +307,83 @@ class IntegratedStrut(StrutBase):
             b = -P.gas.polytropic_exponent * p_c / V_g
             a_th = 0.0 * u.v
             heat_gas = 0.0 * u.v  # a reversible polytrope exchanges no net heat over a cycle
+        return dict(p_c=p_c, T_gas=T_gas, V_g=V_g, b=b, a_th=a_th, heat_gas=heat_gas, r_ext=r_ext)
+
+    def _chamber_volumes(self, u: StrutInputs, V_gas):
+        """(V_e, V_r) [m^3]: emulsion volumes of chamber c (seed 001 eq. 5) and chamber r (eq. 6-7)."""
+        g = self.p.geometry
+        return (g.piston_chamber_oil_volume + g.gas_volume_extended - self.piston_area * u.x - V_gas,
+                g.rod_chamber_volume + self.annulus_area * u.x)
+
+    def _quasi_steady_balance(self, u: StrutInputs, states: dict) -> dict:
+        """The reduced volume balance (module docstring, "Quasi-steady chambers"): dV_gas/dt with the emulsion of
+        both chambers at p_c, the valve flow q [m^3/s] (c -> r) it implies and the emulsion at p_c."""
+        gs = self._gas_side(u, states)
+        em = self.emulsion(gs["p_c"], u.T_wall)
+        V_e, V_r = self._chamber_volumes(u, states["V_gas"])
+        C_c, C_r = V_e * em["kappa"], V_r * em["kappa"]
+        C = C_c + C_r
+        b, a_th, r_ext = gs["b"], gs["a_th"], gs["r_ext"]
+        dV_gas = (self.rod_area * u.v + C * b * r_ext - C * a_th) / (C * b - 1.0)
+        dp_c = b * (dV_gas - r_ext) + a_th
+        q = self.annulus_area * u.v + C_r * dp_c
+        return dict(gs, em=em, dV_gas=dV_gas, dp_c=dp_c, q=q, C_r=C_r)
+
+    def valve_demand(self, u: StrutInputs, states: dict):
+        """Quasi-steady chambers: (q = (A_c - A_r) v + C_r dp_c/dt [m^3/s], valve_flow arguments at the emulsion
+        density at p_c). Compressible chambers: the incompressible-liquid demand (an initial guess only)."""
+        if not self.quasi_steady:
+            return super().valve_demand(u, states)
+        bal = self._quasi_steady_balance(u, states)
+        return bal["q"], self._valve_kwargs(bal["em"]["rho"], u.T_wall)
+
+    def chamber_time_constant(self, u: StrutInputs, states: dict, dp=None):
+        """tau = C_eff / (dq/d dp) [s]: the relaxation time of the chamber-pressure difference through the valves
+        (C_eff = C_r C_c' / (C_r + C_c'), C_c' = C_c + V_g/(-b V_g) the compliance of chamber c with its gas), at the
+        pressure drop dp (default: the quasi-steady one of `valve_demand`). The quasi-steady reduction needs
+        omega tau << 1 at the frequencies of the motion (module docstring)."""
+        import casadi as ca
+
+        gs = self._gas_side(u, states)
+        em = self.emulsion(gs["p_c"], u.T_wall)
+        V_e, V_r = self._chamber_volumes(u, states["V_gas"])
+        C_r, C_c = V_r * em["kappa"], V_e * em["kappa"] - 1.0 / gs["b"]
+        if dp is None:
+            q, kw = self.valve_demand(u, states) if self.quasi_steady else \
+                (self.annulus_area * u.v, self._valve_kwargs(em["rho"], u.T_wall))
+            dp = valves.valve_pressure_drop(q, newton_iterations=60, **kw)
+        d = ca.SX.sym("dp")
+        kw = self._valve_kwargs(em["rho"], u.T_wall)
+        G = ca.Function("G", [d], [ca.jacobian(valves.valve_flow(d, **kw), d)])(dp)
+        return float(C_r * C_c / (C_r + C_c) / G)
+
+    def force_derivatives(self, u, states: dict, dp_valve=None):
+        """(dF/dx, dF/dv): compressible chambers as `StrutBase`; quasi-steady chambers with dp following (x, v)
+        through the flow balance valve_flow(dp) = q(x, v, states) (implicit-function theorem)."""
+        if not self.quasi_steady:
+            return super().force_derivatives(u, states, dp_valve)
+        import casadi as ca
+
+        F = self.equations(u, states, dp_valve)["force"]
+        q_dem, kw = self.valve_demand(u, states)
+        dq_ddp = ca.jacobian(valves.valve_flow(dp_valve, **kw), dp_valve)
+        dF_ddp = ca.jacobian(F, dp_valve)
+        k = ca.jacobian(F, u.x) + dF_ddp * ca.jacobian(q_dem, u.x) / dq_ddp
+        c = ca.jacobian(F, u.v) + dF_ddp * ca.jacobian(q_dem, u.v) / dq_ddp
+        return k, c
+
+    def equations(self, u: StrutInputs, states: dict, dp_valve=None) -> dict:
+        """All strut equations at one instant (see the module docstring). dp_valve: the algebraic valve
+        pressure drop p_c - p_r [Pa] with quasi-steady chambers; ignored with compressible ones."""
+        if self.quasi_steady:
+            return self._equations_quasi_steady(u, states, dp_valve)
+        P = self.p
+        A_c, A_r, A_a = self.piston_area, self.rod_area, self.annulus_area
+        V_gas, p_r = states["V_gas"], states["p_r"]
+        gs = self._gas_side(u, states)
+        p_c, T_gas, V_g, b, a_th, heat_gas, r_ext = (gs[k] for k in ("p_c", "T_gas", "V_g", "b", "a_th", "heat_gas",
+                                                                       "r_ext"))
+        rates = {}
         em_c = self.emulsion(p_c, u.T_wall)
         em_r = self.emulsion(p_r, u.T_wall)
         rho_mean = 0.5 * (em_c["rho"] + em_r["rho"])
@@ -300,28 +391,44 @@ class IntegratedStrut(StrutBase):
         q = valves.valve_flow(dp, **self._valve_kwargs(rho_mean, u.T_wall))   # seed 001 eq. 12, c -> r
         m_dot = rho_mean * q
         # chamber c (seed 001 eq. 5): emulsion volume and its compliance
-        V_e = g.piston_chamber_oil_volume + g.gas_volume_extended - A_c * u.x - V_gas
+        V_e, V_r = self._chamber_volumes(u, V_gas)
         C_c = V_e * em_c["kappa"]
         dV_gas = (A_c * u.v - m_dot / em_c["rho"] + C_c * b * r_ext - C_c * a_th) / (C_c * b - 1.0)
         rates["V_gas"] = dV_gas
-        dV_g = dV_gas - r_ext
         # chamber r (seed 001 eq. 6-7)
-        V_r = g.rod_chamber_volume + A_a * u.x
         rates["p_r"] = (m_dot / em_r["rho"] - A_a * u.v) / (V_r * em_r["kappa"])
+        return self._outputs(u, states, rates, p_c, p_r, T_gas, V_g, dV_gas - r_ext, heat_gas, r_ext, q, dp * q,
+                             residual=None)
+
+    def _equations_quasi_steady(self, u: StrutInputs, states: dict, dp_valve) -> dict:
+        """Quasi-steady chambers (module docstring): V_gas from the reduced volume balance, p_r = p_c - dp_valve with
+        dp_valve algebraic (residual: valve_flow(dp_valve) - q, q from the balance)."""
+        bal = self._quasi_steady_balance(u, states)
+        p_c = bal["p_c"]
+        q = valves.valve_flow(dp_valve, **self._valve_kwargs(bal["em"]["rho"], u.T_wall))
+        rates = {"V_gas": bal["dV_gas"]}
+        # the reduced model's dissipation: force work minus the reversible storage (gas and emulsion at p_c)
+        power_valve = dp_valve * self.annulus_area * u.v
+        return self._outputs(u, states, rates, p_c, p_c - dp_valve, bal["T_gas"], bal["V_g"],
+                             bal["dV_gas"] - bal["r_ext"], bal["heat_gas"], bal["r_ext"], bal["q"], power_valve,
+                             residual=q - bal["q"])
+
+    def _outputs(self, u, states, rates, p_c, p_r, T_gas, V_g, dV_g, heat_gas, r_ext, q, power_valve, residual):
+        """Gas temperature and friction rates, forces and powers shared by both chamber treatments."""
+        P = self.p
         if P.gas.process == "energy":
             rates["T_gas"] = gaslaw.gas_temperature_rate(T_gas, u.T_wall, P.gas.thermal_time_constant,
-                                                         V_g / m_gas, dV_g / m_gas, self.gas, P.gas.eos)
+                                                         V_g / u.m_gas, dV_g / u.m_gas, self.gas, P.gas.eos)
         F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_r, u.T_wall, states.get("z_bristle"))
         if dz is not None:
             rates["z_bristle"] = dz
         F_stop, F_stop_damping = self.end_stop_force(u.x, u.v)
-        F_gas = p_c * A_r
-        F_valve = dp * A_a
+        F_gas = p_c * self.rod_area
+        F_valve = (p_c - p_r) * self.annulus_area
         F_fluid = F_gas + F_valve          # = p_c A_c - p_r (A_c - A_r), seed 001 eq. 1
-        power_valve = dp * q
         return dict(
             rates={n: rates[n] for n in self.state_names},
-            residual=None,
+            residual=residual,
             force=F_fluid + F_fric + F_stop,
             gas_pressure=p_c,
             rod_chamber_pressure=p_r,

@@ -118,8 +118,11 @@ class Valve(Model):
     leakage: Quantity("m**3/(Pa*s)") = 0.0
     # "compressible": the valve pressure drop is a state, built by the flow mismatch acting on the
     # compliance V/beta of the oil ahead of the valve (continuity with compressibility, seed 001
-    # eq. 5-6); "incompressible": an algebraic variable (seed 000 eq. 2, oil incompressible)
-    oil_model: Literal["compressible", "incompressible"] = "compressible"
+    # eq. 5-6); "incompressible": an algebraic variable (seed 000 eq. 2, oil incompressible; layout
+    # separated); "quasi_steady" (layout integrated): the chamber-pressure relaxation through the valves
+    # taken as instantaneous (singular-perturbation reduction, struts.integrated), the valve pressure
+    # drop an algebraic variable, the emulsion's compressibility kept in the volume balance
+    oil_model: Literal["compressible", "incompressible", "quasi_steady"] = "compressible"
     compliant_oil_volume: m3 = 1.0e-3
     number_of_orifices: Number = 1.0
     check_number: Number = 1.0

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 
 from hpsim import symbolic as sym
+from hpsim.errors import UserInputError
 
 from . import gas as gaslaw
 from . import valves
@@ -23,6 +24,14 @@ class SeparatedStrut(StrutBase):
     Force: F = p_g A + dp_valve A_v + F_friction + F_end_stops.
     """
 
+
+    @staticmethod
+    def check_parameters(params) -> None:
+        """valve.oil_model quasi_steady is the integrated layout's reduction (UserInputError)."""
+        if params.valve.oil_model == "quasi_steady":
+            raise UserInputError(
+                f"strut {params.name}: valve.oil_model: quasi_steady is for layout: integrated; a separated strut "
+                "takes compressible or incompressible (its algebraic valve pressure drop)")
 
     # --- structure ------------------------------------------------------------------------
     @property

@@ -325,25 +325,15 @@ class VehicleModel:
             w, dw = X[f"w[{i}]"], X[f"dw[{i}]"]
             T_oil, T_wall, T_surf = (X[f"T_{node}[{i}]"] for node in thermal.NODES)
             xs, vs = self.station_motion(X, i, K)
-            # levelling
+            # levelling and the strut's inputs (`strut_inputs`)
             xf = X[f"xf[{i}]"]
             V_oil = X[f"V_oil[{i}]"]
-            q_oil = comp_on * comp.oil_flow(xf, x_nom[i], strut.p.geometry.gas_area, P.compensation.time_constant,
-                                            P.compensation.dead_band, P.compensation.flow_limit,
-                                            P.compensation.smoothing)
-            # strut
-            internal = {nm: X[f"{nm}[{i}]"] for nm in strut.state_names}
+            sin, internal = self.strut_inputs(X, i, p, K, (xs, vs))
+            q_oil = sin.dV_oil_rate
             if strut.compressible:
                 dp = None
             else:
                 dp = dp_override[i] if dp_override is not None else z[self._z_index[i]]
-            # The strut sees the oil node as its T_wall: oil expansion, viscosity and the gas's
-            # heat-exchange partner (the floating piston, oil side). The oil's thermal expansion
-            # enters through the gas volume (a function of T_oil); its *rate* in the gas energy
-            # equation is left out (dT_wall_rate = 0): beta V_oil dT/dt ~ 1e-8 m^3/s against
-            # A v ~ 1e-4 m^3/s while driving, and the gas follows the oil within tau anyway.
-            sin = StrutInputs(x=xs, v=vs, T_wall=T_oil, m_gas=m_gas[i], dV_oil=V_oil, dV_oil_rate=q_oil,
-                              dT_wall_rate=0.0, x_mid=x_nom[i])
             eq = strut.equations(sin, internal, dp)
             # the heat network (vehicle.physics.thermal): valve and gas heat into the oil, seal
             # friction and end stops into the wall, the surface to the station's air and the mounts
@@ -475,11 +465,33 @@ class VehicleModel:
                                            ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
         return f, g, y
 
-    def eliminate_valves(self, x, memory, iterations: int = 1):
-        """Valve pressure drops of incompressible struts by warm-started Newton (explicit-ODE form).
+    def strut_inputs(self, X, i: int, p, K=None, motion=None):
+        """(StrutInputs, internal states) of station i's strut from named states X and run parameters p.
 
-        memory: the previous step's pressure drops (one per incompressible strut, in station order),
-        held by the solver between steps (`n_memory`, `initial_memory`).
+        The strut sees the oil node as its T_wall: oil expansion, viscosity and the gas's
+        heat-exchange partner (the floating piston, oil side). The oil's thermal expansion
+        enters through the gas volume (a function of T_oil); its *rate* in the gas energy
+        equation is left out (dT_wall_rate = 0): beta V_oil dT/dt ~ 1e-8 m^3/s against
+        A v ~ 1e-4 m^3/s while driving, and the gas follows the oil within tau anyway.
+        """
+        K = K or self.sym
+        P = K.params
+        n = self.n
+        strut = K.struts[i]
+        xs, vs = motion if motion is not None else self.station_motion(X, i, K)
+        q_oil = p[2 * n] * comp.oil_flow(X[f"xf[{i}]"], p[n + i], strut.p.geometry.gas_area,
+                                         P.compensation.time_constant, P.compensation.dead_band,
+                                         P.compensation.flow_limit, P.compensation.smoothing)
+        sin = StrutInputs(x=xs, v=vs, T_wall=X[f"T_oil[{i}]"], m_gas=p[i], dV_oil=X[f"V_oil[{i}]"],
+                          dV_oil_rate=q_oil, dT_wall_rate=0.0, x_mid=p[n + i])
+        return sin, {nm: X[f"{nm}[{i}]"] for nm in strut.state_names}
+
+    def eliminate_valves(self, x, memory, p, iterations: int = 1):
+        """Valve pressure drops of struts with an algebraic one by warm-started Newton (explicit-ODE form).
+
+        memory: the previous step's pressure drops (one per such strut, in station order), held by the
+        solver between steps (`n_memory`, `initial_memory`). The flow balance is the strut's
+        (`valve_demand`: the deflection rate's flow, or the integrated strut's quasi-steady balance).
         """
         X = {nm: x[k] for k, nm in enumerate(self.layout.names)}
         dps, k = [], 0
@@ -488,9 +500,9 @@ class VehicleModel:
             if strut.compressible:
                 dps.append(None)
                 continue
-            _, vs = self.station_motion(X, i, self.sym)
-            dps.append(strut.valve_pressure_drop(vs, X[f"T_oil[{i}]"], dp_guess=memory[k],
-                                                 newton_iterations=iterations, warm=True))
+            sin, internal = self.strut_inputs(X, i, p)
+            dps.append(strut.valve_pressure_drop(sin.v, sin.T_wall, dp_guess=memory[k], newton_iterations=iterations,
+                                                 warm=True, u=sin, states=internal))
             k += 1
         return dps
 
@@ -520,7 +532,7 @@ class VehicleModel:
         """f(x, memory, u, p) -> (dx/dt, new memory): the explicit-ODE form (valves eliminated)."""
         x, _, u, p = self.symbols
         mem = self.memory_symbol
-        dps = self.eliminate_valves(x, mem)
+        dps = self.eliminate_valves(x, mem, p)
         ode, _, out = self.equations(x, None, u, p, dp_override=dps)
         new_mem = ca.vertcat(*[d for d in dps if d is not None]) if self.n_memory else ca.SX(0, 1)
         return ca.Function("f_ode", [x, mem, u, p], [ca.vertcat(*ode), new_mem])
@@ -611,7 +623,7 @@ class VehicleModel:
         mem = self.memory_symbol
         if self.has_stiff_strut_states:
             return self.exact_stiff_jacobian_function
-        J = self.stiff_jacobian(x, p, self.eliminate_valves(x, mem))
+        J = self.stiff_jacobian(x, p, self.eliminate_valves(x, mem, p))
         return ca.Function("J_stiff", [x, mem, u, p], [J])
 
     @cached_property
@@ -626,7 +638,7 @@ class VehicleModel:
         """y(x, memory, u, p) -> (outputs, hull accelerations, axle heights)."""
         x, _, u, p = self.symbols
         mem = self.memory_symbol
-        dps = self.eliminate_valves(x, mem, iterations=4)
+        dps = self.eliminate_valves(x, mem, p, iterations=4)
         _, _, out = self.equations(x, None, u, p, dp_override=dps)
         return ca.Function("y_ode", [x, mem, u, p], [ca.vertcat(*[ca.vertcat(*out[k]) for k in self.OUTPUT_NAMES]),
                                                      ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
