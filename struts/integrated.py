@@ -16,7 +16,8 @@ States (same interface as `struts.model.SeparatedStrut`):
          and a change of body temperature acts on the pressure at once, as in the separated strut.
   p_r    rod-side chamber pressure (seed 001 eq. 6).
   T_gas  gas temperature (energy process only); z_bristle (LuGre friction only).
-Both V_gas and p_r are stiff (time constants ~ 0.1-1 ms): `stiff_state_names`.
+Both V_gas and p_r are stiff (time constants ~ 0.1-2 ms): `stiff_state_names`. With quasi-steady chambers
+(below) p_r is not a state.
 
 Emulsion (seed 001 eq. 8-10, `struts.oil`): the liquid in each chamber is oil with entrained gas
 of volume fraction gamma(p) (eq. 9) and density rho(p) = rho_h / ((1 - (p - p0)/beta_h)(1 + gamma))
@@ -45,6 +46,31 @@ pushed into chamber c by thermal expansion and levelling. So force x velocity = 
 power_friction + gas_work_rate + end stop power at every instant; over a periodic cycle the
 gas_work_rate integrates to the gas heat loss (0 for the polytropic gas, up to the O((dp/beta)^2)
 difference between dp q and the exact flow dissipation).
+
+Quasi-steady chambers (valve.oil_model: quasi_steady, the yin2023 default). The pressure difference
+p_c - p_r relaxes through the valves with the time constant tau = C_eff / (dq/d dp) (`chamber_time_constant`;
+C_eff ~ C_r = V_r kappa, the rod chamber's emulsion compliance, in series with chamber c's gas and emulsion),
+0.1-2 ms for this strut (longest at large rebound flows, where the orifice conductance dq/d dp = q/(2 dp) is
+smallest). With a small parameter eps = C_r (singular perturbation) the fast variable is dp = p_c - p_r; at
+leading order its rate term C_r d(dp)/dt is dropped while the common-mode storage is kept, i.e. the emulsion of
+both chambers is compressed at p_c:
+  dV_gas/dt = (A_r v + C b r_ext - C a_th) / (C b - 1),   C = (V_e + V_r) kappa(p_c)
+(chamber c's equation with both chambers' compliance and no valve flow: the strut is one chamber for its
+volume), and the valves pass what chamber r takes in,
+  q = (A_c - A_r) v + C_r dp_c/dt,   dp_c/dt = b (dV_gas/dt - r_ext) + a_th,
+with dp the algebraic variable of valve_flow(dp) = q (seed 001 eq. 12 at the emulsion density at p_c) and
+p_r = p_c - dp. States: V_gas (and T_gas, z_bristle); dp_valve algebraic, eliminated by warm Newton on the
+vehicle as the separated strut's is (`valve_demand`). Properties: the slow manifold is the static curve (dV_gas/dx
+is the slope of the static V_g(x), so no pumping, the gas and emulsion store reversibly); the dissipation is
+power_valve = dp (A_c - A_r) v (force work minus that reversible storage: the energy balance of the reduced model
+closes exactly), which differs from the orifice's dp q by the chamber-r compression flow, a fraction
+C_r |b| A_r / ((A_c - A_r)(1 + C |b|)) of it (0.3 % at the rig's 3 MPa, 2 % at 22 MPa). Validity: omega tau << 1
+at the frequencies of the motion; the rig loops agree with the compressible chambers within 0.3 % in energy and
+1.5 % of the force range at 10 mm up to 8 Hz (omega tau <= 0.05); at 20 mm and 8 Hz (omega tau 0.1, peak flow
+1 m/s) the force differs by 15 % of its range around the reversals. Lost: the emulsion's pressure-difference
+hysteresis of seed 001 §5.1, an O(omega tau) effect. Why it exists: a 4 ms vehicle step cannot follow a
+0.1-2 ms relaxation; the compressible chambers' ROS2 stages overshoot it and the drive leaves physics
+(docs/physics.md, "The integrated strut on the vehicle").
 
 Static state (rest, p_c = p_r = p): free gas V_g(p) plus the emulsion of both chambers fill the
 strut: V_g = V_ext - A_r x - N (nu(p)/nu(p0) - 1), N = V_c0 + V_r0 the emulsion volume at the

@@ -56,7 +56,8 @@ class Strut(Protocol):
 
     @property
     def algebraic_names(self) -> tuple[str, ...]:
-        """Algebraic variables (e.g. an incompressible strut's valve pressure drop)."""
+        """Algebraic variables (e.g. an incompressible strut's valve pressure drop, or the integrated strut's
+        with quasi-steady chambers)."""
 
     @property
     def compressible(self) -> bool:
@@ -66,6 +67,15 @@ class Strut(Protocol):
         """rates (dict), residual (or None), force [N], gas_pressure [Pa], gas_temperature [K], and the
         power by mechanism [W]: power_valve, power_friction, power_end_stop (>= 0) and heat_gas (gas -> body),
         gas_work_rate (mechanical power into the gas)."""
+
+    def valve_demand(self, u: StrutInputs, states: dict):
+        """(flow [m^3/s] the valves pass, `struts.valves.valve_flow` arguments) of the algebraic valve balance
+        valve_flow(dp_valve) = flow at one instant (struts without an algebraic dp_valve: an initial guess)."""
+
+    def valve_pressure_drop(self, v, T_wall, dp_guess=None, newton_iterations: int = 40, warm: bool = False,
+                            u: StrutInputs | None = None, states: dict | None = None):
+        """dp_valve [Pa] solving the valve balance (of `valve_demand` when u and states are given; warm: a few
+        Newton steps from dp_guess, for time stepping)."""
 
     def force_derivatives(self, u: StrutInputs, states: dict, dp_valve=None):
         """(dF/dx [N/m], dF/dv [N s/m]) at one instant (symbolic; derivative information for solvers)."""
