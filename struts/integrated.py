@@ -403,8 +403,7 @@ class IntegratedStrut(StrutBase):
         pressure drop p_c - p_r [Pa] with quasi-steady chambers; ignored with compressible ones."""
         if self.quasi_steady:
             return self._equations_quasi_steady(u, states, dp_valve)
-        P = self.p
-        A_c, A_r, A_a = self.piston_area, self.rod_area, self.annulus_area
+        A_c, A_a = self.piston_area, self.annulus_area
         V_gas, p_r = states["V_gas"], states["p_r"]
         gs = self._gas_side(u, states)
         p_c, T_gas, V_g, b, a_th, heat_gas, r_ext = (gs[k] for k in ("p_c", "T_gas", "V_g", "b", "a_th", "heat_gas",

@@ -307,9 +307,7 @@ class VehicleModel:
         acc = u[iu["acceleration"]]
         # anti-pitch linkage forces on the hull at each station (hull.py; the wheel gets -V_i)
         V_link = hull_eq.linkage_forces(acc, K.pitch_per_acceleration, K.link_drive, K.link_brake)
-        m_gas = [p[i] for i in range(n)]
-        x_nom = [p[n + i] for i in range(n)]
-        comp_on = p[2 * n]
+        # p: gas masses, nominal deflections, compensation on/off (`strut_inputs`), then theta
 
         zc, th = X["z"], X["theta"]
         dzc, dth, dph = X["dz"], X["dtheta"], X["dphi"]
@@ -327,7 +325,6 @@ class VehicleModel:
             xs, vs = self.station_motion(X, i, K)
             # levelling and the strut's inputs (`strut_inputs`)
             xf = X[f"xf[{i}]"]
-            V_oil = X[f"V_oil[{i}]"]
             sin, internal = self.strut_inputs(X, i, p, K, (xs, vs))
             q_oil = sin.dV_oil_rate
             if strut.compressible:
