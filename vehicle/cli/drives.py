@@ -37,6 +37,9 @@ def register(sub):
     pr.add_argument("--resume", action="store_true", help="continue an interrupted or crashed run in --output")
     pr.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     pr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    pr.add_argument("--time-parallel", default=None, metavar="P",
+                    help="split the drive in time into P segments run in P processes at once, joined with a "
+                         "correction of the slow states (overrides solver.time_parallel; auto: one per CPU)")
     pr.set_defaults(func=cmd_run)
 
     pp = sub.add_parser("report", help="per-axle summary of a results file")
@@ -121,6 +124,8 @@ def cmd_run(args):
         scen_arg = None        # resume from the scenario stored in the file
     else:
         scen_arg = scen
+    if args.time_parallel is not None:
+        scen_arg = _with_time_parallel(scen, args.time_parallel)
     try:
         summary = run_scenario(scen_arg, out, resume=args.resume, overwrite=args.overwrite,
                                progress=not args.no_progress and getattr(args, "verbosity", 0) >= 0,
@@ -131,6 +136,25 @@ def cmd_run(args):
     print(format_report(report(out)))
     print(f"wrote {out} ({summary.get('wall_s', 0.0):.1f} s wall)")
     return 0
+
+
+def _with_time_parallel(scen: Path, value: str):
+    """The scenario with solver.time_parallel set from --time-parallel (checked here: int in range or auto)."""
+    from vehicle.runs.scenario import apply_overrides, read_scenario
+    from vehicle.runs.time_parallel import SEGMENTS_RANGE
+
+    lo, hi = SEGMENTS_RANGE
+    v = value.strip().lower()
+    if v != "auto":
+        try:
+            v = int(v)
+        except ValueError:
+            v = None
+        if v is None or not lo <= v <= hi:
+            raise UserInputError(f"--time-parallel: must be an integer in [{lo}, {hi}] (segments) or auto, got {value!r}")
+    src = read_scenario(scen)
+    src.data = apply_overrides(src.data, {"solver.time_parallel": v}, str(scen))
+    return src
 
 
 def cmd_report(args):

@@ -45,6 +45,12 @@ def format_report(rep: dict) -> str:
                     + ", ".join("-" if x is None else f"{x:.2f}" for x in est["T_end_K"]) + " K, dN "
                     + ", ".join("-" if x is None else f"{x:.3f}" for x in est["dN_pct"])
                     + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp)")
+    if rep.get("solver_mode") == "time_parallel" and est:
+        tail.append(f"solver mode time_parallel: {est['segments']} segments in parallel processes, slow states "
+                    f"corrected at the joins (coarse prediction off by up to {est['coarse_mismatch_K']:.3f} K); "
+                    "estimated error of the correction: T end "
+                    + ", ".join("-" if x is None else f"{x:.3f}" for x in est["T_end_K"]) + " K, dN "
+                    + ", ".join("-" if x is None else f"{x:.4f}" for x in est["dN_pct"]) + " pp per axle")
     if rep.get("error"):
         tail.append(f"stopped: {rep['error']}")
     ride = format_ride(rep.get("ride") or {}, len(rep["axles"]))

@@ -171,6 +171,9 @@ class SolverSpec(Model):
     seed: StrictInt | None = Field(None, ge=0)   # multiscale: of the stratified placement
     # multiscale: regression on a road proxy known for the whole road (variance reduction, default true)
     control_variate: StrictBool | None = None
+    # parallel in time (vehicle.runs.time_parallel): the full drive split into this many segments run in as many
+    # processes at once, joined with a correction of the slow states; "auto": one per CPU; 1: serial
+    time_parallel: Literal["auto"] | StrictInt | None = None
     # step-doubling error estimate (vehicle.numerics.error_estimate): the largest relative error of a strut's
     # heat (its temperature rise rate) accepted without a warning, and every how many sample blocks one output
     # sample is integrated again at dt/2 (cost about 2 / (samples_per_block * error_check_every); 0: no estimate)
@@ -190,8 +193,20 @@ class SolverSpec(Model):
     def _window_lengths(cls, v, info: ValidationInfo):
         return None if v is None else _in_range(_quantity("m", v), *MULTISCALE_RANGES_M[info.field_name], "m")
 
+    @field_validator("time_parallel", mode="after")
+    @classmethod
+    def _time_parallel(cls, v):
+        from vehicle.runs.time_parallel import SEGMENTS_RANGE
+
+        if isinstance(v, int) and not SEGMENTS_RANGE[0] <= v <= SEGMENTS_RANGE[1]:
+            raise ValueError(f"must be in [{SEGMENTS_RANGE[0]}, {SEGMENTS_RANGE[1]}] (segments, one process each) "
+                             f"or auto, got {v}")
+        return v
+
     @model_validator(mode="after")
     def _multiscale_keys(self):
+        if self.time_parallel not in (None, 1) and self.mode != "full":
+            raise ValueError(f"time_parallel: only with mode: full (mode is {self.mode!r})")
         given = [k for k in MULTISCALE_KEYS if getattr(self, k) is not None]
         if self.mode != "multiscale":
             if given:
@@ -480,6 +495,11 @@ class Prepared:
                 from vehicle.runs.multiscale import MultiscaleDrive
 
                 return model, MultiscaleDrive(model, road, self.settings(), self.scenario.solver.multiscale_settings())
+            from vehicle.runs.time_parallel import TimeParallelDrive, resolve_segments
+
+            P = resolve_segments(self.scenario.solver.time_parallel)
+            if P > 1:
+                return model, TimeParallelDrive(model, road, self.settings(), P)
             return model, cls(model, road, self.settings())
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: {exc}") from None

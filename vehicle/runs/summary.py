@@ -163,18 +163,28 @@ def report_from(r: ResultsView, name: str) -> dict:
 
 
 def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
-    """`solver_mode` (full or multiscale) and, for a multiscale run (vehicle.runs.multiscale), its window layout
+    """`solver_mode` (full, multiscale or time_parallel) and, for a time-parallel run, its segments and the
+    correction's estimated error per axle; for a multiscale run (vehicle.runs.multiscale), its window layout
     and a-posteriori error estimate: per axle, the error of T_end [K] and of dN [pp] (estimated_error_sigmas
     standard deviations of the road-sampling error)."""
     mode = str(summ.get("solver_mode", "full"))
     out = {"solver_mode": mode}
-    if mode != "multiscale":
+    if mode not in ("multiscale", "time_parallel"):
         return out
     values = r.summary_values() or {}
 
     def per_axle(name):
         v = values.get(name)
         return [None] * n_axles if v is None else [float(x) for x in np.asarray(v, float)]
+
+    if mode == "time_parallel":
+        # vehicle.runs.time_parallel: the estimated error of the slow-state correction (not a sampling interval)
+        out["estimated_error"] = {
+            "T_end_K": per_axle("estimated_error_axle_temperature"),
+            "dN_pct": per_axle("estimated_error_load_change"),
+            "segments": int(summ.get("time_parallel_segments", 0)),
+            "coarse_mismatch_K": float(summ.get("time_parallel_coarse_mismatch_K", np.nan))}
+        return out
 
     out["estimated_error"] = {
         "sigmas": float(summ.get("estimated_error_sigmas", 2.0)),

@@ -112,13 +112,17 @@ VARIABLES: dict[str, Var | Split] = {
     **{f"power_{e}_W": Var(f"power_{e}", "W", f"mean {text} over the interval", "station") for e, text in _POWER.items()},
     "window_start_m": Var("window_start", "km", "multiscale mode: distance at the start of the window's averaged "
                           "stretch (the row's interval ends at km)", None, "coord", 1e-3),
-    # summary of a multiscale run (vehicle.runs.multiscale): a-posteriori error of the sampled road
+    # summary of a multiscale run (vehicle.runs.multiscale): a-posteriori error of the sampled road; of a
+    # time-parallel run (vehicle.runs.time_parallel): estimated error of the slow-state correction at the joins
     "estimated_error_strut_temperature_K": Var("estimated_error_strut_temperature", "K", "multiscale mode: "
-                                               "estimated error (95 % interval) of the final strut temperature", "station"),
+                                               "estimated error (95 % interval) of the final strut temperature; "
+                                               "time_parallel: of the correction", "station"),
     "estimated_error_axle_temperature_K": Var("estimated_error_axle_temperature", "K", "multiscale mode: estimated "
-                                              "error (95 % interval) of the final mean strut temperature of the axle", "axle"),
+                                              "error (95 % interval) of the final mean strut temperature of the axle; "
+                                              "time_parallel: of the correction", "axle"),
     "estimated_error_load_change_pct": Var("estimated_error_load_change", "percent", "multiscale mode: estimated "
-                                           "error (95 % interval) of the wheel load change of the axle", "axle"),
+                                           "error (95 % interval) of the wheel load change of the axle; "
+                                           "time_parallel: of the correction", "axle"),
     "rms_strut_velocity_m_per_s": Var("rms_strut_velocity", "m s-1", "RMS strut velocity over the interval",
                                       "station"),
     # ride and road holding (vehicle.physics.ride, vehicle.runs.ride_metrics)

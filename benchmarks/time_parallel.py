@@ -1,0 +1,99 @@
+"""Parallel in time against the serial run, in one process: wall time and accuracy.
+
+    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--json]
+
+Two runs of the same scenario into memory (vehicle.runs.results.run_in_memory, what sweeps and UQ use):
+  serial         the full drive (compiled ROS2 at the scenario's dt) in this process;
+  time_parallel  `solver: {time_parallel: P}`: P segments in P processes, a multiscale coarse run predicting
+                 the segment starts, the slow-state correction (vehicle.runs.time_parallel).
+Printed: drive wall time of each (the summary's wall_s: without building the model, the same for both) and
+their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
+temperature and wheel-load change differences (time-parallel - serial), without the correction for the
+temperatures, and the run's own a-posteriori estimate. On a machine shared with other work the wall ratio
+understates what P free cores give: the CPU sum says how much work was done.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def _axle(v):
+    v = np.asarray(v, float)
+    return 0.5 * (v[0::2] + v[1::2])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1] / "scenarios/mileage_106km.yaml"))
+    ap.add_argument("--segments", type=int, default=2)
+    ap.add_argument("--distance", default=None, help="override the scenario's distance, e.g. '10 km'")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+
+    from vehicle.runs.results import run_in_memory
+    from vehicle.runs.scenario import read_scenario, read_scenario_text
+    from vehicle.runs.summary import report_from
+
+    src = read_scenario(args.scenario)
+    data = dict(src.data)
+    if args.distance:
+        data["distance"] = args.distance
+
+    def run(solver_extra):
+        d = {**data, "solver": {**(data.get("solver") or {}), **solver_extra}}
+        s = read_scenario_text(yaml.safe_dump(d), src.name, src.base_dir)
+        t0 = time.perf_counter()
+        sink = run_in_memory(s)
+        total = time.perf_counter() - t0
+        return sink, report_from(sink, src.name), total
+
+    serial, rs, total_s = run({})
+    par, rp, total_p = run({"time_parallel": args.segments})
+    ss, sp = serial.summary_attrs(), par.summary_attrs()
+    T_s = np.array([a["T_end_C"] for a in rs["axles"]])
+    T_p = np.array([a["T_end_C"] for a in rp["axles"]])
+    dN_s = np.array([a["dN_pct"] for a in rs["axles"]])
+    dN_p = np.array([a["dN_pct"] for a in rp["axles"]])
+    vals = par.summary_values()
+    out = {"scenario": src.name, "distance_km": rs["distance_km"], "segments": args.segments,
+           "serial_wall_s": float(ss["wall_s"]), "parallel_wall_s": float(sp["wall_s"]),
+           "speedup": float(ss["wall_s"]) / float(sp["wall_s"]),
+           "serial_total_s": total_s, "parallel_total_s": total_p,
+           "serial_integration_s": float(ss["integration_s"]),
+           "worker_cpu_s": float(sp.get("time_parallel_worker_cpu_s", np.nan)),
+           "coarse_s": float(sp.get("time_parallel_coarse_s", np.nan)),
+           "T_end_serial_C": T_s.tolist(), "dT_K": (T_p - T_s).tolist(), "ddN_pp": (dN_p - dN_s).tolist(),
+           "coarse_mismatch_K": float(sp.get("time_parallel_coarse_mismatch_K", np.nan)),
+           "estimated_error_K": np.asarray(vals.get("estimated_error_axle_temperature", [np.nan]), float).tolist(),
+           "estimated_error_pp": np.asarray(vals.get("estimated_error_load_change", [np.nan]), float).tolist(),
+           "energy_rel_diff": (rp["energy_dissipated_MJ"] - rs["energy_dissipated_MJ"]) / rs["energy_dissipated_MJ"]}
+    if args.json:
+        print(json.dumps(out, indent=1))
+        return 0
+    print(f"{src.name}: {out['distance_km']:.4g} km, time-parallel P = {args.segments}")
+    print(f"  drive wall: serial {out['serial_wall_s']:.1f} s, time-parallel {out['parallel_wall_s']:.1f} s "
+          f"-> {out['speedup']:.2f}x (with model build: {total_s:.1f} s vs {total_p:.1f} s)")
+    print(f"  time-parallel: workers' CPU {out['worker_cpu_s']:.1f} s in sum (serial integration "
+          f"{out['serial_integration_s']:.1f} s), coarse multiscale prediction {out['coarse_s']:.1f} s wall")
+    print("  per axle  T_end serial [C]   dT [K]   ddN [pp]   estimate [K]   estimate [pp]")
+    for i in range(len(T_s)):
+        print(f"  {i + 1:8d}  {T_s[i]:16.3f}  {out['dT_K'][i]:+7.4f}  {out['ddN_pp'][i]:+8.4f}  "
+              f"{out['estimated_error_K'][i] if i < len(out['estimated_error_K']) else np.nan:13.4f}  "
+              f"{out['estimated_error_pp'][i] if i < len(out['estimated_error_pp']) else np.nan:14.4f}")
+    print(f"  largest |dT| {np.max(np.abs(out['dT_K'])):.4f} K, |ddN| {np.max(np.abs(out['ddN_pp'])):.4f} pp; "
+          f"coarse prediction mismatch at the segment start (no correction) {out['coarse_mismatch_K']:.3f} K; "
+          f"dissipated energy {out['energy_rel_diff'] * 100:+.3f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,491 @@
+"""Parallel in time (`solver: {time_parallel: P}`): one drive split into P segments run at full resolution in
+P processes at once, with a correction of the slow states (issue 11 §1).
+
+Parareal with a cheap coarse propagator (Lions, Maday, Turinici 2001; Gander & Vandewalle 2007, SIAM J.
+Sci. Comput. 29(2)), one correction sweep:
+
+1. Coarse G: one multiscale run (vehicle.runs.multiscale) from the start to the last segment's start predicts
+   the slow states (`model.SLOW_STATES`: thermal nodes, filtered deflection, levelling oil) at every segment
+   start. Segment 0 needs no prediction and starts at once, while G runs.
+2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in its own
+   process (forked: the built model and compiled stepper are inherited). Segment k > 0 starts from the vehicle
+   standing in equilibrium at the predicted slow states (`MultiscaleDrive._rest_state`) a warm-up stretch
+   (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
+   first sample: the fast states forget their start within seconds, the slow ones do not.
+3. Correction: the mismatch delta_k = x_s,end(k-1) (corrected) - x_s(k) at the segment start is carried
+   through segment k by the slow states' linearisation dx_s/dt = r + A (x_s - xbar) (A: the mean over the
+   segment's samples of d(slow rates)/d(slow states) with the fast states slaved, as in the multiscale mode):
+   x_s(t) += e^{A (t - t_k)} delta_k. It is applied to the stored temperatures, oil volumes, heave/pitch/roll
+   and (through d(outputs)/d(slow states) at a segment state) the heights, forces, pressures and loads, to the
+   statistics rows' temperatures and to the final state (the after-drive equilibrium). The quadratures
+   (energies, RMS, ride integrals) only accumulate: each segment starts them at zero and they are offset by
+   the totals before it; a statistics interval cut by a segment boundary is joined from both sides.
+4. A-posteriori error: what the linear correction leaves out, per segment, propagated to the end with the
+   following segments' e^{A T}: (a) the change of A with the slow states, A(x + S delta) - A(x) (second order in
+   delta), (b) the change of A along the segment (A of its first half against its second half). Written to the
+   summary per axle (temperature [K]) and through the after-drive equilibrium's sensitivity (wheel-load
+   change [pp]), as estimated_error_* like the multiscale mode's.
+
+A run that is resumed (`--resume`) continues serially (Drive.run): the segments are not checkpointed.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import multiprocessing as mp
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+from scipy.linalg import expm
+
+from hpsim.errors import UserInputError
+
+from vehicle.numerics.error_estimate import StepDoublingEstimate
+from vehicle.runs.drive import Drive, DriveResult, DriveState
+from vehicle.runs.multiscale import MultiscaleDrive, MultiscaleSettings, _propagators
+
+MODE = "time_parallel"
+SEGMENTS_RANGE = (1, 64)          # solver.time_parallel
+MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
+JACOBIAN_SAMPLES = 120            # samples per segment at which the slow-rate Jacobian is averaged
+PIECE_SAMPLES = 500               # samples per block handed to the sink when the segments are joined
+# the series computed from states, corrected by the slow-state correction directly (dx = S delta)
+_STATE_SERIES = ("strut_temperature_K", "wall_temperature_K", "oil_temperature_K", "heave_m", "pitch_rad",
+                 "roll_rad", "oil_added_m3")
+# the output series corrected through d(outputs)/d(slow states)
+_OUTPUT_SERIES = ("strut_force", "strut_deflection", "gas_pressure", "gas_temperature", "wheel_load",
+                  "axle_height_change_m")
+
+_PARENT = None                    # the drive the forked workers inherit
+
+
+def resolve_segments(value) -> int:
+    """solver.time_parallel: an int in SEGMENTS_RANGE or "auto" (one segment per CPU)."""
+    if value is None:
+        return 1
+    if value == "auto":
+        return max(1, min(os.cpu_count() or 1, SEGMENTS_RANGE[1]))
+    return int(value)
+
+
+def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate | None:
+    """One step-doubling estimate from the segments' (the windows of all segments pooled)."""
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        return None
+    out = copy.deepcopy(parts[0])
+    for p in parts[1:]:
+        out.cost_s += p.cost_s
+        for a, b in zip(out.levels, p.levels):
+            a.diff_heat_J = a.diff_heat_J + b.diff_heat_J
+            a.heat_J = a.heat_J + b.heat_J
+            a.max_deflection_diff_m = max(a.max_deflection_diff_m, b.max_deflection_diff_m)
+            a.windows += b.windows
+    return out
+
+
+def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark):
+    d = _PARENT
+    c0, w0 = time.process_time(), time.perf_counter()
+    out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark)
+    out["cpu_s"] = time.process_time() - c0
+    out["wall_s"] = time.perf_counter() - w0
+    return out
+
+
+class TimeParallelDrive(MultiscaleDrive):
+    """A Drive split into `segments` segments in time, run in parallel processes and joined with a correction
+    of the slow states (module docstring). `correct=False`: joined without the correction (for tests)."""
+
+    mode = MODE
+
+    def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
+                 warm_up_m: float = 50.0, correct: bool = True, **kw):
+        super().__init__(model, road, settings, coarse or MultiscaleSettings(), **kw)
+        lo, hi = SEGMENTS_RANGE
+        if not lo <= int(segments) <= hi:
+            raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
+        self.segments = int(segments)
+        seg_s = self.total_time_s / self.segments
+        if self.segments > 1 and seg_s < MIN_SEGMENT_S:
+            raise UserInputError(f"solver.time_parallel: {self.segments} segments of a {self.total_time_s:.4g} s drive "
+                                 f"are {seg_s:.3g} s each, at least {MIN_SEGMENT_S:g} s are needed: use at most "
+                                 f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))}")
+        self.warm_up_m = float(warm_up_m)
+        self.correct = correct
+        self.parareal: dict = {}
+
+    def describe(self):
+        return Drive.describe(self)          # the full drive's layout
+
+    # --- layout ---------------------------------------------------------------------------------
+    def layout(self) -> tuple[np.ndarray, np.ndarray]:
+        """(segment boundary times (P+1), warm-up start times (P)) on the output-sample grid."""
+        sample_dt = self.K * self.settings.dt_s
+        n = int(np.floor(self.total_time_s / sample_dt + 1e-9))
+        P = self.segments
+        t = np.array([round(k * n / P) for k in range(P + 1)], float) * sample_dt
+        tw = np.zeros(P)
+        for k in range(1, P):
+            s = float(self.distance_at(t[k]))
+            lead = t[k] - self._time_at(max(s - self.warm_up_m, 0.0))
+            tw[k] = max(t[k] - np.ceil(lead / sample_dt - 1e-9) * sample_dt, 0.0)
+        return t, tw
+
+    # --- coarse propagator ---------------------------------------------------------------------
+    def coarse_states(self, times) -> list[np.ndarray]:
+        """Full states predicted at `times` by one multiscale run from the start to the last of them."""
+        c = copy.copy(self)
+        t_end = float(max(times))
+        c.settings = dataclasses.replace(self.settings, distance_m=float(self.distance_at(t_end)))
+        c.total_time_s = t_end
+        # only the states are wanted: the multiscale mode's own error estimate is skipped
+        c.road_sampling_error = lambda records, t_end: {}
+        c.load_error = lambda final, after: {}
+        res = MultiscaleDrive.run(c, None)
+        out = []
+        for t in times:
+            if t >= t_end - 1e-9:
+                out.append(res.state.x.copy())
+                continue
+            for w in c.window_log:
+                if w["t_start"] - 1e-9 <= t <= w["t_gap_end"] + 1e-9:
+                    tau = t - w["t_end"]            # negative inside the window: back from its end, same model
+                    x = w["x_end"].copy()
+                    Phi, forced, _ = _propagators(w["A"], w["b"], tau)
+                    x[self.slow_index] = Phi @ x[self.slow_index] + forced
+                    x[self.ext_index] = x[self.ext_index] + w["q_rate"] * tau
+                    out.append(x)
+                    break
+            else:
+                out.append(res.state.x.copy())
+        return out
+
+    # --- fine propagator (in a worker) -----------------------------------------------------------
+    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None) -> dict:
+        """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred); t_mark: the next segment's
+        warm-up start, where this segment's slow states are kept (the restart error, see _join)."""
+        seg = copy.copy(self)
+        seg.error_estimate = None
+        S = self.settings
+        sample_dt = self.K * S.dt_s
+        n_seg = int(round((t1 - t0) / sample_dt))
+        stride = max(1, n_seg // JACOBIAN_SAMPLES)
+        rec = {"blocks": [], "rows": [], "Xs": [], "Ms": [], "Us": [], "n": 0, "mark": None}
+        on = [False]
+        last = t1 >= self._t_total() - 1e-9
+
+        def block_outputs(X, U, t, s, memory):
+            b = Drive._block_outputs(seg, X, U, t, s, memory)
+            if on[0]:
+                rec["blocks"].append(b)
+                j = np.arange(X.shape[1]) + rec["n"]
+                pick = np.flatnonzero(j % stride == 0)
+                rec["Xs"].append(X[:, pick])
+                rec["Ms"].append(memory[:, pick])
+                rec["Us"].append(U[:, pick])
+                rec["n"] += X.shape[1]
+                if t_mark is not None:
+                    hit = np.flatnonzero(np.abs(np.asarray(t) - t_mark) < 1e-6)
+                    if len(hit):
+                        rec["mark"] = X[self.slow_index, hit[0]].copy()
+            return b
+
+        def stats_row(s_end, duration, dq, x_end, gas_mean=None):
+            if on[0]:
+                rec["rows"].append((float(s_end), float(duration), np.array(dq, float), np.array(x_end, float),
+                                    None if gas_mean is None else np.array(gas_mean, float)))
+            return Drive._stats_row(seg, s_end, duration, dq, x_end, gas_mean)
+
+        def stats(st, X, t, s):
+            if last:
+                return Drive._stats(seg, st, X, t, s)
+            saved, seg.total_time_s = seg.total_time_s, np.inf    # no partial row at a segment's end
+            try:
+                return Drive._stats(seg, st, X, t, s)
+            finally:
+                seg.total_time_s = saved
+
+        seg._block_outputs, seg._stats_row, seg._stats = block_outputs, stats_row, stats
+        n = self.model.n
+        if k == 0:
+            st = seg.initial_state()
+        else:
+            x0 = self._rest_state(np.asarray(x_pred, float))
+            x0[self.ext_index] = 0.0
+            seg.total_time_s = t0
+            stw = DriveState(t_s=float(t_warm), s_m=float(self.distance_at(t_warm)), x=x0, next_stats_m=np.inf,
+                             last_stats={"t_s": float(t_warm), "q": x0[self.quad_index].copy(), "gas_sum": np.zeros(n),
+                                         "gas_n": 0},
+                             solver_memory=np.zeros_like(self.solver.get_state()))
+            warm = Drive.run(seg, None, stw) if t0 > t_warm else None
+            x = (warm.state.x if warm is not None else x0).copy()
+            x[self.ext_index] = 0.0                 # the quadratures of the segment start at its first sample
+            b = S.stats_interval_m
+            s0 = float(self.distance_at(t0))
+            st = DriveState(t_s=float(t0), s_m=s0, x=x, next_stats_m=b * (np.floor((s0 + 1e-9) / b) + 1),
+                            last_stats={"t_s": float(t0), "q": x[self.quad_index].copy(), "gas_sum": np.zeros(n),
+                                        "gas_n": 0},
+                            solver_memory=(warm.state.solver_memory if warm is not None
+                                           else np.zeros_like(self.solver.get_state())))
+        x_start = st.x.copy()
+        x_warm = (x0 if k > 0 else x_start)[self.slow_index].copy()
+        seg.total_time_s = self.total_time_s if last else t1
+        if self.error_estimate is not None:
+            e = self.error_estimate
+            seg.error_estimate = StepDoublingEstimate(e.dt_s, e.tolerance, e.interval_s, e.n_struts, names=e.names)
+        on[0] = True
+        res = Drive.run(seg, None, st)
+        blocks = {key: np.concatenate([b[key] for b in rec["blocks"]], axis=-1) for key in rec["blocks"][0]}
+        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "x_warm": x_warm, "mark": rec["mark"], "x_end": res.state.x.copy(), "state": res.state,
+                "blocks": blocks, "rows": rec["rows"], "X_sub": np.concatenate(rec["Xs"], axis=1),
+                "M_sub": np.concatenate(rec["Ms"], axis=1), "U_sub": np.concatenate(rec["Us"], axis=1),
+                "integration_s": res.integration_s, "estimate": seg.error_estimate}
+
+    def _t_total(self) -> float:
+        sample_dt = self.K * self.settings.dt_s
+        return float(np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt)
+
+    # --- the drive -------------------------------------------------------------------------------
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+        global _PARENT
+        if (state is not None and state.s_m > 0) or self.segments <= 1 or "fork" not in mp.get_all_start_methods():
+            self.parareal = {}
+            return Drive.run(self, sink, state, progress, checkpoint_every_blocks)       # serially
+        wall0 = time.perf_counter()
+        t, tw = self.layout()
+        P = self.segments
+        from vehicle.runs.sweep import worker_init
+
+        _PARENT = self
+        try:
+            with ProcessPoolExecutor(max_workers=P, mp_context=mp.get_context("fork"), initializer=worker_init,
+                                     initargs=(os.getpid(),)) as pool:
+                marks = list(tw[1:]) + [None]
+                futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, marks[0])]
+                c0 = time.perf_counter()
+                cpu0 = time.process_time()
+                self._slaving(self.initial_state().x)       # once, shared by the coarse run and the join
+                pred = self.coarse_states(list(tw[1:])) if P > 1 else []
+                coarse_s = time.perf_counter() - c0
+                coarse_cpu = time.process_time() - cpu0
+                futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k])
+                         for k in range(1, P)]
+                parts = [f.result() for f in futs]
+        finally:
+            _PARENT = None
+        res = self._join(parts, sink, progress)
+        self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=[p["cpu_s"] for p in parts],
+                             worker_wall_s=[p["wall_s"] for p in parts], boundaries_s=t.tolist())
+        res.wall_s = time.perf_counter() - wall0
+        return res
+
+    # --- joining the segments with the correction --------------------------------------------------
+    def _A(self, X, M, U, Sl) -> np.ndarray:
+        N = X.shape[1]
+        ns = len(self.slow_index)
+        Jd = self.J_slow.map(N)(X, M, U, np.repeat(self.p[:, None], N, axis=1))
+        sp = Jd.sparsity()             # sparse -> dense through the nonzeros (a dense DM converts slowly)
+        J = np.zeros((ns, N * self.model.nx))
+        J[np.asarray(sp.row(), int), np.repeat(np.arange(sp.size2()), np.diff(np.asarray(sp.colind(), int)))] = \
+            np.asarray(Jd.nonzeros(), float)
+        return J.reshape(ns, N, self.model.nx).mean(axis=1) @ Sl
+
+    def _output_sensitivity(self, x, mem, u, Sl) -> dict:
+        """d(output series)/d(slow states) at the state x (finite differences along the slaved directions)."""
+        ns = Sl.shape[1]
+        h = 1e-3
+        X = np.column_stack([x] + [x + h * Sl[:, j] for j in range(ns)])
+        m = self.model
+        Y, _, heights = self.outputs.map(ns + 1)(X, np.repeat(mem[:, None], ns + 1, axis=1),
+                                                 np.repeat(u[:, None], ns + 1, axis=1),
+                                                 np.repeat(self.p[:, None], ns + 1, axis=1))
+        outs = m.split_outputs(np.asarray(Y))
+        outs["axle_height_change_m"] = np.asarray(heights)
+        return {key: (np.asarray(outs[key])[:, 1:] - np.asarray(outs[key])[:, :1]) / h for key in _OUTPUT_SERIES
+                if key in outs}
+
+    def _join(self, parts, sink, progress) -> DriveResult:
+        m = self.model
+        S = self.settings
+        sample_dt = self.K * S.dt_s
+        slow, ext = self.slow_index, self.ext_index
+        ns = len(slow)
+        Sl = self._slaving(parts[0]["x_end"])
+        state_rows = {"strut_temperature_K": self.T_index, "wall_temperature_K": self.T_wall_index,
+                      "oil_temperature_K": self.T_oil_index, "heave_m": np.array([m.idx("z")]),
+                      "pitch_rad": np.array([m.idx("theta")]), "roll_rad": np.array([m.idx("phi")]),
+                      "oil_added_m3": self.oil_index}
+        quad_pos = {int(j): i for i, j in enumerate(ext)}
+        qsel = np.array([quad_pos[int(j)] for j in self.quad_index])
+        x_true = None                 # corrected end of the previous segment
+        x_raw_prev = None             # uncorrected end of the previous segment (the no-correction join)
+        Q = np.zeros(len(ext))        # quadratures at the previous segment's end (absolute)
+        carry = None                  # (duration, dq, gas_sum, gas_n) of the statistics interval left open
+        err_end = np.zeros(ns)        # the correction's estimated error, carried to the end
+        mismatch, seg_err, all_rows, n_samples = [], [], [], 0
+        prev_mark = prev_end_raw = None
+        t_total = self._t_total()
+        for p in parts:
+            k, t0, t1 = p["k"], p["t0"], p["t1"]
+            T = t1 - t0
+            X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
+            A = self._A(X, M, U, Sl)
+            Phi_T = expm(A * T)
+            delta = np.zeros(ns) if (k == 0 or not self.correct) else x_true[slow] - p["x_start"][slow]
+            if k > 0:
+                mismatch.append(x_raw_prev[slow] - p["x_start"][slow])
+            # the error the linear correction leaves: A's change with the slow states and along the segment
+            e = np.zeros(ns)
+            if k > 0 and self.correct and np.any(delta):
+                A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
+                half = X.shape[1] // 2
+                A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
+                A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
+                e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
+            # the restart: segment k started from rest at its warm-up; over the warm-up stretch both segment k-1
+            # (from the true state) and segment k drove the same road: the difference of their slow-state changes
+            # there bounds what the fast states' different start still does after the segment start
+            if k > 0 and prev_mark is not None:
+                d_prev = prev_end_raw[slow] - prev_mark
+                d_this = p["x_start"][slow] - p["x_warm"]
+                e = e + np.abs(d_prev - d_this)
+            prev_mark, prev_end_raw = p["mark"], p["x_end"]
+            seg_err.append(e)
+            err_end = np.abs(Phi_T) @ err_end + e
+            # series: slow-state correction e^{A tau} delta at every sample, quadratures offset
+            B = p["blocks"]
+            ts = np.asarray(B["t_s"], float)
+            E1 = expm(A * sample_dt)
+            D = np.empty((ns, len(ts)))
+            d = expm(A * (ts[0] - t0)) @ delta
+            for j in range(len(ts)):
+                D[:, j] = d
+                d = E1 @ d
+            dX = Sl @ D                                         # (nx, samples)
+            if np.any(delta):
+                for key, idx in state_rows.items():
+                    if key in B:
+                        B[key] = B[key] + (dX[idx] if B[key].ndim > 1 else dX[idx[0]])
+                G = self._output_sensitivity(X[:, X.shape[1] // 2], M[:, M.shape[1] // 2], U[:, U.shape[1] // 2], Sl)
+                for key, g in G.items():
+                    if key in B:
+                        B[key] = B[key] + (g @ D).reshape(B[key].shape)
+            for e_name, idx in m.energy_index.items():
+                key = f"energy_{e_name}_J"
+                if key in B:
+                    B[key] = B[key] + Q[[quad_pos[int(i)] for i in np.atleast_1d(idx)]].reshape(-1, 1)
+            if sink is not None:
+                for a in range(0, len(ts), PIECE_SAMPLES):
+                    sink.samples({key: v[..., a:a + PIECE_SAMPLES] for key, v in B.items()})
+            n_samples += len(ts)
+            # statistics rows: temperatures corrected, an interval cut by the boundary joined from both sides
+            t_prev = t0
+            for j, (s_end, dur, dq, x_end, gas) in enumerate(p["rows"]):
+                t_b = t_prev + dur
+                t_prev = t_b
+                dxb = Sl @ (expm(A * (t_b - t0)) @ delta)
+                x_end = x_end + dxb
+                gas = None if gas is None else gas + dxb[self.T_gas_index]
+                if j == 0 and carry is not None:
+                    c_dur, c_dq, c_gs, c_gn = carry
+                    nb = max(int(round(dur / sample_dt)), 1)
+                    if gas is not None and c_gn:
+                        gas = (c_gs + gas * nb) / (c_gn + nb)
+                    dur, dq = dur + c_dur, dq + c_dq
+                    carry = None
+                all_rows.append(self._stats_row(s_end, dur, dq, x_end, gas))
+            # what stays open at the segment's end (nothing for the last)
+            fs = p["state"]
+            open_dq = p["x_end"][self.quad_index] - np.asarray(fs.last_stats["q"], float)
+            open_dur = t1 - float(fs.last_stats["t_s"])
+            gsum = np.asarray(fs.last_stats.get("gas_sum", 0.0), float) * 1.0
+            gn = int(fs.last_stats.get("gas_n", 0))
+            if gn:
+                gsum = gsum + gn * dX[self.T_gas_index, -1]
+            if not p["rows"] and carry is not None:
+                c_dur, c_dq, c_gs, c_gn = carry
+                carry = (c_dur + open_dur, c_dq + open_dq, c_gs + gsum, c_gn + gn)
+            else:
+                carry = (open_dur, open_dq, gsum, gn)
+            # the corrected end state: slow states (and the fast ones slaved to them) moved, quadratures offset
+            x_raw = p["x_end"].copy()
+            x_raw_prev = x_raw
+            x_true = x_raw + Sl @ (Phi_T @ delta)
+            x_true[ext] = x_raw[ext] - p["x_start"][ext] + Q
+            Q = x_true[ext].copy()
+            if progress is not None:
+                s1 = float(self.distance_at(t1))
+                progress(s1, float(S.speed.speed(s1)), t1)
+        if sink is not None and all_rows:
+            sink.stats(all_rows)
+        last = parts[-1]
+        fs = last["state"]
+        q_last = np.asarray(fs.last_stats["q"], float) + (x_true[self.quad_index] - last["x_end"][self.quad_index])
+        final = DriveState(t_s=float(fs.t_s), s_m=float(fs.s_m), x=x_true, next_stats_m=fs.next_stats_m,
+                           last_stats={"t_s": float(fs.last_stats["t_s"]), "q": q_last,
+                                       "gas_sum": np.asarray(fs.last_stats.get("gas_sum", 0.0), float),
+                                       "gas_n": int(fs.last_stats.get("gas_n", 0))},
+                           sample_index=n_samples, solver_memory=np.asarray(fs.solver_memory, float))
+        if sink is not None:
+            sink.checkpoint(final.as_dict())
+        after = self.equilibrium_solver.solve(x_true[self.T_oil_index], self.gas_masses, x_true[self.oil_index])
+        T_err, dN_err = self._error_bounds(x_true, after, err_end)
+        self.parareal = {"segments": len(parts), "uncorrected_final_x": x_raw_prev, "final_x": x_true,
+                         "mismatch": mismatch, "segment_error": seg_err, "error_end": err_end,
+                         "strut_temperature_K": T_err, "axle_temperature_K": self._axle_matrix() @ T_err,
+                         "load_change_pct": dN_err, "t_total_s": t_total}
+        est = merge_estimates([p["estimate"] for p in parts])
+        integ = float(sum(p["integration_s"] for p in parts))
+        return DriveResult(state=final, after=after, wall_s=0.0, integration_s=integ,
+                           solver_error=None if est is None else est.summary(integ))
+
+    def _axle_matrix(self) -> np.ndarray:
+        m = self.model
+        n_ax = m.params.n_axles
+        axle_of = np.array([m.params.station_axle(i) for i in range(m.n)])
+        W = np.zeros((n_ax, m.n))
+        for i in range(m.n):
+            W[axle_of[i], i] = 1.0 / np.sum(axle_of == axle_of[i])
+        return W
+
+    def _error_bounds(self, x_end, after, err_end) -> tuple[np.ndarray, np.ndarray]:
+        """Per station the reported temperature's estimated error [K] and per axle the wheel-load change's [pp]:
+        the slow states' error magnitudes added with the magnitudes of the after-drive equilibrium's
+        sensitivities (as if all had the same sign: a bound, not an interval)."""
+        pos = {int(j): k for k, j in enumerate(self.slow_index)}
+        T_err = err_end[[pos[int(j)] for j in self.T_index]]
+        G = self._load_sensitivity(x_end, after, self._axle_matrix())
+        e = np.concatenate([err_end[[pos[int(j)] for j in self.T_oil_index]],
+                            err_end[[pos[int(j)] for j in self.oil_index]]])
+        return T_err, np.abs(G) @ e
+
+    # --- what the results add ------------------------------------------------------------------
+    def mismatch_axle_K(self) -> np.ndarray:
+        """Largest |coarse prediction - fine| of the reported strut temperature at a segment start, per axle [K]."""
+        pos = {int(j): i for i, j in enumerate(self.slow_index)}
+        iT = [pos[int(j)] for j in self.T_index]
+        mm = self.parareal.get("mismatch") or []
+        if not mm:
+            return np.zeros(self.model.params.n_axles)
+        a = np.max(np.abs(np.array(mm)[:, iT]), axis=0)
+        return np.array([a[[i for i in range(self.model.n) if self.model.params.station_axle(i) == ax]].mean()
+                         for ax in range(self.model.params.n_axles)])
+
+    def summary_extra(self) -> dict:
+        pr = self.parareal
+        if not pr or "axle_temperature_K" not in pr:
+            return {"attrs": {"solver_mode": "full"}, "values": {}}
+        attrs = {"solver_mode": MODE, "time_parallel_segments": int(pr["segments"]),
+                 "time_parallel_coarse_s": float(pr.get("coarse_s", np.nan)),
+                 "time_parallel_worker_cpu_s": float(np.sum(pr.get("worker_cpu_s", [np.nan]))),
+                 "time_parallel_coarse_mismatch_K": float(np.max(self.mismatch_axle_K())),
+                 "estimated_error_temperature_K": float(np.max(pr["axle_temperature_K"])),
+                 "estimated_error_load_change_pct": float(np.max(pr["load_change_pct"])),
+                 "estimated_error_sigmas": float("nan"), "estimated_error_coverage": float("nan")}
+        values = {"estimated_error_strut_temperature_K": pr["strut_temperature_K"],
+                  "estimated_error_axle_temperature_K": pr["axle_temperature_K"],
+                  "estimated_error_load_change_pct": pr["load_change_pct"]}
+        return {"attrs": attrs, "values": values}
