@@ -22,7 +22,12 @@ Sci. Comput. 29(2)), one correction sweep:
    the totals before it; a statistics interval cut by a segment boundary is joined from both sides.
 4. A-posteriori error: what the linear correction leaves out, per segment, propagated to the end with the
    following segments' e^{A T}: (a) the change of A with the slow states, A(x + S delta) - A(x) (second order in
-   delta), (b) the change of A along the segment (A of its first half against its second half). Written to the
+   delta), (b) the change of A along the segment (A of its first half against its second half), (c) the restart:
+   segment k-1 runs on past the join for one warm-up length (not stored) and the difference between its
+   slow-state change there and segment k's is what segment k's different fast start does after the join.
+   Not in it: the fast states' response of the dissipation to the slow-state mismatch (A has the fast states
+   slaved as the standing vehicle's), first order in delta: on the 106 km test the estimate was below the
+   actual difference by up to 2-3x (README / benchmarks/time_parallel.py). Written to the
    summary per axle (temperature [K]) and through the after-drive equilibrium's sensitivity (wheel-load
    change [pp]), as estimated_error_* like the multiscale mode's.
 
@@ -50,6 +55,7 @@ MODE = "time_parallel"
 SEGMENTS_RANGE = (1, 64)          # solver.time_parallel
 MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
 JACOBIAN_SAMPLES = 120            # samples per segment at which the slow-rate Jacobian is averaged
+COARSE_COST = 1.5                 # the coarse run's wall time / the full model's over the road its windows drive
 PIECE_SAMPLES = 500               # samples per block handed to the sink when the segments are joined
 # the series computed from states, corrected by the slow-state correction directly (dx = S delta)
 _STATE_SERIES = ("strut_temperature_K", "wall_temperature_K", "oil_temperature_K", "heave_m", "pitch_rad",
@@ -86,10 +92,10 @@ def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate |
     return out
 
 
-def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark):
+def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     d = _PARENT
     c0, w0 = time.process_time(), time.perf_counter()
-    out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark)
+    out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
     out["cpu_s"] = time.process_time() - c0
     out["wall_s"] = time.perf_counter() - w0
     return out
@@ -126,7 +132,18 @@ class TimeParallelDrive(MultiscaleDrive):
         sample_dt = self.K * self.settings.dt_s
         n = int(np.floor(self.total_time_s / sample_dt + 1e-9))
         P = self.segments
-        t = np.array([round(k * n / P) for k in range(P + 1)], float) * sample_dt
+        # segment 0 starts at once, the others after the coarse run: segment 0 is longer by the coarse run's
+        # estimated cost, in simulated seconds of the full model (it drives ceil(D_c / spacing) windows of
+        # warm-up + window over the D_c = (P-1)/P of the road before the last segment start; plus its per-window
+        # work: COARSE_COST times the windows' own time, measured ~1.5 on the 106 km test)
+        lead = 0.0
+        if P > 1:
+            D = self.settings.distance_m
+            n_w = int(np.ceil(D * (P - 1) / P / self.ms.spacing_m - 1e-9))
+            span_s = n_w * (self.ms.warm_up_m + self.ms.window_m) / (D / (n * sample_dt))
+            lead = min(COARSE_COST * span_s / sample_dt, n / (2 * P))
+        L = (n - lead) / P
+        t = np.array([0.0] + [round(lead + k * L) for k in range(1, P)] + [n], float) * sample_dt
         tw = np.zeros(P)
         for k in range(1, P):
             s = float(self.distance_at(t[k]))
@@ -164,9 +181,10 @@ class TimeParallelDrive(MultiscaleDrive):
         return out
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None) -> dict:
-        """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred); t_mark: the next segment's
-        warm-up start, where this segment's slow states are kept (the restart error, see _join)."""
+    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+        """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
+        _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
+        (not stored) to the next segment's t_mark and keeps its slow states there."""
         seg = copy.copy(self)
         seg.error_estimate = None
         S = self.settings
@@ -231,15 +249,22 @@ class TimeParallelDrive(MultiscaleDrive):
                             solver_memory=(warm.state.solver_memory if warm is not None
                                            else np.zeros_like(self.solver.get_state())))
         x_start = st.x.copy()
-        x_warm = (x0 if k > 0 else x_start)[self.slow_index].copy()
+
         seg.total_time_s = self.total_time_s if last else t1
         if self.error_estimate is not None:
             e = self.error_estimate
             seg.error_estimate = StepDoublingEstimate(e.dt_s, e.tolerance, e.interval_s, e.n_struts, names=e.names)
         on[0] = True
         res = Drive.run(seg, None, st)
+        on[0] = False
+        tail = None
+        if t_tail is not None and t_tail > t1:
+            seg.total_time_s = t_tail
+            seg.error_estimate, est = None, seg.error_estimate
+            tail = Drive.run(seg, None, copy.deepcopy(res.state)).state.x[self.slow_index].copy()
+            seg.error_estimate = est
         blocks = {key: np.concatenate([b[key] for b in rec["blocks"]], axis=-1) for key in rec["blocks"][0]}
-        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "x_warm": x_warm, "mark": rec["mark"], "x_end": res.state.x.copy(), "state": res.state,
+        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec["mark"], "tail": tail, "x_end": res.state.x.copy(), "state": res.state,
                 "blocks": blocks, "rows": rec["rows"], "X_sub": np.concatenate(rec["Xs"], axis=1),
                 "M_sub": np.concatenate(rec["Ms"], axis=1), "U_sub": np.concatenate(rec["Us"], axis=1),
                 "integration_s": res.integration_s, "estimate": seg.error_estimate}
@@ -263,15 +288,17 @@ class TimeParallelDrive(MultiscaleDrive):
         try:
             with ProcessPoolExecutor(max_workers=P, mp_context=mp.get_context("fork"), initializer=worker_init,
                                      initargs=(os.getpid(),)) as pool:
-                marks = list(tw[1:]) + [None]
-                futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, marks[0])]
+                # the restart's overlap: the warm-up's length after each segment start
+                marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
+                tails = marks[1:] + [None]
+                futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0])]
                 c0 = time.perf_counter()
                 cpu0 = time.process_time()
                 self._slaving(self.initial_state().x)       # once, shared by the coarse run and the join
                 pred = self.coarse_states(list(tw[1:])) if P > 1 else []
                 coarse_s = time.perf_counter() - c0
                 coarse_cpu = time.process_time() - cpu0
-                futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k])
+                futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k], tails[k])
                          for k in range(1, P)]
                 parts = [f.result() for f in futs]
         finally:
@@ -326,7 +353,7 @@ class TimeParallelDrive(MultiscaleDrive):
         carry = None                  # (duration, dq, gas_sum, gas_n) of the statistics interval left open
         err_end = np.zeros(ns)        # the correction's estimated error, carried to the end
         mismatch, seg_err, all_rows, n_samples = [], [], [], 0
-        prev_mark = prev_end_raw = None
+        prev_tail = prev_end_raw = None
         t_total = self._t_total()
         for p in parts:
             k, t0, t1 = p["k"], p["t0"], p["t1"]
@@ -345,16 +372,17 @@ class TimeParallelDrive(MultiscaleDrive):
                 A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
                 A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
                 e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
-            # the restart: segment k started from rest at its warm-up; over the warm-up stretch both segment k-1
-            # (from the true state) and segment k drove the same road: the difference of their slow-state changes
-            # there bounds what the fast states' different start still does after the segment start
-            if k > 0 and prev_mark is not None:
-                d_prev = prev_end_raw[slow] - prev_mark
-                d_this = p["x_start"][slow] - p["x_warm"]
-                e = e + np.abs(d_prev - d_this)
-            prev_mark, prev_end_raw = p["mark"], p["x_end"]
-            seg_err.append(e)
-            err_end = np.abs(Phi_T) @ err_end + e
+            # the restart: segment k's fast states at its start are not the serial run's (it started from rest
+            # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first
+            # warm-up length: the difference of their slow-state changes there is what the different fast states
+            # do after the join (they synchronise with the road within it); an error at the segment start,
+            # carried through the segment like the errors before it
+            e_restart = np.zeros(ns)
+            if k > 0 and prev_tail is not None and p["mark"] is not None:
+                e_restart = np.abs((prev_tail - prev_end_raw[slow]) - (p["mark"] - p["x_start"][slow]))
+            prev_tail, prev_end_raw = p["tail"], p["x_end"]
+            seg_err.append(e + np.abs(Phi_T) @ e_restart)
+            err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
             # series: slow-state correction e^{A tau} delta at every sample, quadratures offset
             B = p["blocks"]
             ts = np.asarray(B["t_s"], float)
