@@ -41,6 +41,7 @@ EXAMPLES = {
     "run": """\
   hpsim run scenarios/quick_demo.yaml -o demo.h5
   hpsim run scenarios/mileage_106km.yaml -o mileage.h5 --resume     # continue an interrupted run
+  hpsim run scenarios/mileage_106km.yaml -o mileage.h5 --time-parallel 2   # in 2 segments on 2 processes
   hpsim -q run scenarios/quick_demo.yaml -o demo.h5 --overwrite       # no progress bar, no messages""",
     "report": """\
   hpsim report demo.h5
