@@ -54,7 +54,11 @@ def main(argv=None):
         d = {**data, "solver": {**(data.get("solver") or {}), **solver_extra}}
         s = read_scenario_text(yaml.safe_dump(d), src.name, src.base_dir)
         t0, c0 = time.perf_counter(), time.process_time()
-        sink = run_in_memory(s)
+        marks = []
+        # the serial drive's CPU time: from its first block to its last (progress is called after each block)
+        sink = run_in_memory(s, progress=None if solver_extra else (lambda *a: marks.append(time.process_time())))
+        if marks:
+            cpu["serial_drive"] = marks[-1] - marks[0]
         cpu["parallel" if solver_extra else "serial"] = time.process_time() - c0
         total = time.perf_counter() - t0
         return sink, report_from(sink, src.name), total
@@ -75,6 +79,10 @@ def main(argv=None):
            "worker_cpu_s": float(sp.get("time_parallel_worker_cpu_s", np.nan)),
            "coarse_s": float(sp.get("time_parallel_coarse_s", np.nan)),
            "serial_cpu_s": cpu["serial"], "parallel_main_cpu_s": cpu["parallel"],
+           "serial_drive_cpu_s": cpu.get("serial_drive", np.nan),
+           "coarse_cpu_s": float(sp.get("time_parallel_coarse_cpu_s", np.nan)),
+           "join_cpu_s": float(sp.get("time_parallel_join_cpu_s", np.nan)),
+           "critical_cpu_s": float(sp.get("time_parallel_critical_cpu_s", np.nan)),
            "T_end_serial_C": T_s.tolist(), "dT_K": (T_p - T_s).tolist(), "ddN_pp": (dN_p - dN_s).tolist(),
            "coarse_mismatch_K": float(sp.get("time_parallel_coarse_mismatch_K", np.nan)),
            "estimated_error_K": np.asarray(vals.get("estimated_error_axle_temperature", [np.nan]), float).tolist(),
@@ -89,6 +97,9 @@ def main(argv=None):
     print(f"  CPU: serial run {out['serial_cpu_s']:.1f} s (build included); time-parallel: workers {out['worker_cpu_s']:.1f} s "
           f"in sum + this process {out['parallel_main_cpu_s']:.1f} s (build, coarse prediction "
           f"{out['coarse_s']:.1f} s wall, join and estimate)")
+    print(f"  time-parallel critical path in CPU time (segment 0, or the coarse run {out['coarse_cpu_s']:.1f} s + the "
+          f"slowest other segment; + the join {out['join_cpu_s']:.1f} s): {out['critical_cpu_s']:.1f} s, against the serial "
+          f"drive's CPU {out['serial_drive_cpu_s']:.1f} s -> {out['serial_drive_cpu_s'] / out['critical_cpu_s']:.2f}x on P free cores")
     print("  per axle  T_end serial [C]   dT [K]   ddN [pp]   estimate [K]   estimate [pp]")
     for i in range(len(T_s)):
         print(f"  {i + 1:8d}  {T_s[i]:16.3f}  {out['dT_K'][i]:+7.4f}  {out['ddN_pp'][i]:+8.4f}  "

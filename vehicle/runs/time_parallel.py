@@ -328,9 +328,16 @@ class TimeParallelDrive(MultiscaleDrive):
                 parts = [f.result() for f in futs]
         finally:
             _PARENT = None
+        j0 = time.process_time()
         res = self._join(parts, sink, progress)
-        self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=[p["cpu_s"] for p in parts],
-                             worker_wall_s=[p["wall_s"] for p in parts], boundaries_s=t.tolist())
+        join_cpu = time.process_time() - j0
+        w = [p["cpu_s"] for p in parts]
+        # what the run takes with P free cores: segment 0, or the coarse run then the slowest other segment; then
+        # the join (CPU times: on a shared machine the wall times say more about the other load)
+        critical = max(w[0], coarse_cpu + max(w[1:], default=0.0)) + join_cpu
+        self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
+                             critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
+                             boundaries_s=t.tolist())
         res.wall_s = time.perf_counter() - wall0
         return res
 
@@ -542,6 +549,9 @@ class TimeParallelDrive(MultiscaleDrive):
         attrs = {"solver_mode": MODE, "time_parallel_segments": int(pr["segments"]),
                  "time_parallel_coarse_s": float(pr.get("coarse_s", np.nan)),
                  "time_parallel_worker_cpu_s": float(np.sum(pr.get("worker_cpu_s", [np.nan]))),
+                 "time_parallel_coarse_cpu_s": float(pr.get("coarse_cpu_s", np.nan)),
+                 "time_parallel_join_cpu_s": float(pr.get("join_cpu_s", np.nan)),
+                 "time_parallel_critical_cpu_s": float(pr.get("critical_cpu_s", np.nan)),
                  "time_parallel_coarse_mismatch_K": float(np.max(self.mismatch_axle_K())),
                  "estimated_error_temperature_K": float(np.max(pr["axle_temperature_K"])),
                  "estimated_error_load_change_pct": float(np.max(pr["load_change_pct"])),
