@@ -301,7 +301,9 @@ class TimeParallelDrive(MultiscaleDrive):
     # --- the drive -------------------------------------------------------------------------------
     def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
         global _PARENT
-        if (state is not None and state.s_m > 0) or self.segments <= 1 or "fork" not in mp.get_all_start_methods():
+        # serially: a resumed run, one segment, no fork, or inside a daemonic worker (which cannot start processes)
+        if (state is not None and state.s_m > 0) or self.segments <= 1 or "fork" not in mp.get_all_start_methods() \
+                or mp.current_process().daemon:
             self.parareal = {}
             return Drive.run(self, sink, state, progress, checkpoint_every_blocks)       # serially
         wall0 = time.perf_counter()
@@ -325,7 +327,12 @@ class TimeParallelDrive(MultiscaleDrive):
                 coarse_cpu = time.process_time() - cpu0
                 futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k], tails[k])
                          for k in range(1, P)]
-                parts = [f.result() for f in futs]
+                try:
+                    parts = [f.result() for f in futs]
+                except BaseException:          # Ctrl-C or a failed segment: stop the others now
+                    for proc in list(getattr(pool, "_processes", {}).values()):
+                        proc.terminate()
+                    raise
         finally:
             _PARENT = None
         j0 = time.process_time()
