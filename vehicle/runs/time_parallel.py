@@ -161,8 +161,8 @@ class TimeParallelDrive(MultiscaleDrive):
         c.settings = dataclasses.replace(self.settings, distance_m=float(self.distance_at(t_end)))
         c.total_time_s = t_end
         # only the states are wanted: the multiscale mode's own error estimate is skipped
-        c.road_sampling_error = lambda records, t_end: {}
-        c.load_error = lambda final, after: {}
+        c.road_sampling_error = lambda *a, **kw: {}
+        c.load_error = lambda *a, **kw: {}
         res = MultiscaleDrive.run(c, None)
         out = []
         for t in times:
