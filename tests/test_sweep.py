@@ -95,6 +95,29 @@ def test_compensation_reduces_load_redistribution(two_cases):
     assert np.max(np.abs(heights["c01_enabled-true"])) < 0.5 * np.min(heights["c00_enabled-false"])
 
 
+def test_summary_csv_carries_each_case_s_ride_numbers_and_bands(two_cases):
+    """The CSV's per-axle interior temperatures, weighing bands and ride numbers are the case report's values
+    (vehicle.runs.summary.report), and the band columns bracket the frictionless load change."""
+    from vehicle.runs.summary import report
+
+    rows = _summary(two_cases)
+    for name, row in rows.items():
+        rep = report(two_cases / f"{name}.h5")
+        for a in rep["axles"]:
+            k = a["axle"]
+            assert float(row[f"T_oil_end_C_axle{k}"]) == pytest.approx(a["T_oil_end_C"])
+            lo, hi = float(row[f"dN_band_pct_low_axle{k}"]), float(row[f"dN_band_pct_high_axle{k}"])
+            assert lo <= float(row[f"dN_pct_axle{k}"]) <= hi
+        seats = rep["ride"]["seats"]
+        assert seats, "the drive stores the seat filters"
+        for s in seats:
+            assert float(row[f"weighted_rms_acceleration_m_s2_{s['seat']}"]) == pytest.approx(
+                s["weighted_rms_acceleration_m_s2"])
+            assert float(row[f"vdv_m_s175_{s['seat']}"]) > 0
+        dlc = [float(row[f"dynamic_load_coefficient_axle{k}"]) for k in range(1, 5)]
+        assert all(0 < d < 1 for d in dlc)      # a class D road at 20 km/h: tyre loads vary, wheels stay down mostly
+
+
 def test_rerun_skips_finished_cases(two_cases, sweep_dir, capsys):
     mtimes = {p.name: p.stat().st_mtime_ns for p in two_cases.glob("*.h5")}
     code = cli.main(["sweep", str(sweep_dir / "sweep.yaml"), "--workers", "2", "-o", str(two_cases)])

@@ -278,6 +278,24 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
     return result
 
 
+# the ride and road-holding numbers of a case in the summary CSV: per seat, and per axle (worst of left and right)
+SEAT_CSV_KEYS = ("weighted_rms_acceleration_m_s2", "vdv_m_s175", "absorbed_power_W")
+AXLE_CSV_KEYS = ("dynamic_load_coefficient", "lift_off_share", "end_stop_time_s", "strut_travel_p99_m")
+
+
+def ride_columns(ride: dict, n_axles: int) -> dict:
+    """Flat CSV columns of a report's ride summary (vehicle.runs.ride_metrics): `<key>_<seat>` per seat and
+    `<key>_axle<k>` per axle; keys a run did not store are left out."""
+    from vehicle.runs.ride_metrics import axle_rows
+
+    out = {}
+    for seat in ride.get("seats", []):
+        out.update({f"{k}_{seat['seat']}": seat[k] for k in SEAT_CSV_KEYS if seat.get(k) is not None})
+    for row in axle_rows(ride, [None] * n_axles):
+        out.update({f"{k}_axle{row['axle']}": row[k] for k in AXLE_CSV_KEYS if row.get(k) is not None})
+    return out
+
+
 def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
     from vehicle.runs.summary import report
 
@@ -307,8 +325,13 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
                 if "solver_error_estimate" in rep:          # the step-doubling estimate and its advice
                     row.update({k: rep.get(k) for k in ("solver_error_estimate", "solver_tolerance", "solver_advice")})
                 for a in rep["axles"]:
-                    for q in ("dN_pct", "dN_charged_pct", "dh_mm", "T_end_C"):
-                        row[f"{q}_axle{a['axle']}"] = a[q]
+                    for q in ("dN_pct", "dN_charged_pct", "dh_mm", "T_end_C", "T_oil_end_C", "T_gas_end_C"):
+                        if q in a:
+                            row[f"{q}_axle{a['axle']}"] = a[q]
+                    for q in ("dN_band_pct", "dh_band_mm"):     # the weighing bands: [low, high] -> two columns
+                        if a.get(q) is not None:
+                            row[f"{q}_low_axle{a['axle']}"], row[f"{q}_high_axle{a['axle']}"] = a[q]
+                row.update(ride_columns(rep.get("ride") or {}, len(rep["axles"])))
                 warnings = rep.get("warnings")          # the report's validity warnings (vehicle.runs.warnings)
                 if warnings:
                     from vehicle.runs.warnings import summary_cell
