@@ -3,6 +3,8 @@ at its frequency and integrates to its variance (Parseval); series too sparse fo
 with the interval to use."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -48,3 +50,24 @@ def test_series_too_sparse_for_the_modes_are_refused():
         response_psd(SeriesView(fs=1.0, duration=600.0))
     with pytest.raises(UserInputError, match="too short"):
         response_psd(SeriesView(fs=100.0, duration=8.0))
+
+
+def test_dashboard_shows_the_spectrum_panel_only_for_dense_series(monkeypatch, tmp_path):
+    """A drive stored at 50 Hz gets the hull-acceleration PSD panel;
+    the default 1 s interval gets none (its Nyquist frequency is below every mode)."""
+    import matplotlib.pyplot as plt
+
+    import vehicle
+
+    figures = []
+    close = plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: (figures.append(fig), close(fig)))
+    quick = Path(__file__).resolve().parents[1] / "scenarios" / "quick_demo.yaml"
+    titles = {}
+    for interval in ("0.02 s", "1 s"):
+        res = vehicle.Simulation(quick, overrides={"distance": "300 m", "output.interval": interval,
+                                                   "output.stats_interval": "100 m"}).run()
+        res.plot(tmp_path / f"d{interval}.png")
+        titles[interval] = [a.get_title() for a in figures[-1].axes]
+    assert any("response PSD" in t for t in titles["0.02 s"])
+    assert not any("response PSD" in t for t in titles["1 s"])

@@ -44,7 +44,8 @@ def dashboard(path, out: str | Path) -> Path:
     """The dashboard of one run, a panel for each thing the run stored: strut temperatures per axle
     vs distance (with the ambient), hull height change per axle, the change of the static wheel
     loads over the drive, dissipated power by mechanism, and, when the drive's statistics rows
-    carry them, ride comfort at the seats and strut travel per interval. `path`: a results file or any
+    carry them, ride comfort at the seats and strut travel per interval, and the hull's response PSDs when the
+    series are stored densely enough (output.interval <= 1/30 s). `path`: a results file or any
     `vehicle.runs.reader.ResultsView` (e.g. in-memory results)."""
     import contextlib
 
@@ -90,6 +91,7 @@ def dashboard(path, out: str | Path) -> Path:
         charged = f.equilibrium("charged")
         N_charged = None if charged is None else np.asarray(charged["wheel_load"], float)
         ride_rows = _ride_rows(f)
+        psd = _dense_psd(f)
 
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     panels = []            # (title, draw(ax)) of the panels that have data: no empty panels
@@ -209,6 +211,22 @@ def dashboard(path, out: str | Path) -> Path:
     if ride_rows.get("strut_travel_min_m") is not None and ride_rows.get("strut_travel_max_m") is not None:
         panels.append(travel)
 
+    def spectra(a):
+        f_hz = psd["f_hz"]
+        keep = (f_hz > 0) & (f_hz <= min(psd["fs_hz"] / 2, 30.0))
+        for name, label in (("heave_acceleration", "heave"), ("pitch_acceleration", "pitch"),
+                            ("roll_acceleration", "roll")):
+            if name in psd["psd"]:
+                a.semilogy(f_hz[keep], np.atleast_2d(psd["psd"][name])[0][keep],
+                           label=f"{label} [{psd['units'][name]}]")
+        a.set(xlabel="frequency [Hz]", ylabel="PSD", title=f"hull accelerations: response PSD (Welch, "
+              f"{psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz; hpsim report --psd)")
+        a.title.set_fontsize(9)
+        a.legend(fontsize=8)
+
+    if psd is not None:
+        panels.append(spectra)
+
     n = len(panels)
     ncol = 2 if n <= 4 else 3
     nrow = max(1, -(-n // ncol))
@@ -231,6 +249,18 @@ def dashboard(path, out: str | Path) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def _dense_psd(f):
+    """The response PSDs of the run when its stored series are dense enough for them (vehicle.runs.psd; the
+    default 1 s output interval is not: then None and the dashboard has no spectrum panel)."""
+    from hpsim.errors import UserInputError
+    from vehicle.runs.psd import response_psd
+
+    try:
+        return response_psd(f)
+    except (UserInputError, KeyError, ValueError):
+        return None
 
 
 def _ride_rows(f) -> dict:
