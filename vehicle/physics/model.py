@@ -56,7 +56,12 @@ from vehicle.physics import thermal
 from vehicle.physics.params import GRAVITY, VehicleParams
 from vehicle.physics.tyre import tyre_force
 
-ENERGY_TERMS = ("valve", "friction", "gas", "end_stop", "strut_work", "tyre_work", "road_work")
+# longitudinal_work: the work of the longitudinal acceleration's loads on the hull and wheels, i.e. the
+# pitch moment m h a_x (hull.longitudinal_pitch_moment) times the pitch rate, shared equally by the
+# stations, plus the anti-pitch linkage forces V_i times the hull-wheel velocity at station i; with it
+# the mechanical balance reads road_work + longitudinal_work = d(kinetic + potential) + tyre_work +
+# strut_work (0 at constant speed; tests/test_vehicle_drive.py)
+ENERGY_TERMS = ("valve", "friction", "gas", "end_stop", "strut_work", "tyre_work", "road_work", "longitudinal_work")
 DISSIPATION_TERMS = ("valve", "friction", "gas", "end_stop")
 HULL_ACCELERATIONS = ("heave_acc", "pitch_acc", "roll_acc")
 # time-varying inputs in the order of u: (name, per station?) (see the module doc)
@@ -365,6 +370,9 @@ class VehicleModel:
             rates[f"E_strut_work[{i}]"] = Fs * vs
             rates[f"E_tyre_work[{i}]"] = Ft * ddefl
             rates[f"E_road_work[{i}]"] = Ft * droad[i]
+            zs_rate = hull_eq.station_displacement(dzc, dth, dph, K.a[i], K.y[i], K.a_cg, K.y_cg)
+            rates[f"E_longitudinal_work[{i}]"] = V_link[i] * (zs_rate - dw) \
+                + K.pitch_per_acceleration * acc * dth / n
             rates[f"I_v2[{i}]"] = vs * vs
             if eq["residual"] is not None:
                 residuals.append(eq["residual"])

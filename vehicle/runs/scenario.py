@@ -52,7 +52,8 @@ SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperat
           "oil_temperature_K", "axle_height_change_m",
           "hull_acceleration", "heave_m", "pitch_rad", "roll_rad", "oil_added_m3", "strut_force", "strut_deflection",
           "gas_pressure", "gas_temperature", "wheel_load", "energy_valve_J", "energy_friction_J", "energy_gas_J",
-          "energy_end_stop_J", "energy_strut_work_J", "energy_tyre_work_J", "energy_road_work_J")
+          "energy_end_stop_J", "energy_strut_work_J", "energy_tyre_work_J", "energy_road_work_J",
+          "energy_longitudinal_work_J")
 ALWAYS_STORED = ("t_s", "distance_m")
 
 

@@ -71,7 +71,9 @@ _ENERGY = {"valve": "energy dissipated in the damping valves of the strut since 
            "end_stop": "energy dissipated in the end stops of the strut since the start",
            "strut_work": "work done on the strut since the start",
            "tyre_work": "work done on the tyre since the start",
-           "road_work": "work done by the road on the tyre since the start"}
+           "road_work": "work done by the road on the tyre since the start",
+           "longitudinal_work": "work of the longitudinal acceleration's pitch moment and anti-pitch linkage "
+                                "forces on hull and wheel since the start (the hull's share per station)"}
 _POWER = {"valve": "power dissipated in the damping valves of the strut",
           "friction": "power dissipated by seal friction in the strut",
           "gas": "heat flow from the gas to the strut body",
