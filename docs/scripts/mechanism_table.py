@@ -2,8 +2,8 @@
 scenarios/mechanism_sweep.yaml (the 106 km mileage test, one mechanism per case, same road seed).
 
     hpsim sweep scenarios/mechanism_sweep.yaml --workers 2 -o results/mechanisms
-    hpsim sweep scenarios/mechanism_sweep_30km.yaml --workers 2 -o results/mechanisms_30km
-    python docs/scripts/mechanism_table.py results/mechanisms results/mechanisms_30km [--data docs/data]
+    hpsim sweep scenarios/mechanism_sweep_30km.yaml --workers 2 -o results/mechanisms_30km   # optional, 30 km
+    python docs/scripts/mechanism_table.py results/mechanisms [results/mechanisms_30km] [--data docs/data]
 
 Writes <data>/mileage_prediction.csv (per axle: surface, oil and gas end temperatures, rise, dh and dN
 with their weighing bands, for the uncompensated and the compensated drive) and
@@ -22,7 +22,8 @@ import numpy as np
 from vehicle.runs.summary import report
 
 # case -> (mechanism, what was varied, reference case). The CG height acts only through an
-# acceleration, so its cases drive the variable speed and compare with it.
+# acceleration, so its cases drive the variable speed and compare with it. A baseline reference is
+# the baseline driven as far as the case (106 km: `baseline`, 30 km: `baseline_30km`).
 CASES = {
     "baseline": ("baseline", "constant 20 km/h, all axles alike, nominal priors", None),
     "speed_variable": ("speed profile", "random 5-40 km/h, trip average 20 km/h (mileage_106km_variable_speed.yaml)", "baseline"),
@@ -64,8 +65,13 @@ def main(argv=None):
     args = ap.parse_args(argv)
     folders, data = [Path(f) for f in args.results], Path(args.data)
     data.mkdir(parents=True, exist_ok=True)
-    reps = {c: report(f / f"{c}.h5") for f in folders for c in CASES if (f / f"{c}.h5").exists()}
-    reps = {c: r for c, r in reps.items() if r["complete"]}
+    reps = {}
+    for f in folders:          # a case found in several folders: the first folder's complete run
+        for c in CASES:
+            if c not in reps and (f / f"{c}.h5").exists():
+                r = report(f / f"{c}.h5")
+                if r["complete"]:
+                    reps[c] = r
     missing = [c for c in CASES if c not in reps]
     if missing:
         print("missing or unfinished cases:", ", ".join(missing))
@@ -109,12 +115,17 @@ def main(argv=None):
                "distance_km": round(reps[c]["distance_km"], 3),
                "mean_rise_K": m["mean_rise_K"], "rise_spread_K": m["rise_spread_K"], "dN_spread_pp": m["dN_spread_pp"],
                "load_shift_pct": m["load_shift_pct"]}
+        if ref in ("baseline", "baseline_30km"):   # the baseline driven as far as this case
+            same = [b for b in ("baseline", "baseline_30km")
+                    if b in reps and abs(reps[b]["distance_km"] - reps[c]["distance_km"]) < 1e-3]
+            ref = same[0] if same else None
         if ref and ref in M:
             row["d_mean_rise_K"] = m["mean_rise_K"] - M[ref]["mean_rise_K"]
             row["d_rise_spread_K"] = m["rise_spread_K"] - M[ref]["rise_spread_K"]
             row["d_dN_spread_pp"] = m["dN_spread_pp"] - M[ref]["dN_spread_pp"]
         else:
             row["d_mean_rise_K"] = row["d_rise_spread_K"] = row["d_dN_spread_pp"] = 0.0
+        row["reference"] = ref or ""
         for k in range(4):
             row[f"rise_K_axle{k + 1}"] = m["rise_K"][k]
         for k in range(4):
