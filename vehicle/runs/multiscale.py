@@ -188,6 +188,22 @@ def slow_rate_jacobian(model):
     return fn
 
 
+def window_forcings(A: np.ndarray, r: np.ndarray, xbar: np.ndarray, x_ref: np.ndarray | None = None) -> np.ndarray:
+    """Each window's slow rates carried to one reference slow state by the window's own linearisation:
+        b_k = r_k + A_k (x_ref - xbar_k)          (A: (nw, ns, ns), r and xbar: (nw, ns); x_ref: mean of xbar)
+    what window k's road would drive at x_ref. The windows stand at different slow states (the struts heat by
+    ~30 K over the drive) and the slow rates depend on them non-linearly (the oil film coefficient and the
+    valves' dissipation with the oil's viscosity: the apc's oil-to-wall conductance doubles from the cold start
+    to the warm strut), so r_k - Abar xbar_k (one mean Jacobian) leaves the state dependence's curvature in the
+    windows' scatter, which is not the road's; b_k is exact to first order about each window's own state
+    (the error is the curvature times (x_ref - xbar_k)^2 / 2). A linear model (A_k = A) gives r_k - A xbar_k
+    plus a constant: the same scatter as before."""
+    A, r, xbar = np.asarray(A, float), np.asarray(r, float), np.asarray(xbar, float)
+    if x_ref is None:
+        x_ref = xbar.mean(axis=0)
+    return r + np.einsum("kij,kj->ki", A, x_ref[None, :] - xbar)
+
+
 def _propagators(A: np.ndarray, b: np.ndarray, tau: float):
     """(e^{A tau}, int_0^tau e^{A s} ds b, int_0^tau e^{A s} ds) by one augmented matrix exponential."""
     n = A.shape[0]
@@ -542,7 +558,7 @@ class MultiscaleDrive(Drive):
         flow = _LinearFlow(A_mean)
         st, qst = self.slow_station, self.cv_quad_station
         t = np.array([w["t_avg0"] for w in records])
-        Y = np.array([w["r"] - A_mean @ w["xbar"] for w in records])
+        Y = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records])
         PW = np.array([self._per_component(w["p_win"], st) for w in records])
         tu = np.array([w["tw"] + w["tau"] for w in records])
 
@@ -587,7 +603,7 @@ class MultiscaleDrive(Drive):
         nw = len(records)
         A_mean = np.mean([w["A"] for w in records], axis=0)
         flow = _LinearFlow(A_mean)
-        B = np.array([w["r"] - A_mean @ w["xbar"] for w in records])
+        B = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records])
         # the sampling error is the scatter about the forcing's slow drift along the drive (each gap follows its
         # own window, so a drift is followed): residuals of a straight line in time, 2 degrees of freedom
         t = np.array([w["t_avg0"] for w in records])
