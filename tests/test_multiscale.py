@@ -236,3 +236,46 @@ def test_weighted_layout_ends_with_the_drive():
     assert all(a >= e - 1e-9 for a, e in zip(starts, ends[:-1]))
     assert all(b - a == pytest.approx(430.0) for a, b in out)
     assert len(out) == 15
+
+
+def test_window_forcings_take_out_the_state_dependence_window_by_window():
+    """Each window's slow rates carried to one state by the window's own Jacobian (`window_forcings`).
+    (1) Exact to first order: with a curved state dependence the remainder is the curvature's f''/2 (x - x_ref)^2.
+    (2) The apc's oil-to-wall exchange h_k (T_oil - T_wall): the film coefficient h_k grows with the road's
+    stroking (real forcing) and multiplies a slow state that differs from window to window. With one mean
+    Jacobian the windows' forcings keep (h_k - hbar) x_k, a product of the road and the state that no road
+    proxy explains; carried by each window's own Jacobian they are road_k - h_k x_ref, a function of the road
+    alone: a proxy linear in the road explains them exactly (zero residuals of `control_variate`).
+    (3) A linear model (one A) gives r - A xbar plus a constant: the same scatter as before."""
+    from vehicle.runs.multiscale import control_variate, window_forcings
+
+    # (1) rate f(x) = road - k0 (1 + c x) x  (x: K above a reference)
+    k0, c, road = 0.02, 0.01, 0.3
+    x = np.linspace(0.0, 30.0, 9)[:, None]
+    r = road - k0 * (1 + c * x) * x
+    A = (-k0 * (1 + 2 * c * x))[:, :, None]
+    b = window_forcings(A, r, x)
+    x_ref = x.mean()
+    remainder = k0 * c * (x - x_ref) ** 2                   # f(x) + f'(x) (x_ref - x) - f(x_ref) = -f''/2 (.)^2
+    assert np.allclose(b - (road - k0 * (1 + c * x_ref) * x_ref), remainder)
+    # (2) road power and exchange coefficient both linear in a proxy p; the windows at scattered states x_k
+    rng = np.random.default_rng(1)
+    nw = 12
+    p = rng.uniform(0.5, 1.5, nw)
+    P, h = 0.05 * p, 0.01 * (1 + 0.4 * p)
+    xk = 9.0 + rng.normal(0.0, 2.0, nw)
+    r = (P - h * xk)[:, None]
+    A = (-h)[:, None, None]
+    t = np.arange(nw, dtype=float)
+    new = window_forcings(A, r, xk[:, None])
+    old = r - xk[:, None] * A.mean(axis=0)[0, 0]
+    res_new = control_variate(new, p[:, None], p[:, None], t)[2]
+    res_old = control_variate(old, p[:, None], p[:, None], t)[2]
+    assert np.max(np.abs(res_new)) < 1e-12 * np.max(np.abs(new))
+    assert np.std(res_old) > 1e-3 * np.std(old)
+    # (3) a linear model: the old forcing plus a constant
+    A_lin = np.broadcast_to(np.array([[[-0.02, 0.01], [0.005, -0.01]]]), (9, 2, 2))
+    X2 = np.column_stack([x[:, 0], 0.5 * x[:, 0] + 3.0])
+    R2 = np.random.default_rng(0).normal(size=(9, 2)) + X2 @ A_lin[0].T
+    d = window_forcings(A_lin, R2, X2) - (R2 - X2 @ A_lin[0].T)
+    assert np.allclose(d, d[0], atol=1e-12)
