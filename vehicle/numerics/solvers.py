@@ -44,30 +44,57 @@ def sparse_lu(A: ca.SX):
     elimination order keeps the fill inside the hull block (arrowhead structure).
     Returns a function that solves A x = b for SX b.
     """
-    n = A.size1()
-    sp = A.sparsity()
-    rows = [dict() for _ in range(n)]
-    colind, row = sp.colind(), sp.row()
-    for j in range(n):
-        for k in range(colind[j], colind[j + 1]):
-            rows[row[k]][j] = A.nz[k]
-    lower = [dict() for _ in range(n)]
-    for k in range(n):
-        pivot_row = rows[k]
-        pivot = pivot_row.get(k)
-        if pivot is None:
-            raise ValueError(f"structurally zero pivot at {k}")
-        for i in range(k + 1, n):
-            if k not in rows[i]:
-                continue
-            l = rows[i].pop(k) / pivot
-            lower[i][k] = l
-            for j, a in pivot_row.items():
-                if j > k:
-                    rows[i][j] = rows[i][j] - l * a if j in rows[i] else -l * a
-    upper = rows
+    return SparseLU(A).solve
 
-    def solve(b):
+
+class SparseLU:
+    """The factors of `sparse_lu` with their structure: `values` (SX vector of the nonzeros of L, of the strict
+    upper part of U and the reciprocals of the pivots, in a fixed order) and `solve(b, values=None)`, which solves with these factors or
+    with any vector of the same layout (a factorisation made at another step: Jacobian/LU reuse)."""
+
+    def __init__(self, A: ca.SX):
+        n = self.n = A.size1()
+        sp = A.sparsity()
+        rows = [dict() for _ in range(n)]
+        colind, row = sp.colind(), sp.row()
+        for j in range(n):
+            for k in range(colind[j], colind[j + 1]):
+                rows[row[k]][j] = A.nz[k]
+        lower = [dict() for _ in range(n)]
+        for k in range(n):
+            pivot_row = rows[k]
+            pivot = pivot_row.get(k)
+            if pivot is None:
+                raise ValueError(f"structurally zero pivot at {k}")
+            for i in range(k + 1, n):
+                if k not in rows[i]:
+                    continue
+                l = rows[i].pop(k) / pivot
+                lower[i][k] = l
+                for j, a in pivot_row.items():
+                    if j > k:
+                        rows[i][j] = rows[i][j] - l * a if j in rows[i] else -l * a
+        self.lower, self.upper = lower, rows
+        # the layout of `values`: L by rows, the strict upper part of U by rows, then the pivots
+        self.lower_keys = [(i, k) for i in range(n) for k in lower[i]]
+        self.upper_keys = [(i, j) for i in range(n) for j in self.upper[i] if j > i]
+        self.values = ca.vertcat(*[lower[i][k] for i, k in self.lower_keys],
+                                 *[self.upper[i][j] for i, j in self.upper_keys],
+                                 *[1.0 / self.upper[i][i] for i in range(n)])
+
+    def solve(self, b, values=None):
+        n = self.n
+        if values is None:
+            lower, upper = self.lower, self.upper
+        else:
+            nl, nu = len(self.lower_keys), len(self.upper_keys)
+            lower = [dict() for _ in range(n)]
+            upper = [dict() for _ in range(n)]
+            for q, (i, k) in enumerate(self.lower_keys):
+                lower[i][k] = values[q]
+            for q, (i, j) in enumerate(self.upper_keys):
+                upper[i][j] = values[nl + q]
+            inverse_pivots = [values[nl + nu + i] for i in range(n)]
         y = [b[i] for i in range(n)]
         for i in range(n):
             for k, l in lower[i].items():
@@ -78,10 +105,8 @@ def sparse_lu(A: ca.SX):
             for j, a in upper[i].items():
                 if j > i:
                     acc = acc - a * xs[j]
-            xs[i] = acc / upper[i][i]
+            xs[i] = acc / upper[i][i] if values is None else acc * inverse_pivots[i]
         return ca.vertcat(*xs)
-
-    return solve
 
 
 def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.Function:
@@ -133,70 +158,135 @@ class Ros2:
     parameters (viscosity law coefficients, reciprocals of masses, ...) are lifted out of the step
     by `casadi.extract_parametric` and evaluated once per call, so a parameter change reuses the
     compiled library and costs no speed per step.
+
+    jacobian_every: the stiff Jacobian and the LU factors of W are computed at every
+    `jacobian_every`-th step and reused by the steps in between (the steps of one output sample are
+    counted from its start, so a sample always starts with a fresh W). ROS2 is a W-method: it keeps
+    order 2 for any W, so only the error constant and the damping of the stiff modes change, not the
+    order (tests/test_engine.py checks both on a drive). 1 (the default): a fresh W at every step.
+
+    engine="baseline": the engine as it was when issue 11 was filed (commit 18a58c4), on the current
+    model, for benchmarks/engine.py only: the parameter values baked into the code as constants (the
+    compiled function then serves one parameter set; only the run parameters are an input), no common
+    subexpression elimination, the K steps of a sample folded (`Function.fold`) with the run parameters
+    repeated for every step, and the block outputs evaluated in CasADi's virtual machine (the drive's
+    `legacy_outputs`). Same method, same results to rounding.
     """
 
     name = "ros2"
+    ENGINES = ("current", "baseline")
 
-    def __init__(self, dt: float = 0.004, *, compile: bool = True):
+    def __init__(self, dt: float = 0.004, *, compile: bool = True, jacobian_every: int = 1,
+                 engine: str = "current"):
+        if engine not in self.ENGINES:
+            raise ValueError(f"Ros2 engine: {engine!r}, expected one of {self.ENGINES}")
+        if int(jacobian_every) < 1:
+            raise ValueError(f"Ros2 jacobian_every: must be >= 1, got {jacobian_every}")
+        if engine == "baseline" and int(jacobian_every) != 1:
+            raise ValueError("Ros2: the baseline engine computes W at every step (jacobian_every=1)")
         self.dt = float(dt)
         self.compile = compile
+        self.jacobian_every = int(jacobian_every)
+        self.engine = engine
         self.memory = None
         self.build_s = 0.0
 
+    @property
+    def legacy_outputs(self) -> bool:
+        """The drive evaluates the block outputs the way the baseline engine did (CasADi's virtual machine)."""
+        return self.engine == "baseline"
+
     def describe(self) -> dict:
-        return {"solver": self.name, "dt_s": self.dt, "compiled": self.compile}
+        d = {"solver": self.name, "dt_s": self.dt, "compiled": self.compile}
+        if self.jacobian_every != 1:
+            d["jacobian_every"] = self.jacobian_every
+        if self.engine != "current":
+            d["engine"] = self.engine
+        return d
 
     def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Ros2":
         """Build (or fetch from the caches) the compiled block function for this model's structure."""
         self.K, self.M = int(steps_per_sample), int(samples_per_call)
         self.nx, self.nmem = model.nx, model.n_memory
-        key = (model.structure, self.dt, self.K, self.M, self.compile)
+        key = (model.structure, self.dt, self.K, self.M, self.compile, min(self.jacobian_every, self.K), self.engine)
+        if self.engine == "baseline":        # the parameter values are in the code
+            key += (model.parameters.numeric().tobytes(),)
         t0 = time.perf_counter()
         fn = _BLOCK_FUNCTIONS.get(key)
         if fn is None:
-            fn = self._build(model)
+            fn = self._build_baseline(model) if self.engine == "baseline" else self._build(model)
             _BLOCK_FUNCTIONS[key] = fn
         self.fn = fn
         self.memory = model.initial_memory()
         self.build_s = time.perf_counter() - t0
         return self
 
+    def _stages(self, model, x, mem, u0, u1, p, lu_values=None):
+        """One ROS2 step from (x, mem): (x_next, mem_next, LU factor values). With `lu_values` the step solves
+        with those factors (a W made at an earlier step) instead of building J and W here."""
+        ns = model.n_stiff
+        h = self.dt
+        f0, _ = model.ode_function(x, mem, u0, p)
+        if lu_values is None:
+            # W only needs the stiff physics (any W keeps order 2)
+            J = model.jacobian_function(x, mem, u0, p)
+            lu = SparseLU(ca.SX.eye(ns) - GAMMA * h * J)
+            values = lu.values
+
+            def solve_stiff(b):
+                return lu.solve(b)
+        else:
+            values = lu_values
+
+            def solve_stiff(b):
+                return self._lu_structure.solve(b, lu_values)
+
+        def solve(b):
+            return ca.vertcat(solve_stiff(b[:ns]), b[ns:])
+
+        k1 = solve(f0)
+        f1, mem1 = model.ode_function(x + h * k1, mem, u1, p)
+        k2 = solve(f1 - 2.0 * k1)
+        # the warm starts of the eliminated valves for the next step: this step's last stage
+        return x + 1.5 * h * k1 + 0.5 * h * k2, mem1, values
+
     def _build(self, model) -> ca.Function:
         nx, nu, np_, ns, nm = model.nx, model.nu, model.np, model.n_stiff, model.n_memory
-        f = model.ode_function
-        jac = model.jacobian_function
         x = ca.SX.sym("x", nx)
         mem = ca.SX.sym("mem", nm)
         u0 = ca.SX.sym("u0", nu)
         u1 = ca.SX.sym("u1", nu)
         p = ca.SX.sym("p", np_)
-        h = self.dt
-        f0, _ = f(x, mem, u0, p)
-        # W only needs the stiff physics (any W keeps order 2)
-        J = jac(x, mem, u0, p)
-        W = ca.SX.eye(ns) - GAMMA * h * J
-        lu_solve = sparse_lu(W)
-
-        def solve(b):
-            return ca.vertcat(lu_solve(b[:ns]), b[ns:])
-
-        k1 = solve(f0)
-        f1, mem1 = f(x + h * k1, mem, u1, p)
-        k2 = solve(f1 - 2.0 * k1)
-        x_next = x + 1.5 * h * k1 + 0.5 * h * k2
-        # the warm starts of the eliminated valves for the next step: this step's last stage
         z = ca.vertcat(x, mem)
-        raw = ca.Function("ros2_step_raw", [z, u0, u1, p], [ca.vertcat(x_next, mem1)])
+        every = min(self.jacobian_every, self.K)
+        x_next, mem1, lu_values = self._stages(model, x, mem, u0, u1, p)
+        outs = [ca.vertcat(x_next, mem1)]
+        if every > 1:
+            # the structure of the factors (symbolic pattern of W): the reusing step reads them from an input
+            self._lu_structure = SparseLU(ca.SX.eye(ns) - GAMMA * self.dt
+                                          * model.jacobian_function(x, mem, u0, p))
+            F = ca.SX.sym("lu", lu_values.numel())
+            x_reuse, mem_reuse, _ = self._stages(model, x, mem, u0, u1, p, lu_values=F)
+            outs += [lu_values, ca.vertcat(x_reuse, mem_reuse)]
+            raw = ca.Function("ros2_step_raw", [z, u0, u1, p, F], outs)
+        else:
+            raw = ca.Function("ros2_step_raw", [z, u0, u1, p], outs)
         raw = divisions_as_reciprocals(raw, parameter_inputs={3})
-        z, u0, u1, p = raw.sx_in()
+        args = raw.sx_in()
+        z, u0, u1, p = args[:4]
         # merge repeated subexpressions (the eight stations share one strut's parameter symbols, and
         # f, its Jacobian and the two stages rebuild the same terms): 16.0k -> 10.5k instructions per
         # step, exact up to rounding order; then lift what depends on the parameters only out of the
         # step: computed once per call
-        z_ret, w_syms, w_exprs = ca.extract_parametric(ca.cse(raw(z, u0, u1, p)), p)
+        res = raw.call(args)
+        sizes = [r.numel() for r in res]
+        z_ret, w_syms, w_exprs = ca.extract_parametric(ca.cse(ca.vertcat(*res)), p)
+        parts = ca.vertsplit(z_ret, [int(v) for v in np.cumsum([0] + sizes)])
         w = ca.vertcat(*w_syms) if w_syms else ca.SX(0, 1)
         nz = nx + nm
-        step = ca.Function("ros2_step", [z, u0, u1, ca.vertcat(p, w)], [z_ret])
+        step = ca.Function("ros2_step", [z, u0, u1, ca.vertcat(p, w)], parts[:2] if every > 1 else parts[:1])
+        if every > 1:
+            reuse = ca.Function("ros2_step_reuse", [z, u0, u1, ca.vertcat(p, w), args[4]], [parts[2]])
         parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(p, *w_exprs)])
         # K steps -> one sample, unrolled by hand so that every step reads the same parameter
         # vector: neither carried through the loop's accumulator (a load and a store of every
@@ -207,8 +297,14 @@ class Ros2:
         PW = ca.MX.sym("pw", npw)
         u0_cols, u1_cols = ca.horzsplit(U0k), ca.horzsplit(U1k)
         zk = zs
+        lu = None
         for k in range(self.K):
-            zk = step(zk, u0_cols[k], u1_cols[k], PW)
+            if every == 1:
+                zk = step(zk, u0_cols[k], u1_cols[k], PW)
+            elif k % every == 0:
+                zk, lu = step(zk, u0_cols[k], u1_cols[k], PW)
+            else:
+                zk = reuse(zk, u0_cols[k], u1_cols[k], PW, lu)
         sample = ca.Function("ros2_sample", [zs, U0k, U1k, PW], [zk])
         # then M samples per call (the parameter vector repeated M times: once per sample, not per step)
         block = sample.mapaccum("ros2_block", self.M)
@@ -217,13 +313,38 @@ class Ros2:
         P = ca.MX.sym("p", np_)
         n = self.K * self.M
         out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(parametric(P), 1, self.M))
-        fn = ca.Function(f"hpsim_ros2_{model.structure}_{self.K}x{self.M}", [Z0, U, P], [out])
+        tag = "" if every == 1 else f"_j{every}"
+        fn = ca.Function(f"hpsim_ros2_{model.structure}_{self.K}x{self.M}{tag}", [Z0, U, P], [out])
+        return compile_function(fn) if self.compile else fn
+
+    def _build_baseline(self, model) -> ca.Function:
+        """The block function of commit 18a58c4 on this model (see the class docstring)."""
+        nx, nu, np_, nm, n_run = model.nx, model.nu, model.np, model.n_memory, model.n_run
+        x = ca.SX.sym("x", nx)
+        mem = ca.SX.sym("mem", nm)
+        u0 = ca.SX.sym("u0", nu)
+        u1 = ca.SX.sym("u1", nu)
+        p_run = ca.SX.sym("p_run", n_run)
+        # the parameter values as constants: SX folds the arithmetic on them while the step is built
+        p = ca.vertcat(p_run, ca.DM(model.parameters.numeric()))
+        x_next, mem1, _ = self._stages(model, x, mem, u0, u1, p)
+        step = ca.Function("ros2_step", [ca.vertcat(x, mem), u0, u1, p_run], [ca.vertcat(x_next, mem1)])
+        # K steps -> one sample (inputs per step as columns), then M samples per call
+        sample = step.fold(self.K)
+        block = sample.mapaccum("ros2_block", self.M)
+        Z0 = ca.MX.sym("z0", nx + nm)
+        U = ca.MX.sym("U", nu, self.K * self.M + 1)
+        P = ca.MX.sym("p", np_)
+        n = self.K * self.M
+        out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(P[:n_run], 1, n))
+        fn = ca.Function(f"hpsim_ros2_baseline_{model.structure}_{self.K}x{self.M}", [Z0, U, P], [out])
         return compile_function(fn) if self.compile else fn
 
     def refined(self, model, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, bound for one output sample (factor*K steps):
         the second run of a step-doubling error estimate (vehicle.numerics.error_estimate)."""
-        return type(self)(self.dt / factor, compile=self.compile).bind(model, self.K * factor, 1)
+        return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
+                          engine=self.engine).bind(model, self.K * factor, 1)
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         """States at the M sample instants (nx, M) from x0 and the inputs U (nu, K*M+1) at every step."""
@@ -239,7 +360,8 @@ class Ros2:
         self.memory = np.asarray(memory, float).reshape(self.nmem).copy()
 
 
-# compiled block functions of this process by (model structure, dt, K, M, compile): a sweep, a
+# compiled block functions of this process by (model structure, dt, K, M, compile, ...), and the compiled
+# block outputs by ("outputs", structure, n, compile): a sweep, a
 # calibration or a notebook that changes parameters reuses them (the compile cache on disk serves
 # other processes)
 _BLOCK_FUNCTIONS: dict = {}
@@ -303,3 +425,21 @@ class Idas:
 
 
 SOLVERS = {"ros2": Ros2, "idas": Idas}
+
+
+def compiled_outputs(model, n: int, compile: bool = True) -> ca.Function:
+    """The model's outputs y(x, memory, u, p) (`VehicleModel.output_function_ode`) at n samples in one compiled call:
+    (X (nx, n), memory (n_memory, n), U (nu, n), p (np, 1)) -> (outputs, hull accelerations, axle heights), each
+    with n columns. Cached per model structure and n (in this process; on disk by `compile_function`): a drive
+    evaluates its block outputs with it instead of in CasADi's virtual machine (same results to rounding)."""
+    key = ("outputs", model.structure, int(n), compile)
+    fn = _BLOCK_FUNCTIONS.get(key)
+    if fn is None:
+        y = model.output_function_ode()
+        X, MEM = ca.MX.sym("X", model.nx, n), ca.MX.sym("memory", model.n_memory, n)
+        U, P = ca.MX.sym("U", model.nu, n), ca.MX.sym("p", model.np)
+        outs = y.map(n)(X, MEM, U, ca.repmat(P, 1, n))
+        fn = ca.Function(f"hpsim_outputs_{model.structure}_{n}", [X, MEM, U, P], list(outs))
+        fn = compile_function(fn) if compile else fn
+        _BLOCK_FUNCTIONS[key] = fn
+    return fn

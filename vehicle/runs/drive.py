@@ -24,7 +24,7 @@ from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.numerics.error_estimate import StepDoublingEstimate
-from vehicle.numerics.solvers import Ros2
+from vehicle.numerics.solvers import Ros2, compiled_outputs
 from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
 
 
@@ -120,6 +120,11 @@ class Drive:
         self.M = int(settings.samples_per_block)
         self.solver = (solver or Ros2(settings.dt_s)).bind(model, self.K, self.M)
         self.outputs = model.output_function_ode()
+        # the block outputs in one compiled call per block (the samples of a full block); the baseline engine of
+        # the benchmarks (solver.legacy_outputs) and an uncompiled solver keep CasADi's virtual machine
+        self.compiled_outputs = None
+        if getattr(self.solver, "compile", False) and not getattr(self.solver, "legacy_outputs", False):
+            self.compiled_outputs = compiled_outputs(model, self.M)
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
         self.build_s = time.perf_counter() - t0
@@ -345,8 +350,11 @@ class Drive:
     def _block_outputs(self, X, U, t, s, memory) -> dict:
         m = self.model
         n = X.shape[1]
-        Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
-                                              np.repeat(self.p[:, None], n, axis=1))
+        if self.compiled_outputs is not None and n == self.M:
+            Y, acc, heights = self.compiled_outputs(X, np.broadcast_to(memory, (m.n_memory, n)), U, self.p)
+        else:
+            Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
+                                                  np.repeat(self.p[:, None], n, axis=1))
         outs = m.split_outputs(np.asarray(Y))
         block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[m.input_index["speed"]],
                  "longitudinal_acceleration_m_per_s2": U[m.input_index["acceleration"]],
