@@ -12,6 +12,8 @@ UTF-8 only, at most MAX_TEXT_FILE_BYTES, and errors never quote the file's conte
 """
 from __future__ import annotations
 
+import copy
+import functools
 import reprlib
 from pathlib import Path
 from typing import Annotated, Any, ClassVar
@@ -133,7 +135,16 @@ class _StrictSafeLoader(yaml.SafeLoader):
 
 
 def parse_yaml(text: str, name: str) -> Any:
-    """Parse YAML text safely; errors name `name`:line:column and never quote the text."""
+    """Parse YAML text safely; errors name `name`:line:column and never quote the text.
+
+    The parsed documents of this process are cached by their text (a run reads the strut file once per axle and
+    again for the results; the strict loader is pure Python, ~50 ms a file): each call returns its own deep copy,
+    so callers may change what they get."""
+    return copy.deepcopy(_parse_yaml_cached(text, name))
+
+
+@functools.lru_cache(maxsize=64)
+def _parse_yaml_cached(text: str, name: str) -> Any:
     try:
         return yaml.load(text, Loader=_StrictSafeLoader)
     except yaml.YAMLError as exc:

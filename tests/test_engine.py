@@ -54,24 +54,25 @@ def test_the_baseline_engine_gives_the_current_engines_drive_to_rounding(model_a
 
 def test_jacobian_reuse_stays_within_the_step_error_and_converges_with_the_step(model_and_road):
     """W made every 5th step and reused in between (Ros2(jacobian_every=5)) over 100 m of class D road (stick-slip
-    seal friction at every reversal): against a 1 ms exact-W reference its error in the dissipated heat and in the
-    final deflections is of the size of the exact-W run's own error at the same step (within 2x), and falls with the
-    step like a second-order method's (4 ms -> 2 ms: at least 2.5x); the states stay finite (stable)."""
+    seal friction at every reversal), against a 1 ms exact-W reference: its errors in the final strut temperatures
+    and deflections are of the size of the exact-W run's own error at the same step (within 2x), and fall with the
+    step like a second-order method's (4 ms -> 2 ms: at least 2.5x; measured 4.8x and 4x, exact W 7x and 6x); the
+    states stay finite (stable). (The dissipated heat of one strut is not compared: over 18 s the friction and valve
+    events make it chaotic at the percent level, whatever the step.)"""
     model, road = model_and_road
     dist = 100.0
     x_ref, d = _run(model, road, Ros2(0.001), dist)
-    heat_ref = d._heat(x_ref)
 
     def errors(x):
-        heat = np.max(np.abs(d._heat(x) - heat_ref) / heat_ref)
         defl = model.strut_deflections(np.stack([x, x_ref], axis=1))
-        return heat, np.max(np.abs(defl[:, 0] - defl[:, 1]))
+        return np.max(np.abs(x[d.T_index] - x_ref[d.T_index])), np.max(np.abs(defl[:, 0] - defl[:, 1]))
 
     err = {}
     for dt in (0.004, 0.002):
         for every in (1, 5):
             x, _ = _run(model, road, Ros2(dt, jacobian_every=every), dist)
             err[dt, every] = errors(x)
-    for q in range(2):                      # heat, deflection
-        assert err[0.004, 5][q] < 2.0 * err[0.004, 1][q] + (1e-4 if q == 0 else 1e-6)
+    assert err[0.004, 1][0] > 1e-4          # the 4 ms error is measurable (temperature)
+    for q in range(2):                      # temperature, deflection
+        assert err[0.004, 5][q] < 2.0 * err[0.004, 1][q]
         assert err[0.002, 5][q] < err[0.004, 5][q] / 2.5
