@@ -90,6 +90,16 @@ class Layout:
         return len(self.names)
 
 
+class _NamedRows:
+    """Rows of a state array by state name, looked up on access (a view for `station_motion`)."""
+
+    def __init__(self, X, layout: Layout):
+        self.X, self.layout = X, layout
+
+    def __getitem__(self, name: str):
+        return self.X[self.layout.index(name)]
+
+
 class VehicleModel:
     def __init__(self, params: VehicleParams, ride_metrics: bool = True):
         self.params = params
@@ -265,7 +275,7 @@ class VehicleModel:
     def strut_deflections(self, X) -> np.ndarray:
         """Strut deflections [m] from state vectors X (nx, ...) -> (n_stations, ...)."""
         X = np.asarray(X)
-        named = {nm: X[k] for k, nm in enumerate(self.layout.names)}
+        named = _NamedRows(X, self.layout)           # only the rows station_motion reads (called once per block)
         return np.array([self.station_motion(named, i)[0] for i in range(self.n)])
 
     @cached_property
