@@ -133,7 +133,13 @@ def main(argv=None):
             r["max_load_error_pp"] = float(np.max(np.abs(np.subtract(r["dN_pct"], ref["dN_pct"]))))
     if args.json:
         print(json.dumps(out, indent=2))
-        return
+    else:
+        report(out)
+
+
+def report(out: dict) -> None:
+    """The table of a run (also from its --json output: `report(json.load(...))`)."""
+    setup_s = out["setup_s"]
     print(f"{out['distance_km']:.6g} km at {out['dt_ms']:g} ms, apc_8x8 ISO D 20 km/h; scenario/model/road set-up "
           f"{setup_s:.1f} s (shared); ratios = baseline / engine, one process")
     print(f"  {'engine':12s} {'build s':>8s} {'wall s':>8s} {'integ s':>8s} {'us/step':>8s} {'(median)':>8s} "
