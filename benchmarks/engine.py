@@ -13,7 +13,8 @@ at --dt (4 ms) on the same model, road and settings:
   current_jK   Ros2(jacobian_every=K) for each K > 1 of --jacobian-every: W and its LU made every K steps;
   reference    Ros2() at --reference-dt (1 ms): the step error is second order, 16x below the 4 ms one.
 Per engine: the build (symbolic step, code generation, compilation; cold cache unless --warm-cache), the drive's
-wall time (Drive.run: integration plus the per-block work in Python), the integration time alone, the cost of one
+wall time (Drive.run: integration plus the per-block work in Python; the engines' drives run block by block in
+turn, so that the machine's load weighs on all alike), the integration time alone, the cost of one
 step (us/step: the compiled block function on one block of inputs, repeated --repeats times interleaved over the
 engines, minimum and median), and the accuracy against the reference: per axle (mean of left and right) the final
 strut surface temperature [K] and the standing wheel-load change before -> after the drive [pp], largest error over
@@ -44,13 +45,62 @@ def scenario_text(distance: str, dt: str) -> str:
                            "solver": {"dt": dt}, "output": {"interval": "1 s", "stats_interval": "1 km"}})
 
 
-def drive_once(prep, model, road, solver) -> tuple[dict, object]:
+def build_drive(prep, model, road, solver):
     from vehicle.runs.drive import Drive
 
     t0 = time.perf_counter()
     drive = Drive(model, road, prep.settings(), solver=solver)
-    build = time.perf_counter() - t0
-    res = drive.run()
+    return drive, time.perf_counter() - t0
+
+
+def run_lockstep(drives: dict) -> dict:
+    """Run the drives block by block in turn (one thread each, one running at a time, handing over after every
+    block through the drive's progress callback), so that a change of the machine's load in the minutes a long
+    drive takes weighs on every engine alike. Returns name -> (DriveResult, wall seconds of its own turns)."""
+    import threading
+
+    names = list(drives)
+    cond = threading.Condition()
+    state = {"turn": names[0]}
+    done, spent, started, results = set(), {n: 0.0 for n in names}, {}, {}
+
+    def hand_over(n):
+        i = names.index(n)
+        for k in range(1, len(names) + 1):
+            if names[(i + k) % len(names)] not in done:
+                state["turn"] = names[(i + k) % len(names)]
+                break
+        cond.notify_all()
+
+    def worker(n):
+        def progress(*_):
+            with cond:
+                spent[n] += time.perf_counter() - started[n]
+                hand_over(n)
+                cond.wait_for(lambda: state["turn"] == n)
+                started[n] = time.perf_counter()
+
+        with cond:
+            cond.wait_for(lambda: state["turn"] == n)
+            started[n] = time.perf_counter()
+        try:
+            results[n] = drives[n].run(progress=progress)
+        finally:
+            with cond:
+                spent[n] += time.perf_counter() - started[n]
+                done.add(n)
+                hand_over(n)
+
+    threads = [threading.Thread(target=worker, args=(n,)) for n in names]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return {n: (results[n], spent[n]) for n in names}
+
+
+def summarize(drive, res, build: float, wall: float) -> dict:
+    model, solver = drive.model, drive.solver
     before = drive.initial_equilibrium()
     ax = np.array([model.params.station_axle(i) for i in range(model.n)])
 
@@ -60,13 +110,13 @@ def drive_once(prep, model, road, solver) -> tuple[dict, object]:
 
     N0, N1 = axle_mean(before.wheel_loads_N), axle_mean(res.after.wheel_loads_N)
     steps = res.state.t_s / solver.dt
-    out = {"build_s": build, "wall_s": res.wall_s, "integration_s": res.integration_s, "steps": steps,
+    out = {"build_s": build, "wall_s": wall, "integration_s": res.integration_s, "steps": steps,
            "drive_us_per_step": res.integration_s / steps * 1e6,
            "T_end_K": axle_mean(res.state.x[drive.T_index]).tolist(),
            "dN_pct": (100.0 * (N1 - N0) / N0).tolist()}
     if res.solver_error:
         out["error_estimate"] = res.solver_error.get("solver_error_estimate")
-    return out, drive
+    return out
 
 
 def step_cost(drives: dict, repeats: int) -> dict:
@@ -113,14 +163,18 @@ def main(argv=None):
     for k in (int(v) for v in args.jacobian_every.split(",")):
         engines["current" if k == 1 else f"current_j{k}"] = Ros2(dt, jacobian_every=k)
     out = {"distance_km": prep.scenario.distance / 1e3, "dt_ms": dt * 1e3, "setup_s": setup_s, "engines": {}}
-    drives = {}
+    drives, builds = {}, {}
     for name, solver in engines.items():
-        out["engines"][name], drives[name] = drive_once(prep, model, road, solver)
+        drives[name], builds[name] = build_drive(prep, model, road, solver)
+    for name, (res, wall) in run_lockstep(drives).items():
+        out["engines"][name] = summarize(drives[name], res, builds[name], wall)
     for name, cost in step_cost(drives, args.repeats).items():
         out["engines"][name].update(cost)
     if not args.no_reference:
         ref_dt = parse_quantity(args.reference_dt, "s", where="--reference-dt")
-        out["reference"], _ = drive_once(prep, model, road, Ros2(ref_dt))
+        ref_drive, ref_build = build_drive(prep, model, road, Ros2(ref_dt))
+        ref_res = ref_drive.run()
+        out["reference"] = summarize(ref_drive, ref_res, ref_build, ref_res.wall_s)
         out["reference"]["solver"] = f"ROS2 at {ref_dt * 1e3:g} ms"
     base = out["engines"]["baseline"]
     for name, r in out["engines"].items():
