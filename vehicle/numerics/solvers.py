@@ -2,10 +2,13 @@
 
 `Ros2` (the production solver): a fixed-step linearly implicit Rosenbrock-W method,
 ROS2 of Verwer, Spee, Blom & Hundsdorfer (1999, SIAM J. Sci. Comput. 20(4)):
-    W = I - gamma h J,  gamma = 1 + 1/sqrt(2)
+    W = I - gamma h J,  gamma = 1 - 1/sqrt(2)
     W k1 = f(t_n, y_n)
     W k2 = f(t_n + h, y_n + h k1) - 2 k1
     y_n+1 = y_n + 3/2 h k1 + 1/2 h k2
+The family is L-stable for gamma = 1 +- 1/sqrt(2) (the z^2 term of its stability function's
+numerator, 1/2 - 2 gamma + gamma^2, vanishes); Verwer et al. take the larger root, this engine the
+smaller (docs/physics.md uses it for the stage overshoot of an under-resolved mode, 1/gamma - 1).
 It is second order for *any* W (a W-method), so J only needs the stiff part of the Jacobian:
 the wheel stations, the strut internal states and the hull (seal friction and valves make
 them stiff). Slow states (temperatures, levelling, energy quadratures) get W = I, i.e. the
