@@ -104,6 +104,11 @@ def main(argv=None):
     ap.add_argument("--spacing", default=None, help="multiscale spacing (default: 5 km, or distance/5)")
     ap.add_argument("--warm-up", default="50m")
     ap.add_argument("--no-control-variate", action="store_true", help="multiscale without the road-proxy regression")
+    ap.add_argument("--road-seed", type=int, default=None, help="the road's random seed (overrides the scenario's)")
+    ap.add_argument("--full-cache", default=None,
+                    help="JSON file of the full run's result: read if it exists (the full run skipped), else written "
+                         "after the run (compare multiscale settings against one full run; same scenario and seed)")
+    ap.add_argument("--proxy", default=None, help="multiscale control-variate proxy (solver.proxy)")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--warm-cache", action="store_true")
     args = ap.parse_args(argv)
@@ -113,13 +118,26 @@ def main(argv=None):
         os.environ["HPSIM_CACHE"] = tempfile.mkdtemp(prefix="hpsim_bench_")
     base_dir = str(Path(args.scenario).resolve().parent) if args.scenario else "."
     data = scenario_data(args)
+    if args.road_seed is not None:
+        data["road"] = {**data.get("road", {}), "seed": args.road_seed}
     distance = parse_quantity(data["distance"], "m", where="distance")
     window = args.window or (f"{max(50.0, min(500.0, distance / 25)):.0f} m")
     spacing = args.spacing or (f"{min(5000.0, distance / 5):.0f} m")
     out = {"distance_km": distance / 1e3}
-    out["full"] = run(data, base_dir)
+    cache = Path(args.full_cache) if args.full_cache else None
+    if cache is not None and cache.exists():
+        cached = json.loads(cache.read_text())
+        if cached.get("scenario") != data:
+            sys.exit(f"{cache}: the cached full run is of another scenario or road seed")
+        out["full"] = cached["full"]
+        out["full_cached"] = str(cache)
+    else:
+        out["full"] = run(data, base_dir)
+        if cache is not None:
+            cache.write_text(json.dumps({"scenario": data, "full": out["full"]}, indent=1))
     ms_data = {**data, "solver": {**data["solver"], "mode": "multiscale", "window": window, "spacing": spacing,
-                                  "warm_up": args.warm_up, "control_variate": not args.no_control_variate}}
+                                  "warm_up": args.warm_up, "control_variate": not args.no_control_variate,
+                                  **({"proxy": args.proxy} if args.proxy else {})}}
     out["multiscale"] = run(ms_data, base_dir)
     out["multiscale"]["layout"] = {"window": window, "spacing": spacing, "warm_up": args.warm_up}
     if not args.no_reference:

@@ -51,10 +51,27 @@ def pair():
     return _run({}), _run(MULTISCALE)
 
 
+@pytest.fixture(scope="module")
+def road_rate_run():
+    return _run({**MULTISCALE, "proxy": "road_rate"})
+
+
+def test_multiscale_with_the_road_rate_proxy_matches_the_full_run_within_its_stated_error(pair, road_rate_run):
+    (_, full), _ = pair
+    _, ms = road_rate_run
+    est = ms["estimated_error"]
+    assert est["control_variate"] and est["proxy"] == "road_rate"
+    for a_full, a_ms, eT, eN in zip(full["axles"], ms["axles"], est["T_end_K"], est["dN_pct"]):
+        assert abs(a_ms["T_end_C"] - a_full["T_end_C"]) <= eT, (a_ms, a_full, eT)
+        assert abs(a_ms["dN_pct"] - a_full["dN_pct"]) <= eN, (a_ms, a_full, eN)
+        assert 0 < eT < 0.2 * (a_full["T_end_C"] - a_full["T_start_C"])
+
+
 def test_multiscale_matches_the_full_run_within_its_stated_error(pair):
     (full_sink, full), (ms_sink, ms) = pair
     assert full["solver_mode"] == "full" and ms["solver_mode"] == "multiscale"
     est = ms["estimated_error"]
+    assert est["proxy"] == "linear_model"                     # the default proxy
     # 5 windows: the road-proxy control variate is on (Student t with 5 - 3 = 2 degrees of freedom: 4.3)
     assert est["windows"] == 5 and est["control_variate"] and est["sigmas"] > 4.0
     # it drove less than half the road with the full model
@@ -115,6 +132,8 @@ def _scenario(tmp_path, solver: str):
     ("{mode: multiscale, placement: everywhere}", "solver.placement", ["systematic", "stratified"]),
     ("{mode: multiscale, control_variate: maybe}", "solver.control_variate", ["boolean", "maybe"]),
     ("{control_variate: false}", "solver", ["only with mode: multiscale"]),
+    ("{mode: multiscale, proxy: linear}", "solver.proxy", ["'road_rate'", "'linear_model'", "linear"]),
+    ("{proxy: road_rate}", "solver", ["only with mode: multiscale"]),
 ])
 def test_bad_multiscale_keys_exit_2(tmp_path, capsys, solver, key, words):
     path = _scenario(tmp_path, solver)
@@ -279,3 +298,53 @@ def test_window_forcings_take_out_the_state_dependence_window_by_window():
     R2 = np.random.default_rng(0).normal(size=(9, 2)) + X2 @ A_lin[0].T
     d = window_forcings(A_lin, R2, X2) - (R2 - X2 @ A_lin[0].T)
     assert np.allclose(d, d[0], atol=1e-12)
+
+
+def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehicle():
+    """The linear-model proxy's strut velocities (`linear_strut_velocity`: FFT of the road under each tyre times
+    the linearised vehicle's transfer functions, interpolated) against a direct time-domain simulation of the same
+    state-space model (scipy.signal.lsim on a fine grid, road heights and rates given analytically, from rest):
+    the mean square velocity of each strut over a stretch (the proxy of a window) agrees within 1 %, and the
+    velocities themselves sample by sample. The road: independent smooth random signals under each tyre, tapered
+    in and out so that both start and end at rest (the FFT's periodic signal is then the simulated one)."""
+    from scipy.signal import StateSpace, lsim
+
+    from vehicle.physics import linear
+    from vehicle.physics.params import load_vehicle
+    from vehicle.runs.multiscale import MultiscaleSettings, linear_strut_velocity
+
+    lin = linear.linearise(load_vehicle("apc_8x8"), None,
+                           friction_velocity_m_s=MultiscaleSettings.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
+    n = lin.model.n
+    rate = MultiscaleSettings.LINEAR_PROXY_RATE_HZ
+    rng = np.random.default_rng(7)
+    f = rng.uniform(0.3, 9.0, (n, 40))                    # Hz: body modes to wheel hop
+    amp = rng.uniform(0.2, 1.0, (n, 40)) * 1e-2 / f       # m: a rougher road at low frequency
+    ph = rng.uniform(0, 2 * np.pi, (n, 40))
+    T_sig, T_tail, ramp = 60.0, 30.0, 5.0
+
+    def road(t):
+        """heights and rates (n, len(t)) of the tapered sums of sines (zero outside [0, T_sig])"""
+        w = np.clip(np.minimum(t, T_sig - t) / ramp, 0.0, 1.0)
+        wt = 0.5 - 0.5 * np.cos(np.pi * w)
+        dwt = np.where((w > 0) & (w < 1), 0.5 * np.pi * np.sin(np.pi * w) / ramp
+                       * np.where(t < T_sig / 2, 1.0, -1.0), 0.0)
+        arg = 2 * np.pi * f[:, :, None] * t + ph[:, :, None]
+        s = np.sum(amp[:, :, None] * np.sin(arg), axis=1)
+        ds = np.sum(amp[:, :, None] * 2 * np.pi * f[:, :, None] * np.cos(arg), axis=1)
+        return wt * s, dwt * s + wt * ds
+
+    t_c = np.arange(0.0, T_sig + T_tail, 1.0 / rate)
+    v_fft = linear_strut_velocity(lambda fr: linear.strut_velocity_response(lin, fr), road(t_c)[0], rate,
+                                  MultiscaleSettings.LINEAR_PROXY_FREQUENCIES)
+    t_f = np.arange(0.0, T_sig + T_tail, 1.0 / (16 * rate))
+    r, dr = road(t_f)
+    sys_ = StateSpace(lin.A, np.hstack([lin.B_road, lin.B_rate]), lin.C_velocity,
+                      np.hstack([lin.D_velocity_road, lin.D_velocity_rate]))
+    _, v_sim, _ = lsim(sys_, np.vstack([r, dr]).T, t_f)
+    v_sim = v_sim[::16].T                                  # on the proxy's grid
+    stretch = (t_c > 15.0) & (t_c < 45.0)                  # a "window" inside the steady part
+    ms_fft, ms_sim = np.mean(v_fft[:, stretch] ** 2, axis=1), np.mean(v_sim[:, stretch] ** 2, axis=1)
+    assert np.all(ms_sim > 1e-6)                           # the struts do move (mm/s and more)
+    assert ms_fft == pytest.approx(ms_sim, rel=0.01)
+    assert np.max(np.abs(v_fft - v_sim)) < 0.01 * np.max(np.abs(v_sim))

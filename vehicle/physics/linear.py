@@ -69,6 +69,9 @@ class LinearVehicle:
     static_wheel_loads_N: np.ndarray
     friction_velocity_m_s: float | None
     notes: list[str] = field(default_factory=list)
+    C_velocity: np.ndarray | None = None          # strut velocity (compression positive, as the model's output
+    D_velocity_road: np.ndarray | None = None     # `strut_velocity`): (n_stations, n_states), (n_stations, n_stations)
+    D_velocity_rate: np.ndarray | None = None
 
     def index(self, name: str) -> int:
         return self.states.index(name)
@@ -104,8 +107,10 @@ def mechanical_states(model: VehicleModel) -> list[str]:
     return names + list(HULL) + list(HULL_RATES)
 
 
-def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray):
-    """(df/dx, df/du, dy_tyre/dx, dy_tyre/du, f) at (x0, u0) for run parameters p.
+def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray,
+                     output: str = "wheel_load"):
+    """(df/dx, df/du, dy/dx, dy/du, f) at (x0, u0) for run parameters p; y: the per-station output `output`
+    (one of VehicleModel.OUTPUT_NAMES, default the tyre load).
 
     The one place that calls the model's CasADi functions: the DAE form `dae_functions`
     (f(x, z, u, p), g(x, z, u, p) = 0, y(x, z, u, p)), its algebraic valve pressure drops z
@@ -116,7 +121,7 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     f, g, y = model.dae_functions
     x, z, u = ca.SX.sym("x", model.nx), ca.SX.sym("z", model.nz), ca.SX.sym("u", model.nu)
     dx, res, outputs = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
-    j = list(model.OUTPUT_NAMES).index("wheel_load")
+    j = list(model.OUTPUT_NAMES).index(output)
     tyre = outputs[j * model.n:(j + 1) * model.n]
     J = ca.Function("J", [x, z, u], [ca.jacobian(dx, x), ca.jacobian(dx, z), ca.jacobian(dx, u),
                                      ca.jacobian(tyre, x), ca.jacobian(tyre, z), ca.jacobian(tyre, u),
@@ -151,6 +156,7 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
     p = model.run_parameters(gas_masses, False)
     A, B, C, D, rates = _model_jacobians(model, x0, u0, p)
+    _, _, Cv, Dv, _ = _model_jacobians(model, x0, u0, p, "strut_velocity")
     names = mechanical_states(model)
     keep = [model.idx(nm) for nm in names]
     residual = np.max(np.abs(rates[keep]))
@@ -170,7 +176,8 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     return LinearVehicle(model=model, states=names, A=A[np.ix_(keep, keep)], B_road=B[keep, road],
                          B_rate=B[keep, rate], C_tyre=C[:, keep], D_tyre_road=D[:, road], D_tyre_rate=D[:, rate],
                          temperatures_K=T, static_wheel_loads_N=np.asarray(eq.wheel_loads_N, float),
-                         friction_velocity_m_s=friction_velocity_m_s, notes=notes)
+                         friction_velocity_m_s=friction_velocity_m_s, notes=notes, C_velocity=Cv[:, keep],
+                         D_velocity_road=Dv[:, road], D_velocity_rate=Dv[:, rate])
 
 
 # --- modes -----------------------------------------------------------------------------------------
@@ -249,6 +256,22 @@ def frequency_response(lin: LinearVehicle, road_weights, f_hz) -> dict:
              for st in lin.model.params.seats}
     return {"f_hz": f, "heave_acc": heave, "pitch_acc": pitch, "roll_acc": roll, "seat_acc": seats,
             "tyre_load": tyre}
+
+
+def strut_velocity_response(lin: LinearVehicle, f_hz) -> np.ndarray:
+    """H (n_f, n_stations, n_stations): strut velocity at station i per unit road height [m/s / m] under station
+    j alone (its height and its rate j w times it), H(s) = C_v (s I - A)^-1 (B_road + s B_rate) + D_road + s D_rate.
+    The stations' own road inputs carry the wheelbase delays and the two tracks (a drive's road under each
+    tyre); by the eigen-decomposition of A (one solve per mode, not per frequency)."""
+    f = np.atleast_1d(np.asarray(f_hz, float))
+    s = 2j * math.pi * f
+    lam, V = np.linalg.eig(lin.A)
+    CV = lin.C_velocity @ V                                     # (n, m)
+    Vi = np.linalg.inv(V)
+    Br, Bd = Vi @ lin.B_road, Vi @ lin.B_rate                   # (m, n)
+    g = 1.0 / (s[:, None] - lam[None, :])                       # (n_f, m)
+    H = np.einsum("im,fm,mj->fij", CV, g, Br) + np.einsum("im,fm,mj->fij", CV, g * s[:, None], Bd)
+    return H + lin.D_velocity_road[None] + s[:, None, None] * lin.D_velocity_rate[None]
 
 
 def axle_road_weights(lin: LinearVehicle, axle: int) -> np.ndarray:

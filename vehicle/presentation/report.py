@@ -41,7 +41,7 @@ def format_report(rep: dict) -> str:
         tail.append(f"solver mode multiscale: {est['windows']} windows of {est['window_m']:.0f} m, one per "
                     f"{est['spacing_m'] / 1e3:.3g} km ({est['covered_km']:.3g} km driven with the full model); "
                     f"estimated error (95 %, {est['sigmas']:.2g} sigma, road sampling"
-                    f"{', with the road-proxy control variate' if est.get('control_variate') else ''}): T end "
+                    f"{', with the control variate on the ' + est.get('proxy', 'road_rate').replace('_', '-') + ' proxy' if est.get('control_variate') else ''}): T end "
                     + ", ".join("-" if x is None else f"{x:.2f}" for x in est["T_end_K"]) + " K, dN "
                     + ", ".join("-" if x is None else f"{x:.3f}" for x in est["dN_pct"])
                     + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp)")

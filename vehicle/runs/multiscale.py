@@ -132,6 +132,8 @@ class MultiscaleSettings:
     #                                  (at the start of each stratum) or "stratified" (random in it)
     seed: int = 0                    # of the stratified placement
     control_variate: bool = True     # regression on the road proxy (`road_proxy`, `control_variate`)
+    proxy: str = "linear_model"      # the control variate's proxy: "linear_model" (the linearised vehicle's squared
+    #                                  strut velocity) or "road_rate" (the band-passed road rate under each tyre)
 
     WEIGHT_FLOOR = 0.15      # weighted placement: share of the window density that stays uniform
     # the road proxy of the control variate: the mean square road rate under each tyre in the band where a strut's
@@ -139,6 +141,17 @@ class MultiscaleSettings:
     # the variance of the estimate depends on it (a poor proxy gives beta ~ 0, the plain estimate); on the 106 km
     # test it explains ~80 % of the windows' dissipation scatter (R^2 0.70-0.89 per strut, 500 m windows)
     PROXY_BAND_HZ = (1.0, 10.0)
+    PROXIES = ("road_rate", "linear_model")
+    # the linear-model proxy (`linear_strut_velocity`): the vehicle linearised at its standing equilibrium with the
+    # seal friction replaced by its describing-function damping at this strut velocity amplitude (prior: 0.1 m/s,
+    # plausible 0.03-0.3 m/s: the order of the apc struts' RMS velocity on class D at 20 km/h; the default of
+    # `hpsim vehicle response`), the struts' velocities computed on a grid of this rate (prior: 25 Hz, the Nyquist
+    # frequency 12.5 Hz above the wheel hop at ~8 Hz; the tyre's envelope filters the road above) and the transfer
+    # functions on this many frequencies up to the Nyquist frequency, interpolated (smooth: the narrowest resonance,
+    # pitch at 0.9 Hz with a damping ratio 0.18, is 0.3 Hz wide, ~25 points)
+    LINEAR_PROXY_FRICTION_VELOCITY_M_S = 0.1
+    LINEAR_PROXY_RATE_HZ = 25.0
+    LINEAR_PROXY_FREQUENCIES = 1001
 
     def weighted_windows(self, distance_m: float, first_end_m: float, tau_s: float, t_of_s, s_of_t,
                          t_total_s: float) -> list[tuple[float, float]]:
@@ -280,6 +293,29 @@ def band_power_cumulative(slope: np.ndarray, spacing_m: float, speed_m_s: np.nda
     return c
 
 
+def linear_strut_velocity(H_of_f, roads: np.ndarray, rate_hz: float, n_frequencies: int) -> np.ndarray:
+    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights `roads` (n, N) [m]
+    under each tyre sampled at rate_hz (their delays, the wheelbase and the two tracks, are in the signals):
+    V_i(f) = sum_j H_ij(f) R_j(f) by the FFT (H_of_f(f) -> (n_f, n, n), `linear.strut_velocity_response`, on
+    n_frequencies points up to rate_hz / 2, interpolated). The signals are taken periodic: the caller pads them
+    (the vehicle's memory: seconds). Parseval: the time-domain variance of the result equals the FFT sum of
+    |V(f)|^2 (tests/test_multiscale.py checks it against a time-domain simulation of the same linear model)."""
+    from scipy.fft import irfft, next_fast_len, rfft
+
+    n, N = roads.shape
+    L = next_fast_len(N, real=True)
+    R = rfft(roads - roads.mean(axis=1, keepdims=True), n=L, axis=1)          # (n, L//2+1)
+    f = np.fft.rfftfreq(L, 1.0 / rate_hz)
+    fc = np.linspace(0.0, rate_hz / 2, n_frequencies)
+    Hc = H_of_f(fc)                                                            # (nc, n, n)
+    V = np.zeros_like(R)
+    for i in range(n):
+        for j in range(n):
+            h = np.interp(f, fc, Hc[:, i, j].real) + 1j * np.interp(f, fc, Hc[:, i, j].imag)
+            V[i] += h * R[j]
+    return irfft(V, n=L, axis=1)[:, :N]
+
+
 def _on_grid(c: np.ndarray, spacing_m: float, s_m: float) -> float:
     """c (on a uniform grid from 0) linearly interpolated at s, held at its ends."""
     x = min(max(s_m / spacing_m, 0.0), c.size - 1.0)
@@ -324,6 +360,7 @@ class MultiscaleDrive(Drive):
     """A Drive that integrates windows of the road with the full model and the slow states between them."""
 
     mode = MODE
+    MIN_CV_WINDOWS = 5      # the control variate needs a few residual degrees of freedom (windows less 3)
 
     def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):
         super().__init__(model, road, settings, **kw)
@@ -374,13 +411,45 @@ class MultiscaleDrive(Drive):
         return S
 
     # --- the road proxy of the control variate ------------------------------------------------------
+    def _linear_proxy_setup(self):
+        """The linear-model proxy: each station's squared strut velocity of the linearised vehicle
+        (`vehicle.physics.linear`, equivalent-linear friction at LINEAR_PROXY_FRICTION_VELOCITY_M_S, at the drive's
+        initial strut temperatures) driven by the whole road under all tyres (`linear_strut_velocity`), its time
+        integral cumulated on the time grid: the mean over a stretch is (C(t1) - C(t0)) / (t1 - t0)."""
+        from vehicle.physics import linear
+
+        m, ms = self.model, self.ms
+        t0 = time.perf_counter()
+        T0 = self.initial_state().x[self.T_oil_index]
+        lin = linear.linearise(m.params, T0, friction_velocity_m_s=ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
+        t_end = float(np.interp(self.settings.distance_m, self.s_grid, self.t_grid))
+        pad = 30.0                                    # s of road before and after (the linear vehicle's memory)
+        t = np.arange(-pad, t_end + pad, 1.0 / ms.LINEAR_PROXY_RATE_HZ)
+        s = np.interp(t, self.t_grid, self.s_grid, left=0.0)
+        roads = np.empty((m.n, t.size))
+        for i in range(m.n):
+            track = "left" if i % 2 == 0 else "right"
+            roads[i] = self.station_roads[i].evaluate(s - m.a[i], track, pass_index=m.params.station_axle(i))[0]
+        v = linear_strut_velocity(lambda f: linear.strut_velocity_response(lin, f), roads, ms.LINEAR_PROXY_RATE_HZ,
+                                  ms.LINEAR_PROXY_FREQUENCIES)
+        c = np.concatenate([np.zeros((m.n, 1)), np.cumsum(0.5 * (v[:, 1:] ** 2 + v[:, :-1] ** 2), axis=1)
+                            / ms.LINEAR_PROXY_RATE_HZ], axis=1)
+        self._proxy_t = (t, c)
+        self.proxy_setup_s = time.perf_counter() - t0
+
     def _proxy_setup(self):
         """Per station: the cumulative band-passed squared road rate of the road it reads (`band_power_cumulative`,
-        once per distinct surface), and which station each slow state and dissipated energy belongs to."""
+        once per distinct surface), or the linear model's squared strut velocity (`_linear_proxy_setup`), and which
+        station each slow state and dissipated energy belongs to."""
         m = self.model
         names = m.layout.names
         self._proxy_c, cache = [], {}
-        for i in range(m.n):
+        self._proxy_t = None
+        t0 = time.perf_counter()
+        n_windows = int(np.ceil(self.settings.distance_m / self.ms.spacing_m - 1e-9))
+        if self.ms.control_variate and self.ms.proxy == "linear_model" and n_windows >= self.MIN_CV_WINDOWS:
+            self._linear_proxy_setup()
+        for i in range(m.n if self._proxy_t is None else 0):
             road = self.station_roads[i]
             track, pas = ("left" if i % 2 == 0 else "right"), m.params.station_axle(i)
             z = road.heights(track, pas)
@@ -399,12 +468,17 @@ class MultiscaleDrive(Drive):
         self.cv_quad = np.array([j for j in self.ext_index
                                  if names[j].split("[")[0] in [f"E_{e}" for e in DISSIPATION_TERMS] + ["I_v2"]], int)
         self.cv_quad_station = np.array([station(j) for j in self.cv_quad], int)
+        self.proxy_setup_s = time.perf_counter() - t0
 
     def proxy(self, s0_m: float, s1_m: float) -> np.ndarray:
         """Mean of each station's road proxy over the drive from s0 to s1 (time mean; 0 for an empty stretch)."""
         dt = self._time_at(s1_m) - self._time_at(s0_m)
         if dt <= 0:
             return np.zeros(self.model.n)
+        if self._proxy_t is not None:
+            tg, c = self._proxy_t
+            t0, t1 = self._time_at(s0_m), self._time_at(s1_m)
+            return np.array([np.interp(t1, tg, ci) - np.interp(t0, tg, ci) for ci in c]) / dt
         out = np.empty(self.model.n)
         for i, (h, c) in enumerate(self._proxy_c):
             a = float(self.model.a[i])
@@ -540,7 +614,7 @@ class MultiscaleDrive(Drive):
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
         cv = None
-        if self.ms.control_variate and len(records) >= 5:
+        if self.ms.control_variate and len(records) >= self.MIN_CV_WINDOWS:
             cv = self._control_variate(records, t_total)
             x = x.copy()
             x[self.slow_index] += cv["dx_slow"]
@@ -713,6 +787,7 @@ class MultiscaleDrive(Drive):
                  "multiscale_warm_up_m": float(ms.warm_up_m), "multiscale_placement": ms.placement,
                  "multiscale_covered_km": float(e.get("covered_m", 0.0)) / 1e3,
                  "multiscale_control_variate": bool(e.get("control_variate", False)),
+                 "multiscale_proxy": ms.proxy if e.get("control_variate", False) else "none",
                  "estimated_error_sigmas": float(e.get("sigmas", np.nan)),
                  "estimated_error_coverage": ERROR_COVERAGE}
         if e:

@@ -43,7 +43,7 @@ DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSetti
 # multiscale window layout (solver.window, .spacing, .warm_up): a window must hold some seconds of ride
 # (50 m: 9 s at 20 km/h); at most the longest drive
 MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
-MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control_variate")
+MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control_variate", "proxy")
 MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
 TOLERANCE_RANGE = (1e-4, 1.0)                 # solver.tolerance: 0.01 .. 100 % relative error of the strut heat
 
@@ -172,6 +172,9 @@ class SolverSpec(Model):
     seed: StrictInt | None = Field(None, ge=0)   # multiscale: of the stratified placement
     # multiscale: regression on a road proxy known for the whole road (variance reduction, default true)
     control_variate: StrictBool | None = None
+    # multiscale: the control variate's proxy of each window's dissipation: linear_model (default: the linearised
+    # vehicle's squared strut velocity under the whole road) or road_rate (the band-passed road rate under each tyre)
+    proxy: Literal["road_rate", "linear_model"] | None = None
     # parallel in time (vehicle.runs.time_parallel): the full drive split into this many segments run in as many
     # processes at once, joined with a correction of the slow states; "auto": one per CPU; 1: serial
     time_parallel: Literal["auto"] | StrictInt | None = None
@@ -236,7 +239,8 @@ class SolverSpec(Model):
 
         return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
                                   placement=self.placement or "weighted", seed=self.seed or 0,
-                                  control_variate=True if self.control_variate is None else self.control_variate)
+                                  control_variate=True if self.control_variate is None else self.control_variate,
+                                  proxy=self.proxy or "linear_model")
 
     @field_validator("tolerance", mode="before")
     @classmethod

@@ -194,7 +194,8 @@ def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
         "window_m": float(summ.get("multiscale_window_m", np.nan)),
         "spacing_m": float(summ.get("multiscale_spacing_m", np.nan)),
         "covered_km": float(summ.get("multiscale_covered_km", np.nan)),
-        "control_variate": bool(summ.get("multiscale_control_variate", False))}
+        "control_variate": bool(summ.get("multiscale_control_variate", False)),
+        "proxy": str(summ.get("multiscale_proxy", "road_rate" if summ.get("multiscale_control_variate") else "none"))}
     return out
 
 
