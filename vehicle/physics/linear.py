@@ -108,9 +108,9 @@ def mechanical_states(model: VehicleModel) -> list[str]:
 
 
 def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray,
-                     output: str = "wheel_load"):
-    """(df/dx, df/du, dy/dx, dy/du, f) at (x0, u0) for run parameters p; y: the per-station output `output`
-    (one of VehicleModel.OUTPUT_NAMES, default the tyre load).
+                     outputs: tuple[str, ...] = ("wheel_load",)):
+    """(df/dx, df/du, [(dy/dx, dy/du) per output], f) at (x0, u0) for run parameters p; y: the per-station
+    outputs `outputs` (names in VehicleModel.OUTPUT_NAMES, default the tyre load).
 
     The one place that calls the model's CasADi functions: the DAE form `dae_functions`
     (f(x, z, u, p), g(x, z, u, p) = 0, y(x, z, u, p)), its algebraic valve pressure drops z
@@ -120,11 +120,14 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     """
     f, g, y = model.dae_functions
     x, z, u = ca.SX.sym("x", model.nx), ca.SX.sym("z", model.nz), ca.SX.sym("u", model.nu)
-    dx, res, outputs = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
-    j = list(model.OUTPUT_NAMES).index(output)
-    tyre = outputs[j * model.n:(j + 1) * model.n]
+    dx, res, out_all = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
+    ys = []
+    for name in outputs:
+        j = list(model.OUTPUT_NAMES).index(name)
+        ys.append(out_all[j * model.n:(j + 1) * model.n])
+    yv = ca.vertcat(*ys)
     J = ca.Function("J", [x, z, u], [ca.jacobian(dx, x), ca.jacobian(dx, z), ca.jacobian(dx, u),
-                                     ca.jacobian(tyre, x), ca.jacobian(tyre, z), ca.jacobian(tyre, u),
+                                     ca.jacobian(yv, x), ca.jacobian(yv, z), ca.jacobian(yv, u),
                                      ca.jacobian(res, x), ca.jacobian(res, z), ca.jacobian(res, u), res, dx])
     z0 = np.zeros(model.nz)
     for _ in range(20):                     # the valve pressure drops at the equilibrium (0 at rest)
@@ -136,17 +139,24 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     if model.nz:
         zx, zu = -np.linalg.solve(gz, gx), -np.linalg.solve(gz, gu)
         fx, fu, yx, yu = fx + fz @ zx, fu + fz @ zu, yx + yz @ zx, yu + yz @ zu
-    return fx, fu, yx, yu, rates.ravel()
+    n = model.n
+    return fx, fu, [(yx[k * n:(k + 1) * n], yu[k * n:(k + 1) * n]) for k in range(len(outputs))], rates.ravel()
 
 
 def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s: float | None = None,
-              speed_m_per_s: float = 0.0) -> LinearVehicle:
+              speed_m_per_s: float = 0.0, gas_masses=None) -> LinearVehicle:
     """The vehicle linearised at its standing equilibrium (struts at `temperatures_K`, default the
-    charging temperature; charged as in a drive). See the module doc for the friction option."""
-    model = VehicleModel(params)
-    gas_masses = charge_gas_masses(model)          # the gas charge does not depend on friction
+    charging temperature; charged as in a drive, or with the given `gas_masses`, a drive's own [kg]).
+    See the module doc for the friction option."""
+    model = None
+    if gas_masses is None:
+        model = VehicleModel(params)
+        gas_masses = charge_gas_masses(model)      # the gas charge does not depend on friction
     if friction_velocity_m_s:
         model = VehicleModel(equivalent_friction_params(params, friction_velocity_m_s))
+    elif model is None:
+        model = VehicleModel(params)
+    gas_masses = np.asarray(gas_masses, float)
     n = model.n
     T = np.full(n, params.charging.temperature) if temperatures_K is None else \
         np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
@@ -155,8 +165,7 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     # standing road, constant speed (no acceleration), ambient = strut temperature: no heat flow
     u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
     p = model.run_parameters(gas_masses, False)
-    A, B, C, D, rates = _model_jacobians(model, x0, u0, p)
-    _, _, Cv, Dv, _ = _model_jacobians(model, x0, u0, p, "strut_velocity")
+    A, B, ((C, D), (Cv, Dv)), rates = _model_jacobians(model, x0, u0, p, ("wheel_load", "strut_velocity"))
     names = mechanical_states(model)
     keep = [model.idx(nm) for nm in names]
     residual = np.max(np.abs(rates[keep]))

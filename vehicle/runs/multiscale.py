@@ -42,18 +42,32 @@ ceil(distance / spacing) windows, the first at the start of the drive; `placemen
   stratified          one window at a random place in each stretch (`seed`).
 
 Control variate (`control_variate: true`, default). The whole road is known before the drive, so a
-cheap proxy of each window's dissipation is known for every stretch: the mean square road rate under
-each tyre (its enveloped profile, its pass) band-passed to where a strut's velocity follows the road
-(`MultiscaleSettings.PROXY_BAND_HZ`). Each slow state's and dissipated energy's window forcing is
+cheap proxy of each window's dissipation is known for every stretch (`proxy`):
+  linear_model (default)  each strut's mean square velocity in the linearised vehicle (vehicle.physics.linear:
+                          the model linearised at its standing equilibrium at the drive's initial temperatures,
+                          the seal friction by its describing-function damping at
+                          `MultiscaleSettings.LINEAR_PROXY_FRICTION_VELOCITY_M_S`) driven by the road under all
+                          eight tyres, with the wheelbase delays and both tracks: V_i(f) = sum_j H_ij(f) R_j(f) by
+                          one FFT of the whole road (`linear_strut_velocity`), the squared velocity cumulated in
+                          time. A strut's velocity depends on the road under the other wheels through pitch and
+                          roll, which a per-wheel road measure does not see;
+  road_rate               the mean square road rate under each tyre (its enveloped profile, its pass) band-passed
+                          to where a strut's velocity follows the road (`MultiscaleSettings.PROXY_BAND_HZ`).
+Each slow state's and dissipated energy's window forcing is
 regressed on its station's proxy (with the intercept and the time trend; the slope pooled over the
 windows as there is one window per stratum) and every stratum's forcing is corrected by the slope
 times the proxy's difference between the stretch and its window (the regression estimate: Cochran,
 Sampling Techniques, 1977, ch. 7; Glasserman, Monte Carlo Methods in Financial Engineering, 2004,
 sec. 4.1; `control_variate`). The correction is carried to the end of the drive by the linear slow
-model. The proxy explains the windows' dissipated power well
-(r = 0.85-0.96 per strut on the 106 km test); of the scatter of the slow states' window forcings
-(`window_forcings`) it explains 50-60 % for the oil temperatures (106 km test, 16 windows of 400 m, road
-seeds 0 and 1).
+model. Both proxies explain the windows' dissipated power well (valve plus friction, r = 0.90-0.96 per strut
+linear_model, 0.87-0.97 road_rate, seed 0; seed 1 0.83-0.95 and 0.59-0.95), and 50-60 % of the scatter of the
+oil temperatures' window forcings (`window_forcings`) alike (106 km test, 16 windows of 400 m, road seeds 0 and
+1). The linear model's residuals are more alike between the stations (it sees the whole vehicle's road): the
+scatter of an axle's oil forcing about the vehicle's mean, which the after-drive load changes follow, is
+~25 % smaller, so the stated load-change error is ~40 % smaller (0.09 against 0.15 pp on that test) and the
+stated temperature error spread more evenly over the axles (largest 0.45 / 0.48 K against 0.53 / 0.67 K).
+Its set-up (linearisation ~0.6 s, FFT of the 106 km road at `LINEAR_PROXY_RATE_HZ` ~0.3 s) is done only for a
+drive of at least MIN_CV_WINDOWS windows.
 
 Window forcings (`window_forcings`). Each window's mean slow rates carried to one reference state x_ref
 (the windows' mean state) by the window's own Jacobian: b_k = r_k + A_k (x_ref - xbar_k), what window k's road
@@ -308,11 +322,13 @@ def linear_strut_velocity(H_of_f, roads: np.ndarray, rate_hz: float, n_frequenci
     f = np.fft.rfftfreq(L, 1.0 / rate_hz)
     fc = np.linspace(0.0, rate_hz / 2, n_frequencies)
     Hc = H_of_f(fc)                                                            # (nc, n, n)
+    x = f / fc[1]                                                              # linear interpolation on fc
+    k = np.minimum(x.astype(np.intp), n_frequencies - 2)
+    w = x - k
     V = np.zeros_like(R)
     for i in range(n):
         for j in range(n):
-            h = np.interp(f, fc, Hc[:, i, j].real) + 1j * np.interp(f, fc, Hc[:, i, j].imag)
-            V[i] += h * R[j]
+            V[i] += (Hc[k, i, j] * (1.0 - w) + Hc[k + 1, i, j] * w) * R[j]
     return irfft(V, n=L, axis=1)[:, :N]
 
 
@@ -421,15 +437,16 @@ class MultiscaleDrive(Drive):
         m, ms = self.model, self.ms
         t0 = time.perf_counter()
         T0 = self.initial_state().x[self.T_oil_index]
-        lin = linear.linearise(m.params, T0, friction_velocity_m_s=ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
+        lin = linear.linearise(m.params, T0, friction_velocity_m_s=ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S,
+                               gas_masses=self.gas_masses)
         t_end = float(np.interp(self.settings.distance_m, self.s_grid, self.t_grid))
         pad = 30.0                                    # s of road before and after (the linear vehicle's memory)
         t = np.arange(-pad, t_end + pad, 1.0 / ms.LINEAR_PROXY_RATE_HZ)
         s = np.interp(t, self.t_grid, self.s_grid, left=0.0)
         roads = np.empty((m.n, t.size))
-        for i in range(m.n):
-            track = "left" if i % 2 == 0 else "right"
-            roads[i] = self.station_roads[i].evaluate(s - m.a[i], track, pass_index=m.params.station_axle(i))[0]
+        for i in range(m.n):              # the grid heights under each tyre, linearly interpolated (held at the ends)
+            road, track = self.station_roads[i], ("left" if i % 2 == 0 else "right")
+            roads[i] = np.interp(s - m.a[i], road.distance_m, road.heights(track, m.params.station_axle(i)))
         v = linear_strut_velocity(lambda f: linear.strut_velocity_response(lin, f), roads, ms.LINEAR_PROXY_RATE_HZ,
                                   ms.LINEAR_PROXY_FREQUENCIES)
         c = np.concatenate([np.zeros((m.n, 1)), np.cumsum(0.5 * (v[:, 1:] ** 2 + v[:, :-1] ** 2), axis=1)
