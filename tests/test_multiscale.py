@@ -348,3 +348,22 @@ def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehic
     assert np.all(ms_sim > 1e-6)                           # the struts do move (mm/s and more)
     assert ms_fft == pytest.approx(ms_sim, rel=0.01)
     assert np.max(np.abs(v_fft - v_sim)) < 0.01 * np.max(np.abs(v_sim))
+
+
+def test_linear_model_proxy_can_match_a_given_rms_strut_velocity():
+    """The optional equivalent linearisation by variance (`_linear_proxy_setup(match)`, off by default): the
+    friction velocity amplitude found gives the linear vehicle the requested RMS strut velocity over the stretch,
+    and a smaller RMS needs a smaller amplitude (more friction damping, c = 4 F_C / (pi V))."""
+    from vehicle.runs.scenario import prepare
+
+    data = {**BASE, "solver": MULTISCALE}
+    _, drive = prepare(read_scenario_text(yaml.safe_dump(data), "ms.yaml", ".")).drive()
+    t_a, t_b = 20.0, 80.0
+    found = {}
+    for target in (0.05, 0.08):
+        drive._linear_proxy_setup((t_a, t_b, target))
+        t, c = drive._proxy_t
+        ms = np.array([np.interp(t_b, t, ci) - np.interp(t_a, t, ci) for ci in c]) / (t_b - t_a)
+        assert np.sqrt(np.mean(ms)) == pytest.approx(target, rel=0.03)
+        found[target] = drive.proxy_friction_velocity_m_s
+    assert found[0.05] < found[0.08]

@@ -111,7 +111,8 @@ class TimeParallelDrive(MultiscaleDrive):
 
     def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
                  warm_up_m: float = 50.0, correct: bool = True, **kw):
-        super().__init__(model, road, settings, coarse or MultiscaleSettings(), **kw)
+        # the coarse propagation keeps the road-rate proxy (its set-up is a fraction of the linear model's)
+        super().__init__(model, road, settings, coarse or MultiscaleSettings(proxy="road_rate"), **kw)
         lo, hi = SEGMENTS_RANGE
         if not lo <= int(segments) <= hi:
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
