@@ -2,6 +2,8 @@
 
     python benchmarks/drive.py --distance 5km [--window 200m --spacing 1km] [--json] [--warm-cache]
     python benchmarks/drive.py --scenario scenarios/mileage_106km.yaml --no-reference
+    python benchmarks/drive.py --scenario scenarios/mileage_106km.yaml --no-reference --road-seed 1 \
+        --full-cache full_seed1.json --proxy road_rate     # the full run once per scenario and seed, then reused
 
 The drive: the apc_8x8 on ISO class D (seed 0) at 20 km/h, 25 degC, struts starting at ambient
 (or the given scenario). Three runs in one process, through the scenario machinery `hpsim run` uses
