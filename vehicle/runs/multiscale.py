@@ -108,7 +108,10 @@ with the control variate) per axle for the temperature and, through the sensitiv
 after-drive equilibrium to the final temperatures and oil volumes, for the wheel-load change. The
 estimate assumes independent windows (windows much longer than the road's correlation length, true
 for ISO 8608 roads) and a stationary road and speed within each stratum: a speed profile that changes
-inside a stratum is an error the estimate does not see (shorter spacing then).
+inside a stratum is an error the estimate does not see (shorter spacing then). Nor does it see the errors that
+are not sampling (the linear slow model across a gap, the restart from rest at each window): on the 106 km test
+(seed 1) ~0.1-0.2 K of the final temperatures stays with 31 and 53 windows and with either proxy, above the
+stated error of those dense layouts (0.13-0.23 K); a stated error below ~0.2 K there understates.
 """
 from __future__ import annotations
 
