@@ -109,9 +109,10 @@ after-drive equilibrium to the final temperatures and oil volumes, for the wheel
 estimate assumes independent windows (windows much longer than the road's correlation length, true
 for ISO 8608 roads) and a stationary road and speed within each stratum: a speed profile that changes
 inside a stratum is an error the estimate does not see (shorter spacing then). Nor does it see the errors that
-are not sampling (the linear slow model across a gap, the restart from rest at each window): on the 106 km test
-(seed 1) ~0.1-0.2 K of the final temperatures stays with 31 and 53 windows and with either proxy, above the
-stated error of those dense layouts (0.13-0.23 K); a stated error below ~0.2 K there understates.
+are not sampling: each window's start transient adds heat a short warm-up does not settle, a bias that grows
+with the number of windows (106 km test, seed 0, 53 windows of 400 m: 0.18-0.24 K too warm with a 30 m warm-up,
+above the stated 0.14-0.17 K; 0.015-0.06 K with 150 m); a stated error below ~0.2 K with 30 m warm-ups
+understates.
 """
 from __future__ import annotations
 
@@ -175,8 +176,8 @@ class MultiscaleSettings:
     # on the 106 km test (400 m every 7 km): V = 0.050 m/s, stated 0.30 / 0.23 K and 0.064 / 0.050 pp (seeds 0 / 1),
     # but seed 1's measured errors (0.23 K on axle 2, 0.20 K on axle 4) then exceed the stated ones: ~0.2 K of that
     # axle's error is there with every proxy (0.20 K road_rate, 0.20 K at V = 0.1 m/s), an error that is not the
-    # road sampling the estimate covers (the slow model across the gaps, the warm-up). Until the estimate holds
-    # it, the tighter proxy would state less than the error
+    # road sampling the estimate covers (see the module doc: the windows' start transient). Until the estimate
+    # holds it, the tighter proxy would state less than the error
     LINEAR_PROXY_MATCH_RMS = False
     LINEAR_PROXY_RATE_HZ = 25.0
     LINEAR_PROXY_FREQUENCIES = 1001
