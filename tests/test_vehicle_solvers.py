@@ -152,6 +152,49 @@ def test_a_parameter_change_reuses_the_compiled_model(monkeypatch):
     assert calls[n0:2 * n0] == calls[:n0] and calls[-1] not in calls[:n0]
 
 
+def test_a_drive_compiles_its_libraries_together(monkeypatch, tmp_path):
+    """From an empty compile cache a drive builds its three libraries (block stepper, the error estimate's
+    half-step stepper, block outputs) in one go, the compilers running at the same time on a machine with two
+    or more cores (about the longest build instead of the sum), and `compile_function` then finds every one of
+    them in the cache. The drive's result is the one of the libraries built one by one."""
+    import os
+    import threading
+    import time
+
+    from vehicle.numerics import codegen
+
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache"))
+    spans, lock = [], threading.Lock()
+    real_build = codegen._build
+
+    def timed_build(*args):
+        t0 = time.perf_counter()
+        try:
+            return real_build(*args)
+        finally:
+            with lock:
+                spans.append((t0, time.perf_counter()))
+    monkeypatch.setattr(codegen, "_build", timed_build)
+    solvers._BLOCK_FUNCTIONS.clear()
+    road = build_road(RoadSpec(iso_class="D", length=60.0, seed=5))
+    m = VehicleModel(load_vehicle("apc_8x8"))
+    settings = dict(distance_m=40.0, speed=SpeedProfile.constant(20 / 3.6))
+    d = Drive(m, road, DriveSettings(**settings))
+    assert len(spans) == 3                                   # built by precompile, none again by compile_function
+    if (os.cpu_count() or 1) >= 2:
+        overlapping = [(i, j) for i in range(3) for j in range(i) if spans[i][0] < spans[j][1] and spans[j][0] < spans[i][1]]
+        assert overlapping, "the compilers ran one after the other"
+    together = d.run().state.x
+    # one by one (compile_function alone, as before precompile existed), into another empty cache
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache2"))
+    monkeypatch.setattr("vehicle.runs.drive.precompile", lambda fns: 0)
+    solvers._BLOCK_FUNCTIONS.clear()
+    alone = Drive(m, road, DriveSettings(**settings)).run().state.x
+    assert len(spans) == 6
+    np.testing.assert_array_equal(together, alone)
+    solvers._BLOCK_FUNCTIONS.clear()          # the other tests use the default cache
+
+
 def test_the_idas_reference_is_a_solver_object_the_drive_accepts():
     """The same Drive runs on IDAS (algebraic valves, adaptive steps) and agrees with the compiled ROS2."""
     road = build_road(RoadSpec(iso_class="D", length=40.0, seed=4))

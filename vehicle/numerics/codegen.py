@@ -208,22 +208,60 @@ def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
     return removed
 
 
+def _compiler() -> str | None:
+    return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
+
+
+def _plan(fn: ca.Function, cc: str, opt_level: str):
+    """(flags, code, code_sha, cache folder, stem) of `fn`'s library: its C and where the cache keeps it."""
+    code = _generate_c(fn)
+    code_sha = hashlib.sha256(code).hexdigest()
+    flags = [opt_level, *COMPILER_FLAGS[1:]]
+    key = hashlib.sha256(code + opt_level.encode() + " ".join(COMPILER_FLAGS).encode() + cc.encode()).hexdigest()[:20]
+    return flags, code, code_sha, cache_dir(), f"{fn.name()}_{key}"
+
+
+def precompile(fns, *, opt_level: str = "-O2") -> int:
+    """Build the libraries of several functions at once, one compiler process each, so that `compile_function`
+    then finds them in the cache; returns how many were built.
+
+    A drive needs two or three libraries (the block stepper, the half-step stepper of its error estimate, the
+    block outputs) of about 5 s of compiler time each: built one after the other they add up, built together
+    they take about the longest one on a machine with that many cores. Only the compilers run in parallel
+    (threads wait on them); the C is generated here, in this thread, as CasADi wants. A failed build is left
+    to `compile_function`, which reports it and falls back to the virtual machine.
+    """
+    cc = _compiler()
+    if cc is None:
+        return 0
+    todo = []
+    for fn in fns:
+        flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
+        if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
+            todo.append((cc, flags, code, code_sha, d, stem))
+    if len(todo) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=min(len(todo), os.cpu_count() or 1)) as pool:
+            list(pool.map(lambda job: _build(*job), todo))
+    elif todo:
+        _build(*todo[0])
+    if todo:
+        evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
+    return len(todo)
+
+
 def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
     """Generate C for `fn`, compile it to a shared library (cached, verified) and load it.
 
     Falls back to CasADi's virtual machine (slower, same results) when no C compiler is found
     or the compilation fails.
     """
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
+    cc = _compiler()
     if cc is None:
         warnings.warn("no C compiler found: running the model in CasADi's virtual machine (slower)")
         return fn
-    code = _generate_c(fn)
-    code_sha = hashlib.sha256(code).hexdigest()
-    flags = [opt_level, *COMPILER_FLAGS[1:]]
-    key = hashlib.sha256(code + opt_level.encode() + " ".join(COMPILER_FLAGS).encode() + cc.encode()).hexdigest()[:20]
-    d = cache_dir()
-    stem = f"{fn.name()}_{key}"
+    flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
         t0 = time.perf_counter()

@@ -207,17 +207,37 @@ class Ros2:
             d["engine"] = self.engine
         return d
 
-    def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Ros2":
-        """Build (or fetch from the caches) the compiled block function for this model's structure."""
-        self.K, self.M = int(steps_per_sample), int(samples_per_call)
-        self.nx, self.nmem = model.nx, model.n_memory
-        key = (model.structure, self.dt, self.K, self.M, self.compile, min(self.jacobian_every, self.K), self.engine)
+    def _key(self, model, K: int, M: int) -> tuple:
+        key = (model.structure, self.dt, K, M, self.compile, min(self.jacobian_every, K), self.engine)
         if self.engine == "baseline":        # the parameter values are in the code
             key += (model.parameters.numeric().tobytes(),)
+        return key
+
+    def block_graph(self, model, steps_per_sample: int, samples_per_call: int) -> ca.Function | None:
+        """The uncompiled block function `bind` would compile for this model (built once per process), or None
+        when this process holds it compiled already or the solver runs uncompiled: what a drive hands to
+        `codegen.precompile` to build its libraries together."""
+        K, M = int(steps_per_sample), int(samples_per_call)
+        key = self._key(model, K, M)
+        if not self.compile or key in _BLOCK_FUNCTIONS:
+            return None
+        if key not in _GRAPHS:
+            self.K, self.M = K, M
+            _GRAPHS[key] = self._build_baseline(model) if self.engine == "baseline" else self._build(model)
+        return _GRAPHS[key]
+
+    def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Ros2":
+        """Build (or fetch from the caches) the compiled block function for this model's structure."""
         t0 = time.perf_counter()
+        self.K, self.M = int(steps_per_sample), int(samples_per_call)
+        self.nx, self.nmem = model.nx, model.n_memory
+        key = self._key(model, self.K, self.M)
         fn = _BLOCK_FUNCTIONS.get(key)
         if fn is None:
-            fn = self._build_baseline(model) if self.engine == "baseline" else self._build(model)
+            graph = _GRAPHS.pop(key, None)
+            if graph is None:
+                graph = self._build_baseline(model) if self.engine == "baseline" else self._build(model)
+            fn = compile_function(graph) if self.compile else graph
             _BLOCK_FUNCTIONS[key] = fn
         self.fn = fn
         self.memory = model.initial_memory()
@@ -317,8 +337,7 @@ class Ros2:
         n = self.K * self.M
         out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(parametric(P), 1, self.M))
         tag = "" if every == 1 else f"_j{every}"
-        fn = ca.Function(f"hpsim_ros2_{model.structure}_{self.K}x{self.M}{tag}", [Z0, U, P], [out])
-        return compile_function(fn) if self.compile else fn
+        return ca.Function(f"hpsim_ros2_{model.structure}_{self.K}x{self.M}{tag}", [Z0, U, P], [out])
 
     def _build_baseline(self, model) -> ca.Function:
         """The block function of commit 18a58c4 on this model (see the class docstring)."""
@@ -340,14 +359,17 @@ class Ros2:
         P = ca.MX.sym("p", np_)
         n = self.K * self.M
         out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(P[:n_run], 1, n))
-        fn = ca.Function(f"hpsim_ros2_baseline_{model.structure}_{self.K}x{self.M}", [Z0, U, P], [out])
-        return compile_function(fn) if self.compile else fn
+        return ca.Function(f"hpsim_ros2_baseline_{model.structure}_{self.K}x{self.M}", [Z0, U, P], [out])
+
+    def refined_solver(self, factor: int) -> "Ros2":
+        """The same solver with the step divided by `factor`, unbound."""
+        return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
+                          engine=self.engine)
 
     def refined(self, model, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, bound for one output sample (factor*K steps):
         the second run of a step-doubling error estimate (vehicle.numerics.error_estimate)."""
-        return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
-                          engine=self.engine).bind(model, self.K * factor, 1)
+        return self.refined_solver(factor).bind(model, self.K * factor, 1)
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         """States at the M sample instants (nx, M) from x0 and the inputs U (nu, K*M+1) at every step."""
@@ -368,6 +390,8 @@ class Ros2:
 # calibration or a notebook that changes parameters reuses them (the compile cache on disk serves
 # other processes)
 _BLOCK_FUNCTIONS: dict = {}
+# uncompiled block functions built for `codegen.precompile` (Ros2.block_graph), until `bind` compiles them
+_GRAPHS: dict = {}
 
 
 class Idas:
@@ -438,11 +462,26 @@ def compiled_outputs(model, n: int, compile: bool = True) -> ca.Function:
     key = ("outputs", model.structure, int(n), compile)
     fn = _BLOCK_FUNCTIONS.get(key)
     if fn is None:
-        y = model.output_function_ode()
-        X, MEM = ca.MX.sym("X", model.nx, n), ca.MX.sym("memory", model.n_memory, n)
-        U, P = ca.MX.sym("U", model.nu, n), ca.MX.sym("p", model.np)
-        outs = y.map(n)(X, MEM, U, ca.repmat(P, 1, n))
-        fn = ca.Function(f"hpsim_outputs_{model.structure}_{n}", [X, MEM, U, P], list(outs))
+        fn = _GRAPHS.pop(key, None) or _outputs_function(model, n)
         fn = compile_function(fn) if compile else fn
         _BLOCK_FUNCTIONS[key] = fn
     return fn
+
+
+def _outputs_function(model, n: int) -> ca.Function:
+    y = model.output_function_ode()
+    X, MEM = ca.MX.sym("X", model.nx, n), ca.MX.sym("memory", model.n_memory, n)
+    U, P = ca.MX.sym("U", model.nu, n), ca.MX.sym("p", model.np)
+    outs = y.map(n)(X, MEM, U, ca.repmat(P, 1, n))
+    return ca.Function(f"hpsim_outputs_{model.structure}_{n}", [X, MEM, U, P], list(outs))
+
+
+def outputs_graph(model, n: int) -> ca.Function | None:
+    """The uncompiled function of `compiled_outputs(model, n)` (for `codegen.precompile`), None when this process
+    holds it compiled already."""
+    key = ("outputs", model.structure, int(n), True)
+    if key in _BLOCK_FUNCTIONS:
+        return None
+    if key not in _GRAPHS:
+        _GRAPHS[key] = _outputs_function(model, n)
+    return _GRAPHS[key]

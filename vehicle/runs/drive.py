@@ -24,7 +24,8 @@ from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.numerics.error_estimate import StepDoublingEstimate
-from vehicle.numerics.solvers import Ros2, compiled_outputs
+from vehicle.numerics.codegen import precompile
+from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
 from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
 
 
@@ -118,13 +119,22 @@ class Drive:
         self.p = model.run_parameters(self.gas_masses, settings.compensation)
         self.K = int(round(settings.output_interval_s / settings.dt_s))
         self.M = int(settings.samples_per_block)
-        self.solver = (solver or Ros2(settings.dt_s)).bind(model, self.K, self.M)
-        self.outputs = model.output_function_ode()
+        solver = solver or Ros2(settings.dt_s)
         # the block outputs in one compiled call per block (the samples of a full block); the baseline engine of
         # the benchmarks (solver.legacy_outputs) and an uncompiled solver keep CasADi's virtual machine
-        self.compiled_outputs = None
-        if getattr(self.solver, "compile", False) and not getattr(self.solver, "legacy_outputs", False):
-            self.compiled_outputs = compiled_outputs(model, self.M)
+        outputs_compiled = getattr(solver, "compile", False) and not getattr(solver, "legacy_outputs", False)
+        estimate = settings.error_check_every > 0 and hasattr(solver, "refined")
+        if hasattr(solver, "block_graph"):
+            # the libraries this drive needs, compiled together (one compiler each) when not in the cache yet
+            graphs = [solver.block_graph(model, self.K, self.M)]
+            if estimate:
+                graphs.append(solver.refined_solver(2).block_graph(model, 2 * self.K, 1))
+            if outputs_compiled:
+                graphs.append(outputs_graph(model, self.M))
+            precompile([g for g in graphs if g is not None])
+        self.solver = solver.bind(model, self.K, self.M)
+        self.outputs = model.output_function_ode()
+        self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
         self.build_s = time.perf_counter() - t0
@@ -153,7 +163,7 @@ class Drive:
         self.heat_index = [model.energy_index[e] for e in DISSIPATION_TERMS]
         self.error_estimate = None
         self._probes = {}
-        if settings.error_check_every > 0 and hasattr(self.solver, "refined"):
+        if estimate:
             self.error_estimate = StepDoublingEstimate(settings.dt_s, settings.tolerance, settings.output_interval_s,
                                                        n, names=[str(s) for s in model.station_names])
             t0 = time.perf_counter()
