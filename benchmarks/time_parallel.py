@@ -1,6 +1,6 @@
 """Parallel in time against the serial run, in one process: wall time and accuracy.
 
-    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--json]
+    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--baseline] [--json]
 
 Two runs of the same scenario into memory (vehicle.runs.results.run_in_memory, what sweeps and UQ use):
   serial         the full drive (compiled ROS2 at the scenario's dt) in this process;
@@ -36,6 +36,8 @@ def main(argv=None):
     ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1] / "scenarios/mileage_106km.yaml"))
     ap.add_argument("--segments", type=int, default=2)
     ap.add_argument("--distance", default=None, help="override the scenario's distance, e.g. '10 km'")
+    ap.add_argument("--baseline", action="store_true",
+                    help="also run the engine of issue 11's filing serially first (Ros2(engine='baseline'), same model)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
 
@@ -63,6 +65,20 @@ def main(argv=None):
         total = time.perf_counter() - t0
         return sink, report_from(sink, src.name), total
 
+    baseline = None
+    if args.baseline:
+        # the engine as it was when issue 11 was filed, on the same model and road, serial, no sink (what a drive
+        # costs without the results file: the serial and parallel runs below write into memory, a small difference)
+        from vehicle.numerics.solvers import Ros2
+        from vehicle.runs.drive import Drive
+        from vehicle.runs.scenario import prepare
+
+        prep = prepare(read_scenario_text(yaml.safe_dump(data), src.name, src.base_dir))
+        model, settings = prep.model(), prep.settings()
+        drive = Drive(model, prep.road(), settings, solver=Ros2(settings.dt_s, engine="baseline"))
+        t0 = time.perf_counter()
+        res_b = drive.run()
+        baseline = {"wall_s": time.perf_counter() - t0, "T_end_C": (res_b.state.x[drive.T_index] - 273.15).tolist()}
     serial, rs, total_s = run({})
     par, rp, total_p = run({"time_parallel": args.segments})
     ss, sp = serial.summary_attrs(), par.summary_attrs()
@@ -88,12 +104,19 @@ def main(argv=None):
            "estimated_error_K": np.asarray(vals.get("estimated_error_axle_temperature", [np.nan]), float).tolist(),
            "estimated_error_pp": np.asarray(vals.get("estimated_error_load_change", [np.nan]), float).tolist(),
            "energy_rel_diff": (rp["energy_dissipated_MJ"] - rs["energy_dissipated_MJ"]) / rs["energy_dissipated_MJ"]}
+    if baseline is not None:
+        out.update(baseline_wall_s=baseline["wall_s"], baseline_vs_serial=baseline["wall_s"] / out["serial_wall_s"],
+                   baseline_vs_parallel=baseline["wall_s"] / out["parallel_wall_s"])
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
     print(f"{src.name}: {out['distance_km']:.4g} km, time-parallel P = {args.segments}")
     print(f"  drive wall: serial {out['serial_wall_s']:.1f} s, time-parallel {out['parallel_wall_s']:.1f} s "
           f"-> {out['speedup']:.2f}x (with model build: {total_s:.1f} s vs {total_p:.1f} s)")
+    if baseline is not None:
+        print(f"  the engine of issue 11's filing, serial, same model: drive wall {out['baseline_wall_s']:.1f} s -> "
+              f"{out['baseline_vs_serial']:.2f}x slower than the serial run, {out['baseline_vs_parallel']:.2f}x slower "
+              f"than the time-parallel one")
     print(f"  CPU: serial run {out['serial_cpu_s']:.1f} s (build included); time-parallel: workers {out['worker_cpu_s']:.1f} s "
           f"in sum + this process {out['parallel_main_cpu_s']:.1f} s (build, coarse prediction "
           f"{out['coarse_s']:.1f} s wall, join and estimate)")
