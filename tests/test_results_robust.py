@@ -265,3 +265,40 @@ def test_links_at_temporary_paths_are_never_followed(work, capsys):
     (d / "linked.h5.lock").symlink_to(victim)
     assert cli.main(["run", str(d / "drive.yaml"), "-o", str(out), "--overwrite", "--no-progress"]) == 2
     assert "symbolic link" in capsys.readouterr().err and victim.read_text() == "precious\n"
+
+
+def test_a_reader_holding_a_new_file_delays_the_run_instead_of_failing_it(tmp_path):
+    """A reader in another process (hpsim report, a notebook) that opens a results file between its creation and
+    the moment the run reopens it to write holds HDF5's file lock: the run waits for it to let go (it used to fail
+    the case with "unable to lock file"), and gives up with the lock error only after its wait."""
+    import time
+
+    from vehicle.runs.results import open_for_append
+    from vehicle.runs.sinks import LIBVER
+
+    path = tmp_path / "run.h5"
+    with h5py.File(path, "x", libver=LIBVER) as f:
+        f.attrs["format"] = "test"
+
+    def reader(hold_s):
+        code = (f"import h5py, sys, time; f = h5py.File({str(path)!r}, 'r'); print('open', flush=True); "
+                f"time.sleep({hold_s}); f.close()")
+        p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+        assert p.stdout.readline().strip() == "open"
+        return p
+
+    p = reader(3.0)
+    with pytest.raises(OSError, match="unable to lock file"):
+        open_for_append(path, wait_s=0.2)
+    p.kill()
+    p.wait()
+    p = reader(0.6)
+    t0 = time.monotonic()
+    f = open_for_append(path, wait_s=10.0)
+    waited = time.monotonic() - t0
+    f.attrs["written"] = 1
+    f.close()
+    p.wait()
+    assert 0.2 < waited < 5.0
+    with h5py.File(path, "r") as f:
+        assert f.attrs["written"] == 1

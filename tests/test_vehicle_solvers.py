@@ -158,23 +158,26 @@ def test_a_drive_compiles_its_libraries_together(monkeypatch, tmp_path):
     or more cores (about the longest build instead of the sum), and `compile_function` then finds every one of
     them in the cache. The drive's result is the one of the libraries built one by one."""
     import os
-    import threading
     import time
 
     from vehicle.numerics import codegen
 
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache"))
-    spans, lock = [], threading.Lock()
-    real_build = codegen._build
+    spans, started = [], {}
+    real_start, real_finish = codegen._start_build, codegen._finish_build
 
-    def timed_build(*args):
-        t0 = time.perf_counter()
+    def start(*args):
+        proc, job = real_start(*args)
+        started[job[-2]] = time.perf_counter()           # by the library's stem
+        return proc, job
+
+    def finish(proc, job):
         try:
-            return real_build(*args)
+            return real_finish(proc, job)
         finally:
-            with lock:
-                spans.append((t0, time.perf_counter()))
-    monkeypatch.setattr(codegen, "_build", timed_build)
+            spans.append((started[job[-2]], time.perf_counter()))
+    monkeypatch.setattr(codegen, "_start_build", start)
+    monkeypatch.setattr(codegen, "_finish_build", finish)
     solvers._BLOCK_FUNCTIONS.clear()
     road = build_road(RoadSpec(iso_class="D", length=60.0, seed=5))
     m = VehicleModel(load_vehicle("apc_8x8"))

@@ -48,6 +48,14 @@ CASES = {
 }
 
 
+
+def write_csv(path, rows: list[dict]) -> None:
+    """The rows as CSV, floats to 4 decimals (the docs' tables are made from these files)."""
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
+
 def case_metrics(rep: dict) -> dict:
     ax = rep["axles"]
     rise = np.array([a["T_end_C"] - a["T_start_C"] for a in ax])
@@ -90,10 +98,7 @@ def main(argv=None):
                          "dN_band_low_pct": a["dN_band_pct"][0], "dN_band_high_pct": a["dN_band_pct"][1],
                          "energy_MJ": a["energy_dissipated_MJ"]})
     if rows:
-        with open(data / "mileage_prediction.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
+        write_csv(data / "mileage_prediction.csv", rows)
         print("| case | axle | T surface end [degC] | T oil end | T gas end | rise [K] | dh [mm] (weighing band) "
               "| dN [%] (weighing band) |")
         print("|---|---|---|---|---|---|---|---|")
@@ -133,10 +138,7 @@ def main(argv=None):
         for k in range(4):
             row[f"dh_mm_axle{k + 1}"] = m["dh_mm"][k]
         out.append(row)
-    with open(data / "mechanism_sensitivity.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(out[0]))
-        w.writeheader()
-        w.writerows({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in out)
+    write_csv(data / "mechanism_sensitivity.csv", out)
     print("| mechanism | case | km | mean rise [K] | rise spread [K] (change) | dN spread [pp] (change) | "
           "rise per axle [K] | dN per axle [%] |")
     print("|---|---|---|---|---|---|---|---|")

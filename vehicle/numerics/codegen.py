@@ -141,20 +141,33 @@ def _generate_c(fn: ca.Function) -> bytes:
         return (Path(tmp) / src_name).read_bytes()
 
 
-def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str) -> str | None:
-    """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
+def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str):
+    """Start compiling `code` into a private build folder of d: (the compiler process, the job)."""
     build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
+    src = build / f"{stem}.c"
+    src.write_bytes(code)
+    # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
+    # it), never the compiler alone (a compiler killed under us used to fall back silently)
+    proc = subprocess.Popen([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    return proc, (cc, flags, code_sha, d, stem, build)
+
+
+def _finish_build(proc, job) -> str | None:
+    """Wait for a started compiler and put its library and record into the cache (atomic renames); None when done,
+    else the compiler's error. The build folder is removed whatever happens; an interrupt kills the compiler."""
+    cc, flags, code_sha, d, stem, build = job
     try:
-        src = build / f"{stem}.c"
-        src.write_bytes(code)
-        # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
-        # it), never the compiler alone (a compiler killed under us used to fall back silently)
-        res = subprocess.run([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
-                             capture_output=True, text=True, start_new_session=True)
-        if res.returncode == -signal.SIGINT:
+        try:
+            _, stderr = proc.communicate()
+        except BaseException:
+            proc.kill()
+            proc.wait()
+            raise
+        if proc.returncode == -signal.SIGINT:
             raise KeyboardInterrupt
-        if res.returncode != 0:
-            return res.stderr.strip()[:300] or f"exit code {res.returncode}"
+        if proc.returncode != 0:
+            return stderr.strip()[:300] or f"exit code {proc.returncode}"
         built = build / f"{stem}.so"
         meta = {"c_sha256": code_sha, "library_sha256": _sha256_file(built), "library_bytes": built.stat().st_size,
                 "compiler": cc, "flags": flags, "built": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -166,6 +179,11 @@ def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem:
         return None
     finally:
         shutil.rmtree(build, ignore_errors=True)
+
+
+def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str) -> str | None:
+    """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
+    return _finish_build(*_start_build(cc, flags, code, code_sha, d, stem))
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -227,9 +245,10 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
 
     A drive needs two or three libraries (the block stepper, the half-step stepper of its error estimate, the
     block outputs) of about 5 s of compiler time each: built one after the other they add up, built together
-    they take about the longest one on a machine with that many cores. Only the compilers run in parallel
-    (threads wait on them); the C is generated here, in this thread, as CasADi wants. A failed build is left
-    to `compile_function`, which reports it and falls back to the virtual machine.
+    they take about the longest one on a machine with that many cores. Only the compilers run in parallel (at
+    most one per core, processes started here and waited for); the C is generated here, one function after the
+    other. A Ctrl-C stops every compiler and keeps nothing; a failed build is left to `compile_function`, which
+    reports it and falls back to the virtual machine.
     """
     cc = _compiler()
     if cc is None:
@@ -239,13 +258,21 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
         flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
         if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
             todo.append((cc, flags, code, code_sha, d, stem))
-    if len(todo) > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=min(len(todo), os.cpu_count() or 1)) as pool:
-            list(pool.map(lambda job: _build(*job), todo))
-    elif todo:
-        _build(*todo[0])
+    width = max(1, os.cpu_count() or 1)
+    running = []
+    try:
+        for job in todo:
+            if len(running) == width:           # no more compilers than cores
+                _finish_build(*running.pop(0))
+            running.append(_start_build(*job))
+        while running:
+            _finish_build(*running.pop(0))
+    except BaseException:                       # Ctrl-C or an error: stop the other compilers, keep nothing
+        for proc, job in running:
+            proc.kill()
+            proc.wait()
+            shutil.rmtree(job[-1], ignore_errors=True)
+        raise
     if todo:
         evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
     return len(todo)

@@ -273,12 +273,15 @@ class Ros2:
         # the warm starts of the eliminated valves for the next step: this step's last stage
         return x + 1.5 * h * k1 + 0.5 * h * k2, mem1, values
 
+    @staticmethod
+    def _step_symbols(model):
+        """(x, memory, u at the step's start, u at its end) of one step, as SX symbols."""
+        return (ca.SX.sym("x", model.nx), ca.SX.sym("mem", model.n_memory), ca.SX.sym("u0", model.nu),
+                ca.SX.sym("u1", model.nu))
+
     def _build(self, model) -> ca.Function:
         nx, nu, np_, ns, nm = model.nx, model.nu, model.np, model.n_stiff, model.n_memory
-        x = ca.SX.sym("x", nx)
-        mem = ca.SX.sym("mem", nm)
-        u0 = ca.SX.sym("u0", nu)
-        u1 = ca.SX.sym("u1", nu)
+        x, mem, u0, u1 = self._step_symbols(model)
         p = ca.SX.sym("p", np_)
         z = ca.vertcat(x, mem)
         every = min(self.jacobian_every, self.K)
@@ -342,10 +345,7 @@ class Ros2:
     def _build_baseline(self, model) -> ca.Function:
         """The block function of commit 18a58c4 on this model (see the class docstring)."""
         nx, nu, np_, nm, n_run = model.nx, model.nu, model.np, model.n_memory, model.n_run
-        x = ca.SX.sym("x", nx)
-        mem = ca.SX.sym("mem", nm)
-        u0 = ca.SX.sym("u0", nu)
-        u1 = ca.SX.sym("u1", nu)
+        x, mem, u0, u1 = self._step_symbols(model)
         p_run = ca.SX.sym("p_run", n_run)
         # the parameter values as constants: SX folds the arithmetic on them while the step is built
         p = ca.vertcat(p_run, ca.DM(model.parameters.numeric()))

@@ -472,6 +472,23 @@ def _close_quietly(f: h5py.File) -> None:
         pass
 
 
+LOCKED_RETRY_S = 10.0          # how long a run waits for a reader (hpsim report, a notebook) to let go of its file
+
+
+def open_for_append(out: Path, wait_s: float = LOCKED_RETRY_S) -> h5py.File:
+    """The results file opened for the drive to write into. A reader that opened the file (not SWMR) between its
+    creation and this moment holds HDF5's file lock: wait for it to close (up to wait_s) rather than fail the run;
+    once the writer is in SWMR mode readers no longer block it."""
+    t_end = time.monotonic() + wait_s
+    while True:
+        try:
+            return h5py.File(out, "r+", libver=LIBVER)
+        except OSError as exc:
+            if "unable to lock file" not in str(exc) or time.monotonic() > t_end:
+                raise
+            time.sleep(0.05)
+
+
 def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
     total_km = prep.scenario.distance / 1e3
     resume_cmd = f"hpsim run {prep.source.name} -o {out} --resume"
@@ -496,7 +513,7 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
     def km_done(sink):
         return sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
 
-    f = h5py.File(out, "r+", libver=LIBVER)
+    f = open_for_append(out)
     sink = None
     old_handler = None
     try:
