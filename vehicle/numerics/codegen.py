@@ -23,6 +23,7 @@ built are loaded.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import functools
 import hashlib
 import json
@@ -33,6 +34,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -144,12 +146,16 @@ def _generate_c(fn: ca.Function) -> bytes:
 def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str):
     """Start compiling `code` into a private build folder of d: (the compiler process, the job)."""
     build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
-    src = build / f"{stem}.c"
-    src.write_bytes(code)
-    # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
-    # it), never the compiler alone (a compiler killed under us used to fall back silently)
-    proc = subprocess.Popen([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        src = build / f"{stem}.c"
+        src.write_bytes(code)
+        # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
+        # it), never the compiler alone (a compiler killed under us used to fall back silently)
+        proc = subprocess.Popen([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    except BaseException:
+        shutil.rmtree(build, ignore_errors=True)
+        raise
     return proc, (cc, flags, code_sha, d, stem, build)
 
 
@@ -181,9 +187,39 @@ def _finish_build(proc, job) -> str | None:
         shutil.rmtree(build, ignore_errors=True)
 
 
+@contextlib.contextmanager
+def _interrupts_held():
+    """SIGINT held back while a compiler is started and recorded, so that a Ctrl-C cannot land between the two
+    (a compiler nobody waits for, a build folder nobody removes); it is delivered right after."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _abort(started) -> None:
+    """Stop started compilers and remove their build folders (for any of them, finished or not)."""
+    for proc, job in started:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        shutil.rmtree(job[-1], ignore_errors=True)
+
+
 def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str) -> str | None:
     """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
-    return _finish_build(*_start_build(cc, flags, code, code_sha, d, stem))
+    started = []
+    try:
+        with _interrupts_held():
+            started.append(_start_build(cc, flags, code, code_sha, d, stem))
+        return _finish_build(*started[0])
+    except BaseException:
+        _abort(started)
+        raise
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -259,19 +295,19 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
         if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
             todo.append((cc, flags, code, code_sha, d, stem))
     width = max(1, os.cpu_count() or 1)
-    running = []
+    running = []                                # started, not yet finished (removed only once finished)
     try:
         for job in todo:
             if len(running) == width:           # no more compilers than cores
-                _finish_build(*running.pop(0))
-            running.append(_start_build(*job))
+                _finish_build(*running[0])
+                running.pop(0)
+            with _interrupts_held():
+                running.append(_start_build(*job))
         while running:
-            _finish_build(*running.pop(0))
+            _finish_build(*running[0])
+            running.pop(0)
     except BaseException:                       # Ctrl-C or an error: stop the other compilers, keep nothing
-        for proc, job in running:
-            proc.kill()
-            proc.wait()
-            shutil.rmtree(job[-1], ignore_errors=True)
+        _abort(running)
         raise
     if todo:
         evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
