@@ -170,7 +170,9 @@ def test_scheduler_without_dask_is_a_clear_error(tmp_path, capsys):
 
 
 # --- interrupting a sweep -----------------------------------------------------------------------------
-LONG_BASE = BASE.replace("distance: 1.5 km", "distance: 6 km")
+# long enough that both cases are still driving when the test interrupts them (a 6 km case took ~5 s once the
+# drive and its set-up got faster: the sweep sometimes finished first)
+LONG_BASE = BASE.replace("distance: 1.5 km", "distance: 15 km")
 
 
 def _start_sweep(tmp_path):
