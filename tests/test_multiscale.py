@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 import yaml
 
-from hpsim.errors import UserInputError
-from vehicle import cli
 from vehicle.runs.results import run_in_memory
-from vehicle.runs.scenario import load_prepared, read_scenario_text
+from vehicle.runs.scenario import read_scenario_text
 from vehicle.runs.summary import report_from
+
+from .test_run_helpers import assert_bad_scenario_exits_2
 
 BASE = {"description": "multiscale test", "vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 3},
         "speed": "20 km/h", "distance": "3 km", "ambient_temperature": "25 degC",
@@ -136,18 +136,7 @@ def _scenario(tmp_path, solver: str):
     ("{proxy: road_rate}", "solver", ["only with mode: multiscale"]),
 ])
 def test_bad_multiscale_keys_exit_2(tmp_path, capsys, solver, key, words):
-    path = _scenario(tmp_path, solver)
-    with pytest.raises(UserInputError) as err:
-        load_prepared(path)
-    msg = str(err.value)
-    assert str(path) in msg and key in msg, msg
-    for w in words:
-        assert w in msg, msg
-    out = tmp_path / "out.h5"
-    code = cli.main(["run", str(path), "-o", str(out), "--no-progress"])
-    _, err_text = capsys.readouterr()
-    assert code == 2 and key in err_text and "Traceback" not in err_text
-    assert not out.exists()
+    assert_bad_scenario_exits_2(_scenario(tmp_path, solver), key, words, capsys)
 
 
 # --- the control-variate (regression) estimator: exact limits ------------------------------------------------

@@ -21,3 +21,27 @@ def run_hpsim(args: list[str], cwd=None, timeout=300, env=None) -> subprocess.Co
     p = hpsim_subprocess(args, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = p.communicate(timeout=timeout)
     return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+
+
+def assert_bad_scenario_exits_2(path: Path, key: str, words, capsys) -> None:
+    """A malformed scenario file: loading it raises a UserInputError naming the file, the key and `words`; through
+    the command line `hpsim run` prints one line on stderr, no traceback, exits with 2 and writes nothing."""
+    import pytest
+
+    from hpsim.errors import UserInputError
+    from vehicle import cli
+    from vehicle.runs.scenario import load_prepared
+
+    with pytest.raises(UserInputError) as err:
+        load_prepared(path)
+    msg = str(err.value)
+    assert str(path) in msg and key in msg, msg
+    for w in words:
+        assert w in msg, msg
+    out_file = path.parent / "out.h5"
+    capsys.readouterr()
+    code = cli.main(["run", str(path), "-o", str(out_file), "--no-progress"])
+    err_text = capsys.readouterr().err
+    assert code == 2
+    assert key in err_text and "Traceback" not in err_text and len(err_text.strip().splitlines()) == 1, err_text
+    assert not out_file.exists()

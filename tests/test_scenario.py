@@ -13,6 +13,8 @@ from hpsim.errors import UserInputError
 from vehicle import cli
 from vehicle.runs.scenario import apply_overrides, load_prepared, prepare, read_scenario
 
+from .test_run_helpers import assert_bad_scenario_exits_2
+
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
 
@@ -113,19 +115,7 @@ BAD = [
 
 @pytest.mark.parametrize("what,text,key,words", BAD, ids=[b[0] for b in BAD])
 def test_malformed_scenarios_name_the_key(tmp_path, capsys, what, text, key, words):
-    path = _write(tmp_path, text)
-    with pytest.raises(UserInputError) as err:
-        load_prepared(path)
-    msg = str(err.value)
-    assert str(path) in msg and key in msg, msg
-    for w in words:
-        assert w in msg, msg
-    # through the command line: one line on stderr, no traceback, exit code 2, nothing written
-    out_file = tmp_path / "out.h5"
-    code, out, err_text = _run_cli(["run", str(path), "-o", str(out_file), "--no-progress"], capsys)
-    assert code == 2
-    assert key in err_text and "Traceback" not in err_text and len(err_text.strip().splitlines()) == 1
-    assert not out_file.exists()
+    assert_bad_scenario_exits_2(_write(tmp_path, text), key, words, capsys)
 
 
 def test_yaml_syntax_error_names_file_and_line(tmp_path, capsys):
