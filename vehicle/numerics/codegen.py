@@ -210,16 +210,30 @@ def _abort(started) -> None:
         shutil.rmtree(job[-1], ignore_errors=True)
 
 
+def _run_builds(jobs, width: int) -> list[str | None]:
+    """Compile the jobs ((cc, flags, code, code_sha, folder, stem) each) with at most `width` compilers at once;
+    per job None when built, else the compiler's error. An interrupt or an error stops every compiler and keeps
+    nothing of the unfinished ones."""
+    errors, running = [], []                    # running: started, removed only once finished
+    try:
+        for job in jobs:
+            if len(running) == width:
+                errors.append(_finish_build(*running[0]))
+                running.pop(0)
+            with _interrupts_held():
+                running.append(_start_build(*job))
+        while running:
+            errors.append(_finish_build(*running[0]))
+            running.pop(0)
+    except BaseException:
+        _abort(running)
+        raise
+    return errors
+
+
 def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str) -> str | None:
     """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
-    started = []
-    try:
-        with _interrupts_held():
-            started.append(_start_build(cc, flags, code, code_sha, d, stem))
-        return _finish_build(*started[0])
-    except BaseException:
-        _abort(started)
-        raise
+    return _run_builds([(cc, flags, code, code_sha, d, stem)], 1)[0]
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -294,21 +308,7 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
         flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
         if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
             todo.append((cc, flags, code, code_sha, d, stem))
-    width = max(1, os.cpu_count() or 1)
-    running = []                                # started, not yet finished (removed only once finished)
-    try:
-        for job in todo:
-            if len(running) == width:           # no more compilers than cores
-                _finish_build(*running[0])
-                running.pop(0)
-            with _interrupts_held():
-                running.append(_start_build(*job))
-        while running:
-            _finish_build(*running[0])
-            running.pop(0)
-    except BaseException:                       # Ctrl-C or an error: stop the other compilers, keep nothing
-        _abort(running)
-        raise
+    _run_builds(todo, width=max(1, os.cpu_count() or 1))      # no more compilers than cores
     if todo:
         evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
     return len(todo)

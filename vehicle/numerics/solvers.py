@@ -39,21 +39,15 @@ from vehicle.numerics.codegen import compile_function
 GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
 
 
-def sparse_lu(A: ca.SX):
-    """Symbolic sparse LU without pivoting, A = L U, in the given order: (L, U) as dicts of rows.
+class SparseLU:
+    """Symbolic sparse LU without pivoting, A = L U, in the given order (L and U as dicts of rows).
 
     For W = I - gamma h J of the vehicle (stations first, hull last) the pivots are the
     diagonal of a matrix close to I plus a dissipative part, so no pivoting is needed, and the
     elimination order keeps the fill inside the hull block (arrowhead structure).
-    Returns a function that solves A x = b for SX b.
-    """
-    return SparseLU(A).solve
-
-
-class SparseLU:
-    """The factors of `sparse_lu` with their structure: `values` (SX vector of the nonzeros of L, of the strict
-    upper part of U and the reciprocals of the pivots, in a fixed order) and `solve(b, values=None)`, which solves with these factors or
-    with any vector of the same layout (a factorisation made at another step: Jacobian/LU reuse)."""
+    `values`: SX vector of the nonzeros of L, of the strict upper part of U and the reciprocals of the pivots, in a
+    fixed order; `solve(b, values=None)` solves A x = b for SX b with these factors or with any vector of the same
+    layout (a factorisation made at another step: Jacobian/LU reuse)."""
 
     def __init__(self, A: ca.SX):
         n = self.n = A.size1()
@@ -223,8 +217,12 @@ class Ros2:
             return None
         if key not in _GRAPHS:
             self.K, self.M = K, M
-            _GRAPHS[key] = self._build_baseline(model) if self.engine == "baseline" else self._build(model)
+            _GRAPHS[key] = self._graph(model)
         return _GRAPHS[key]
+
+    def _graph(self, model) -> ca.Function:
+        """The uncompiled block function of this engine for (self.K, self.M)."""
+        return self._build_baseline(model) if self.engine == "baseline" else self._build(model)
 
     def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Ros2":
         """Build (or fetch from the caches) the compiled block function for this model's structure."""
@@ -236,7 +234,7 @@ class Ros2:
         if fn is None:
             graph = _GRAPHS.pop(key, None)
             if graph is None:
-                graph = self._build_baseline(model) if self.engine == "baseline" else self._build(model)
+                graph = self._graph(model)
             fn = compile_function(graph) if self.compile else graph
             _BLOCK_FUNCTIONS[key] = fn
         self.fn = fn
@@ -244,25 +242,26 @@ class Ros2:
         self.build_s = time.perf_counter() - t0
         return self
 
-    def _stages(self, model, x, mem, u0, u1, p, lu_values=None):
-        """One ROS2 step from (x, mem): (x_next, mem_next, LU factor values). With `lu_values` the step solves
-        with those factors (a W made at an earlier step) instead of building J and W here."""
+    def _stages(self, model, x, mem, u0, u1, p, reuse=None):
+        """One ROS2 step from (x, mem): (x_next, mem_next, the SparseLU of its W). With `reuse` = (a SparseLU of
+        this model's W, a vector of factor values in its layout) the step solves with those factors (a W made at an
+        earlier step) instead of building J and W here, and returns None for the factorisation."""
         ns = model.n_stiff
         h = self.dt
         f0, _ = model.ode_function(x, mem, u0, p)
-        if lu_values is None:
+        if reuse is None:
             # W only needs the stiff physics (any W keeps order 2)
             J = model.jacobian_function(x, mem, u0, p)
             lu = SparseLU(ca.SX.eye(ns) - GAMMA * h * J)
-            values = lu.values
 
             def solve_stiff(b):
                 return lu.solve(b)
         else:
-            values = lu_values
+            lu = None
+            structure, values = reuse
 
             def solve_stiff(b):
-                return self._lu_structure.solve(b, lu_values)
+                return structure.solve(b, values)
 
         def solve(b):
             return ca.vertcat(solve_stiff(b[:ns]), b[ns:])
@@ -271,7 +270,7 @@ class Ros2:
         f1, mem1 = model.ode_function(x + h * k1, mem, u1, p)
         k2 = solve(f1 - 2.0 * k1)
         # the warm starts of the eliminated valves for the next step: this step's last stage
-        return x + 1.5 * h * k1 + 0.5 * h * k2, mem1, values
+        return x + 1.5 * h * k1 + 0.5 * h * k2, mem1, lu
 
     @staticmethod
     def _step_symbols(model):
@@ -280,20 +279,19 @@ class Ros2:
                 ca.SX.sym("u1", model.nu))
 
     def _build(self, model) -> ca.Function:
-        nx, nu, np_, ns, nm = model.nx, model.nu, model.np, model.n_stiff, model.n_memory
+        nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
         x, mem, u0, u1 = self._step_symbols(model)
         p = ca.SX.sym("p", np_)
         z = ca.vertcat(x, mem)
         every = min(self.jacobian_every, self.K)
-        x_next, mem1, lu_values = self._stages(model, x, mem, u0, u1, p)
+        x_next, mem1, lu = self._stages(model, x, mem, u0, u1, p)
         outs = [ca.vertcat(x_next, mem1)]
         if every > 1:
-            # the structure of the factors (symbolic pattern of W): the reusing step reads them from an input
-            self._lu_structure = SparseLU(ca.SX.eye(ns) - GAMMA * self.dt
-                                          * model.jacobian_function(x, mem, u0, p))
-            F = ca.SX.sym("lu", lu_values.numel())
-            x_reuse, mem_reuse, _ = self._stages(model, x, mem, u0, u1, p, lu_values=F)
-            outs += [lu_values, ca.vertcat(x_reuse, mem_reuse)]
+            # the reusing step reads the factor values of an earlier fresh step from an input, in the layout of
+            # this step's factorisation (same sparsity at every step)
+            F = ca.SX.sym("lu", lu.values.numel())
+            x_reuse, mem_reuse, _ = self._stages(model, x, mem, u0, u1, p, reuse=(lu, F))
+            outs += [lu.values, ca.vertcat(x_reuse, mem_reuse)]
             raw = ca.Function("ros2_step_raw", [z, u0, u1, p, F], outs)
         else:
             raw = ca.Function("ros2_step_raw", [z, u0, u1, p], outs)
