@@ -259,7 +259,7 @@ def _dense_psd(f):
 
     try:
         return response_psd(f)
-    except (UserInputError, KeyError, ValueError):
+    except UserInputError:          # too sparse, too short or unevenly spaced: the run has no spectrum to show
         return None
 
 
