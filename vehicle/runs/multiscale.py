@@ -517,7 +517,8 @@ class MultiscaleDrive(Drive):
                                       and n_windows >= self.MIN_CV_WINDOWS)
         if self._linear_proxy_pending:
             self._proxy_t = (np.zeros(2), np.zeros((m.n, 2)))
-        for i in range(m.n if self._proxy_t is None else 0):
+        # (no control variate: no proxy, `proxy` gives zeros; the time-parallel coarse run is one)
+        for i in range(m.n if (self._proxy_t is None and self.ms.control_variate) else 0):
             road = self.station_roads[i]
             track, pas = ("left" if i % 2 == 0 else "right"), m.params.station_axle(i)
             z = road.heights(track, pas)
@@ -547,7 +548,7 @@ class MultiscaleDrive(Drive):
             tg, c = self._proxy_t
             t0, t1 = self._time_at(s0_m), self._time_at(s1_m)
             return np.array([np.interp(t1, tg, ci) - np.interp(t0, tg, ci) for ci in c]) / dt
-        out = np.empty(self.model.n)
+        out = np.zeros(self.model.n)
         for i, (h, c) in enumerate(self._proxy_c):
             a = float(self.model.a[i])
             out[i] = (_on_grid(c, h, s1_m - a) - _on_grid(c, h, s0_m - a)) / dt

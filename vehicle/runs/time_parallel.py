@@ -57,6 +57,8 @@ SEGMENTS_RANGE = (1, 64)          # solver.time_parallel
 MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
 JACOBIAN_SAMPLES = 120            # samples per segment at which the slow-rate Jacobian is averaged
 CHECK_WINDOWS = 3                 # windows of the second coarse correction over a segment (the error estimate)
+CHECK_WINDOW_M = 500.0            # their averaged stretch (after the coarse run's warm-up)
+COARSE_SPACING_M = 10_000.0      # one coarse window per this much road
 COARSE_COST = 1.5                 # the coarse run's wall time / the full model's over the road its windows drive
 PIECE_SAMPLES = 500               # samples per block handed to the sink when the segments are joined
 # the series computed from states, corrected by the slow-state correction directly (dx = S delta)
@@ -94,6 +96,13 @@ def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate |
     return out
 
 
+def _check_worker(t0, t1, x, n_windows, slaving):
+    """One propagation of the join's error check (`TimeParallelDrive._coarse_propagate`) in a pool worker."""
+    d = _PARENT
+    d._S = slaving                 # computed once in the parent: the same for every propagation of the drive
+    return d._coarse_propagate(t0, t1, x, n_windows)
+
+
 def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     d = _PARENT
     c0, w0 = time.process_time(), time.perf_counter()
@@ -111,8 +120,14 @@ class TimeParallelDrive(MultiscaleDrive):
 
     def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
                  warm_up_m: float = 50.0, correct: bool = True, **kw):
-        # the coarse propagation keeps the road-rate proxy (its set-up is a fraction of the linear model's)
-        super().__init__(model, road, settings, coarse or MultiscaleSettings(proxy="road_rate"), **kw)
+        # the coarse propagation: one 500 m window per 10 km, no control variate. The correction takes out the
+        # prediction's error to first order, and a proxy's set-up (road_rate: ~1 s for 106 km) or twice the
+        # windows would cost more than the smaller mismatch saves. 106 km, P = 2, against the serial run
+        # (mismatch at the segment start / the correction's estimated error / measured error, largest axle):
+        # road_rate proxy, 5 km: 0.26 / 0.016 / 0.005 K; none, 5 km: 0.42 / 0.028 / 0.005 K; none, 10 km:
+        # 0.42 / 0.022 / 0.006 K
+        super().__init__(model, road, settings,
+                         coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M), **kw)
         lo, hi = SEGMENTS_RANGE
         if not lo <= int(segments) <= hi:
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
@@ -183,28 +198,42 @@ class TimeParallelDrive(MultiscaleDrive):
                 out.append(res.state.x.copy())
         return out
 
-    def _coarse_difference(self, t0, t1, x_a, x_b, n_windows: int = None) -> np.ndarray:
+    def _coarse_difference(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> np.ndarray:
         """G(x_b) - G(x_a) of the slow states at t1: the multiscale propagation (`MultiscaleDrive._window`, the
         linear slow model across the gaps) from each start at t0 over the same n_windows windows, one at the start
-        of each equal stretch of the segment."""
+        of each equal stretch of the segment. With a process pool, the two propagations run at once in it."""
+        return self._coarse_difference_result(self._coarse_difference_submit(t0, t1, x_a, x_b, n_windows, pool))
+
+    def _coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None):
+        """The two propagations of `_coarse_difference`, started in the pool (futures) or run here."""
+        if pool is None:
+            return [self._coarse_propagate(t0, t1, x, n_windows) for x in (x_a, x_b)]
+        S = self._slaving(np.asarray(x_a, float))
+        return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
+
+    @staticmethod
+    def _coarse_difference_result(runs) -> np.ndarray:
+        a, b = (r.result() if hasattr(r, "result") else r for r in runs)
+        return b - a
+
+    def _coarse_propagate(self, t0, t1, x, n_windows: int = None) -> np.ndarray:
+        """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
+        start of each equal stretch of [t0, t1]), the linear slow model across the gaps."""
         n_windows = n_windows or CHECK_WINDOWS
-        span = self.ms.warm_up_m + self.ms.window_m
+        span = self.ms.warm_up_m + CHECK_WINDOW_M
         s0, s1 = float(self.distance_at(t0)), float(self.distance_at(t1))
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
-        out = []
-        for x in (x_a, x_b):
-            x = np.asarray(x, float).copy()
-            for i, c in enumerate(starts):
-                tw0 = self._time_at(c) if i else t0
-                t_end = min(self._time_at(min(c + span, s1)), t1)
-                t_warm = min(self._time_at(min(c + self.ms.warm_up_m, s1)), t_end)
-                w = self._window(self._rest_state(x), tw0, t_warm, t_end, None, [0.0])
-                t_next = self._time_at(starts[i + 1]) if i + 1 < n_windows else t1
-                x = w["x_end"].copy()
-                Phi, forced, _ = _propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
-                x[self.slow_index] = Phi @ x[self.slow_index] + forced
-            out.append(x[self.slow_index])
-        return out[1] - out[0]
+        x = np.asarray(x, float).copy()
+        for i, c in enumerate(starts):
+            tw0 = self._time_at(c) if i else t0
+            t_end = min(self._time_at(min(c + span, s1)), t1)
+            t_warm = min(self._time_at(min(c + self.ms.warm_up_m, s1)), t_end)
+            w = self._window(self._rest_state(x), tw0, t_warm, t_end, None, [0.0])
+            t_next = self._time_at(starts[i + 1]) if i + 1 < n_windows else t1
+            x = w["x_end"].copy()
+            Phi, forced, _ = _propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
+            x[self.slow_index] = Phi @ x[self.slow_index] + forced
+        return x[self.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
     def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
@@ -330,20 +359,22 @@ class TimeParallelDrive(MultiscaleDrive):
                          for k in range(1, P)]
                 try:
                     parts = [f.result() for f in futs]
+                    # the join, with the pool's processes (free now) running its error checks
+                    j0, jw0 = time.process_time(), time.perf_counter()
+                    res = self._join(parts, sink, progress, pool)
+                    join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
                 except BaseException:          # Ctrl-C or a failed segment: stop the others now
                     for proc in list(getattr(pool, "_processes", {}).values()):
                         proc.terminate()
                     raise
         finally:
             _PARENT = None
-        j0 = time.process_time()
-        res = self._join(parts, sink, progress)
-        join_cpu = time.process_time() - j0
         w = [p["cpu_s"] for p in parts]
         # what the run takes with P free cores: segment 0, or the coarse run then the slowest other segment; then
         # the join (CPU times: on a shared machine the wall times say more about the other load)
         critical = max(w[0], coarse_cpu + max(w[1:], default=0.0)) + join_cpu
         self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
+                             join_wall_s=join_wall,
                              critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
                              boundaries_s=t.tolist())
         res.wall_s = time.perf_counter() - wall0
@@ -374,7 +405,7 @@ class TimeParallelDrive(MultiscaleDrive):
         return {key: (np.asarray(outs[key])[:, 1:] - np.asarray(outs[key])[:, :1]) / h for key in _OUTPUT_SERIES
                 if key in outs}
 
-    def _join(self, parts, sink, progress) -> DriveResult:
+    def _join(self, parts, sink, progress, pool=None) -> DriveResult:
         m = self.model
         S = self.settings
         sample_dt = self.K * S.dt_s
@@ -396,30 +427,38 @@ class TimeParallelDrive(MultiscaleDrive):
         prev_tail = prev_end_raw = None
         coarse_check_s = 0.0
         t_total = self._t_total()
+        # the corrections first (each segment's delta needs the corrected end of the one before), so that the error
+        # checks' coarse propagations can start in the pool while the series are corrected and written here
+        pre, x_slow_prev = [], None
         for p in parts:
+            k, T = p["k"], p["t1"] - p["t0"]
+            A = self._A(p["X_sub"], p["M_sub"], p["U_sub"], Sl)
+            Phi_T = expm(A * T)
+            delta = np.zeros(ns) if (k == 0 or not self.correct) else x_slow_prev - p["x_start"][slow]
+            x_slow_prev = p["x_end"][slow] + (Sl @ (Phi_T @ delta))[slow]
+            # a second, cheap coarse correction: the multiscale propagation of both starts over the segment on the
+            # same few windows (their road noise cancels in the difference) sees how the dissipation responds to
+            # the mismatch through the ride, which A (fast states slaved at rest) does not
+            check = None
+            if k > 0 and self.correct and np.any(delta):
+                check = self._coarse_difference_submit(p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta,
+                                                       pool=pool)
+            pre.append((A, Phi_T, delta, check))
+        errors = []                   # per segment: (e without the check, check, Phi_T, delta, e_restart)
+        for p, (A, Phi_T, delta, check) in zip(parts, pre):
             k, t0, t1 = p["k"], p["t0"], p["t1"]
             T = t1 - t0
             X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
-            A = self._A(X, M, U, Sl)
-            Phi_T = expm(A * T)
-            delta = np.zeros(ns) if (k == 0 or not self.correct) else x_true[slow] - p["x_start"][slow]
             if k > 0:
                 mismatch.append(x_raw_prev[slow] - p["x_start"][slow])
             # the error the linear correction leaves: A's change with the slow states and along the segment
             e = np.zeros(ns)
-            if k > 0 and self.correct and np.any(delta):
+            if check is not None:
                 A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
                 half = X.shape[1] // 2
                 A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
                 A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
                 e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
-                # a second, cheap coarse correction: the multiscale propagation of both starts over the segment
-                # on the same few windows (their road noise cancels in the difference) sees how the dissipation
-                # responds to the mismatch through the ride, which A (fast states slaved at rest) does not
-                c0 = time.perf_counter()
-                dG = self._coarse_difference(t0, t1, p["x_start"], p["x_start"] + Sl @ delta)
-                coarse_check_s += time.perf_counter() - c0
-                e = np.maximum(e, np.abs(dG - Phi_T @ delta))
             # the restart: segment k's fast states at its start are not the serial run's (it started from rest
             # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first
             # warm-up length: the difference of their slow-state changes there is what the different fast states
@@ -429,8 +468,7 @@ class TimeParallelDrive(MultiscaleDrive):
             if k > 0 and prev_tail is not None and p["mark"] is not None:
                 e_restart = np.abs((prev_tail - prev_end_raw[slow]) - (p["mark"] - p["x_start"][slow]))
             prev_tail, prev_end_raw = p["tail"], p["x_end"]
-            seg_err.append(e + np.abs(Phi_T) @ e_restart)
-            err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
+            errors.append((e, check, Phi_T, delta, e_restart))
             # series: slow-state correction e^{A tau} delta at every sample, quadratures offset
             B = p["blocks"]
             ts = np.asarray(B["t_s"], float)
@@ -497,6 +535,13 @@ class TimeParallelDrive(MultiscaleDrive):
                 progress(s1, float(S.speed.speed(s1)), t1)
         if sink is not None and all_rows:
             sink.stats(all_rows)
+        c0 = time.perf_counter()
+        for e, check, Phi_T, delta, e_restart in errors:
+            if check is not None:
+                e = np.maximum(e, np.abs(self._coarse_difference_result(check) - Phi_T @ delta))
+            seg_err.append(e + np.abs(Phi_T) @ e_restart)
+            err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
+        coarse_check_s += time.perf_counter() - c0          # the wait for the checks (their own cost if run here)
         last = parts[-1]
         fs = last["state"]
         q_last = np.asarray(fs.last_stats["q"], float) + (x_true[self.quad_index] - last["x_end"][self.quad_index])
@@ -559,6 +604,7 @@ class TimeParallelDrive(MultiscaleDrive):
                  "time_parallel_worker_cpu_s": float(np.sum(pr.get("worker_cpu_s", [np.nan]))),
                  "time_parallel_coarse_cpu_s": float(pr.get("coarse_cpu_s", np.nan)),
                  "time_parallel_join_cpu_s": float(pr.get("join_cpu_s", np.nan)),
+                 "time_parallel_join_s": float(pr.get("join_wall_s", np.nan)),
                  "time_parallel_critical_cpu_s": float(pr.get("critical_cpu_s", np.nan)),
                  "time_parallel_coarse_mismatch_K": float(np.max(self.mismatch_axle_K())),
                  "estimated_error_temperature_K": float(np.max(pr["axle_temperature_K"])),
