@@ -94,6 +94,17 @@ class DriveState:
                    solver_memory=np.atleast_1d(np.asarray(d.get("solver_memory", []), float)))
 
 
+class BlockObserver(Protocol):
+    """What a caller of `Drive.run` sees of every block besides the sink's outputs (vehicle.runs.time_parallel
+    keeps a segment's states and raw statistics intervals to correct them when the segments are joined)."""
+
+    def block(self, X: np.ndarray, U: np.ndarray, memory: np.ndarray, outputs: dict) -> None:
+        """The block's states (nx, samples), inputs and solver memory at the samples, and its output series."""
+
+    def intervals(self, intervals: list[tuple]) -> None:
+        """The statistics intervals the block ended (`Drive._stats_intervals`)."""
+
+
 class Drive:
     """A drive of `model` over `road` with `settings`, integrated by `solver` (default: the compiled
     ROS2 at settings.dt_s); `run(sink)` hands samples, statistics and checkpoints to a sink."""
@@ -137,6 +148,9 @@ class Drive:
         self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
+        # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
+        # continues (vehicle.runs.time_parallel) leaves it open
+        self.close_last_interval = True
         self.build_s = time.perf_counter() - t0
         n = model.n
         self.quad_index = np.array([model.idx(f"E_{e}[{i}]") for e in ENERGY_TERMS for i in range(n)]
@@ -245,7 +259,7 @@ class Drive:
     # --- run --------------------------------------------------------------------------------------
     def run(self, sink: DriveSink | None = None, state: DriveState | None = None,
             progress: Callable[[float, float, float], None] | None = None,
-            checkpoint_every_blocks: int = 6) -> "DriveResult":
+            checkpoint_every_blocks: int = 6, observer: "BlockObserver | None" = None) -> "DriveResult":
         m, S = self.model, self.settings
         st = self.initial_state() if state is None else state
         self.solver.set_state(st.solver_memory)
@@ -275,7 +289,11 @@ class Drive:
                 X, t_samples, s_samples, memory = X[:, keep], t_samples[keep], s_samples[keep], memory[:, keep]
             U_samples = U[:, self.K * np.arange(1, X.shape[1] + 1)]
             block = self._block_outputs(X, U_samples, t_samples, s_samples, memory)
-            rows = self._stats(st, X, t_samples, s_samples)
+            intervals = self._stats_intervals(st, X, t_samples, s_samples)
+            rows = [self._stats_row(*interval) for interval in intervals]
+            if observer is not None:
+                observer.block(X, U_samples, memory, block)
+                observer.intervals(intervals)
             st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=X[:, -1].copy(),
                             next_stats_m=st.next_stats_m, last_stats=st.last_stats,
                             sample_index=st.sample_index + X.shape[1], solver_memory=memory[:, -1].copy())
@@ -382,7 +400,13 @@ class Drive:
         return block
 
     def _stats(self, st: DriveState, X, t, s) -> list[dict]:
-        """Statistics for every interval boundary crossed in this block (and the last partial one)."""
+        """Statistics rows for every interval boundary crossed in this block (and the last partial one)."""
+        return [self._stats_row(*interval) for interval in self._stats_intervals(st, X, t, s)]
+
+    def _stats_intervals(self, st: DriveState, X, t, s) -> list[tuple]:
+        """Every statistics interval ended in this block, as the arguments of `_stats_row` (distance at the end,
+        duration, quadrature differences, state at the end, interval mean gas temperature); the last partial
+        one at the drive's end if `close_last_interval`. Advances st.next_stats_m and st.last_stats."""
         rows = []
         q = X[self.quad_index]
         T = X
@@ -399,15 +423,14 @@ class Drive:
                 # the quadratures are smooth and monotone: interpolate them to the boundary
                 a = (st.next_stats_m - s0) / (s[j] - s0) if s[j] > s0 else 1.0
                 tb, qb, Tb = t0 + a * (t[j] - t0), q0 + a * (q[:, j] - q0), T0 + a * (T[:, j] - T0)
-                rows.append(self._stats_row(st.next_stats_m, tb - t_last, qb - q_last, Tb,
-                                            g_sum / g_n if g_n else Tg[:, j]))
+                rows.append((st.next_stats_m, tb - t_last, qb - q_last, Tb, g_sum / g_n if g_n else Tg[:, j]))
                 t_last, q_last = tb, qb
                 g_sum, g_n = np.zeros(self.model.n), 0
                 st.next_stats_m += self.settings.stats_interval_m
             s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
-        if t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 and t[-1] > t_last + 1e-9:
-            rows.append(self._stats_row(s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1],
-                                        g_sum / g_n if g_n else Tg[:, -1]))
+        if self.close_last_interval and t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 \
+                and t[-1] > t_last + 1e-9:
+            rows.append((s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1], g_sum / g_n if g_n else Tg[:, -1]))
             t_last, q_last = t[-1], q[:, -1]
             g_sum, g_n = np.zeros(self.model.n), 0
         st.last_stats = {"t_s": t_last, "q": q_last, "gas_sum": g_sum, "gas_n": g_n}

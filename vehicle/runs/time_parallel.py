@@ -112,6 +112,33 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     return out
 
 
+class _SegmentRecorder:
+    """`BlockObserver` of a fine segment: its output series, its raw statistics intervals (corrected at the join),
+    every stride-th sample's state, memory and inputs (the slow-rate Jacobian), and the slow states at t_mark."""
+
+    def __init__(self, stride: int, t_mark: float | None, slow_index: np.ndarray):
+        self.stride, self.t_mark, self.slow_index = stride, t_mark, slow_index
+        self.blocks, self.rows, self.Xs, self.Ms, self.Us = [], [], [], [], []
+        self.n, self.mark = 0, None
+
+    def block(self, X, U, memory, outputs):
+        self.blocks.append(outputs)
+        pick = np.flatnonzero((np.arange(X.shape[1]) + self.n) % self.stride == 0)
+        self.Xs.append(X[:, pick])
+        self.Ms.append(memory[:, pick])
+        self.Us.append(U[:, pick])
+        self.n += X.shape[1]
+        if self.t_mark is not None:
+            hit = np.flatnonzero(np.abs(np.asarray(outputs["t_s"]) - self.t_mark) < 1e-6)
+            if len(hit):
+                self.mark = X[self.slow_index, hit[0]].copy()
+
+    def intervals(self, intervals):
+        self.rows += [(float(s_end), float(duration), np.array(dq, float), np.array(x_end, float),
+                       None if gas is None else np.array(gas, float))
+                      for s_end, duration, dq, x_end, gas in intervals]
+
+
 class TimeParallelDrive(MultiscaleDrive):
     """A Drive split into `segments` segments in time, run in parallel processes and joined with a correction
     of the slow states (module docstring). `correct=False`: joined without the correction (for tests)."""
@@ -240,48 +267,14 @@ class TimeParallelDrive(MultiscaleDrive):
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
-        seg = copy.copy(self)
+        seg = copy.copy(self)               # the same drive, with this segment's end and error estimate
         seg.error_estimate = None
         S = self.settings
         sample_dt = self.K * S.dt_s
         n_seg = int(round((t1 - t0) / sample_dt))
-        stride = max(1, n_seg // JACOBIAN_SAMPLES)
-        rec = {"blocks": [], "rows": [], "Xs": [], "Ms": [], "Us": [], "n": 0, "mark": None}
-        on = [False]
         last = t1 >= self._t_total() - 1e-9
-
-        def block_outputs(X, U, t, s, memory):
-            b = Drive._block_outputs(seg, X, U, t, s, memory)
-            if on[0]:
-                rec["blocks"].append(b)
-                j = np.arange(X.shape[1]) + rec["n"]
-                pick = np.flatnonzero(j % stride == 0)
-                rec["Xs"].append(X[:, pick])
-                rec["Ms"].append(memory[:, pick])
-                rec["Us"].append(U[:, pick])
-                rec["n"] += X.shape[1]
-                if t_mark is not None:
-                    hit = np.flatnonzero(np.abs(np.asarray(t) - t_mark) < 1e-6)
-                    if len(hit):
-                        rec["mark"] = X[self.slow_index, hit[0]].copy()
-            return b
-
-        def stats_row(s_end, duration, dq, x_end, gas_mean=None):
-            if on[0]:
-                rec["rows"].append((float(s_end), float(duration), np.array(dq, float), np.array(x_end, float),
-                                    None if gas_mean is None else np.array(gas_mean, float)))
-            return Drive._stats_row(seg, s_end, duration, dq, x_end, gas_mean)
-
-        def stats(st, X, t, s):
-            if last:
-                return Drive._stats(seg, st, X, t, s)
-            saved, seg.total_time_s = seg.total_time_s, np.inf    # no partial row at a segment's end
-            try:
-                return Drive._stats(seg, st, X, t, s)
-            finally:
-                seg.total_time_s = saved
-
-        seg._block_outputs, seg._stats_row, seg._stats = block_outputs, stats_row, stats
+        seg.close_last_interval = last      # an interval cut by the segment's end is closed by the next segment
+        rec = _SegmentRecorder(max(1, n_seg // JACOBIAN_SAMPLES), t_mark, self.slow_index)
         n = self.model.n
         if k == 0:
             st = seg.initial_state()
@@ -309,20 +302,19 @@ class TimeParallelDrive(MultiscaleDrive):
         if self.error_estimate is not None:
             e = self.error_estimate
             seg.error_estimate = StepDoublingEstimate(e.dt_s, e.tolerance, e.interval_s, e.n_struts, names=e.names)
-        on[0] = True
-        res = Drive.run(seg, None, st)
-        on[0] = False
+        res = Drive.run(seg, None, st, observer=rec)
         tail = None
         if t_tail is not None and t_tail > t1:
             seg.total_time_s = t_tail
             seg.error_estimate, est = None, seg.error_estimate
             tail = Drive.run(seg, None, copy.deepcopy(res.state)).state.x[self.slow_index].copy()
             seg.error_estimate = est
-        blocks = {key: np.concatenate([b[key] for b in rec["blocks"]], axis=-1) for key in rec["blocks"][0]}
-        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec["mark"], "tail": tail, "x_end": res.state.x.copy(), "state": res.state,
-                "blocks": blocks, "rows": rec["rows"], "X_sub": np.concatenate(rec["Xs"], axis=1),
-                "M_sub": np.concatenate(rec["Ms"], axis=1), "U_sub": np.concatenate(rec["Us"], axis=1),
-                "integration_s": res.integration_s, "estimate": seg.error_estimate}
+        blocks = {key: np.concatenate([b[key] for b in rec.blocks], axis=-1) for key in rec.blocks[0]}
+        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
+                "x_end": res.state.x.copy(), "state": res.state, "blocks": blocks, "rows": rec.rows,
+                "X_sub": np.concatenate(rec.Xs, axis=1), "M_sub": np.concatenate(rec.Ms, axis=1),
+                "U_sub": np.concatenate(rec.Us, axis=1), "integration_s": res.integration_s,
+                "estimate": seg.error_estimate}
 
     def _t_total(self) -> float:
         sample_dt = self.K * self.settings.dt_s
