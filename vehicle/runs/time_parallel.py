@@ -50,7 +50,7 @@ from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.runs.drive import Drive, DriveResult, DriveState
-from vehicle.runs.multiscale import MultiscaleDrive, MultiscaleSettings, _propagators
+from vehicle.runs.multiscale import MultiscaleDrive, MultiscaleSettings, _LinearFlow, _propagators
 
 MODE = "time_parallel"
 SEGMENTS_RANGE = (1, 64)          # solver.time_parallel
@@ -425,7 +425,8 @@ class TimeParallelDrive(MultiscaleDrive):
         for p in parts:
             k, T = p["k"], p["t1"] - p["t0"]
             A = self._A(p["X_sub"], p["M_sub"], p["U_sub"], Sl)
-            Phi_T = expm(A * T)
+            flow = _LinearFlow(A)           # e^{A t} for the many t of the series and statistics rows
+            Phi_T = flow.phi(T)
             delta = np.zeros(ns) if (k == 0 or not self.correct) else x_slow_prev - p["x_start"][slow]
             x_slow_prev = p["x_end"][slow] + (Sl @ (Phi_T @ delta))[slow]
             # a second, cheap coarse correction: the multiscale propagation of both starts over the segment on the
@@ -435,9 +436,9 @@ class TimeParallelDrive(MultiscaleDrive):
             if k > 0 and self.correct and np.any(delta):
                 check = self._coarse_difference_submit(p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta,
                                                        pool=pool)
-            pre.append((A, Phi_T, delta, check))
+            pre.append((A, flow, Phi_T, delta, check))
         errors = []                   # per segment: (e without the check, check, Phi_T, delta, e_restart)
-        for p, (A, Phi_T, delta, check) in zip(parts, pre):
+        for p, (A, flow, Phi_T, delta, check) in zip(parts, pre):
             k, t0, t1 = p["k"], p["t0"], p["t1"]
             T = t1 - t0
             X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
@@ -464,9 +465,9 @@ class TimeParallelDrive(MultiscaleDrive):
             # series: slow-state correction e^{A tau} delta at every sample, quadratures offset
             B = p["blocks"]
             ts = np.asarray(B["t_s"], float)
-            E1 = expm(A * sample_dt)
+            E1 = flow.phi(sample_dt)
             D = np.empty((ns, len(ts)))
-            d = expm(A * (ts[0] - t0)) @ delta
+            d = flow.phi(ts[0] - t0) @ delta
             for j in range(len(ts)):
                 D[:, j] = d
                 d = E1 @ d
@@ -492,7 +493,7 @@ class TimeParallelDrive(MultiscaleDrive):
             for j, (s_end, dur, dq, x_end, gas) in enumerate(p["rows"]):
                 t_b = t_prev + dur
                 t_prev = t_b
-                dxb = Sl @ (expm(A * (t_b - t0)) @ delta)
+                dxb = Sl @ (flow.phi(t_b - t0) @ delta)
                 x_end = x_end + dxb
                 gas = None if gas is None else gas + dxb[self.T_gas_index]
                 if j == 0 and carry is not None:
