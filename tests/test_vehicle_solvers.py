@@ -262,3 +262,39 @@ def test_the_error_estimate_costs_a_few_percent_at_the_defaults():
     # 700 m = 12 blocks, 2 checked (blocks 1 and 11): 2 * 2 / (12 * 10) = 3.3 % of the steps, plus the inputs of the
     # half-step windows; the 2 % holds for long drives
     assert err["solver_error_cost_pct"] < 15.0
+
+
+def test_indicator_quadratures_take_the_rectangle_rule_and_the_physics_is_unchanged(monkeypatch):
+    """The current engine integrates the quadratures of indicator functions (time lifted off, on an end stop, above
+    each travel-bin edge) by the rectangle rule on the first stage, y + h g(y): every other state of a step is
+    bit-identical to the trapezoid step's, and those states are exactly the indicator quadratures."""
+    import casadi as ca
+
+    drive = make_drive(distance_m=50.0)
+    m = drive.model
+    names = [m.layout.names[k] for k in m.indicator_quadrature_indices()]
+    expected = {f"I_{q}[{i}]" for i in range(m.n) for q in ("lift", "stop")} | \
+        {f"I_above{k}[{i}]" for i in range(m.n) for k in range(1, m.travel_bin_edges().shape[1] - 1)}
+    assert set(names) == expected and len(names) == len(expected)
+    rng = np.random.default_rng(2)
+    x = drive.initial_state().x.copy()
+    for i in range(m.n):
+        x[m.idx(f"dw[{i}]")] = rng.normal(0.0, 0.3)
+    U = drive.inputs(np.array([3.0, 3.004]))
+    solver = solvers.Ros2(0.004, compile=False)
+
+    def step():
+        xs, mem, u0, u1 = solver._step_symbols(m)
+        p = ca.SX.sym("p", m.np)
+        x_next, _, _ = solver._stages(m, xs, mem, u0, u1, p)
+        return np.asarray(ca.Function("step", [xs, mem, u0, u1, p], [x_next])(x, np.zeros(m.n_memory), U[:, 0],
+                                                                              U[:, 1], drive.p)).ravel()
+    rect = step()
+    with monkeypatch.context() as mp:
+        mp.setattr(VehicleModel, "indicator_quadrature_indices", lambda self: [])
+        trap = step()
+    ind = np.array(m.indicator_quadrature_indices())
+    other = np.setdiff1d(np.arange(m.nx), ind)
+    np.testing.assert_array_equal(rect[other], trap[other])
+    f0 = np.asarray(m.ode_function(x, np.zeros(m.n_memory), U[:, 0], drive.p)[0]).ravel()
+    np.testing.assert_allclose(rect[ind], x[ind] + 0.004 * f0[ind], rtol=0, atol=1e-15)

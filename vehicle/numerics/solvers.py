@@ -12,7 +12,12 @@ smaller (docs/physics.md uses it for the stage overshoot of an under-resolved mo
 It is second order for *any* W (a W-method), so J only needs the stiff part of the Jacobian:
 the wheel stations, the strut internal states and the hull (seal friction and valves make
 them stiff). Slow states (temperatures, levelling, energy quadratures) get W = I, i.e. the
-explicit trapezoidal rule. The valve algebraic variables are eliminated inside f by Newton
+explicit trapezoidal rule, except the quadratures of indicator functions (time lifted off, on an end
+stop, above each travel-bin edge: `VehicleModel.indicator_quadrature_indices`), whose integrands jump:
+the trapezoid's order is lost at every crossing, so they take the rectangle rule on the first stage
+(y_n+1 = y_n + h g(y_n); 13.6k instead of 14.6k instructions per step, 6.7 instead of 7.3 us; the
+physical states are bit-identical, the times above a threshold move by less than a step per crossing,
+with zero mean). The valve algebraic variables are eliminated inside f by Newton
 (index-1 DAE -> ODE). The method is L-stable for the exact Jacobian, so stiff friction sticks
 instead of ringing.
 
@@ -270,7 +275,14 @@ class Ros2:
         f1, mem1 = model.ode_function(x + h * k1, mem, u1, p)
         k2 = solve(f1 - 2.0 * k1)
         # the warm starts of the eliminated valves for the next step: this step's last stage
-        return x + 1.5 * h * k1 + 0.5 * h * k2, mem1, lu
+        x_next = x + 1.5 * h * k1 + 0.5 * h * k2
+        if self.engine == "current":
+            # indicator quadratures (times above thresholds) by the rectangle rule: their integrands jump, so the
+            # trapezoid's second order is lost anyway (both rules err by O(h) at each crossing, with zero mean);
+            # the second stage's indicators are then unused and left out of the generated code
+            for k in model.indicator_quadrature_indices():
+                x_next[k] = x[k] + h * f0[k]
+        return x_next, mem1, lu
 
     @staticmethod
     def _step_symbols(model):

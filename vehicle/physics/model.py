@@ -526,6 +526,15 @@ class VehicleModel:
     # slow states (e.g. thermal nodes) lists their base names here.
     SLOW_STATES = tuple(f"T_{node}" for node in thermal.NODES) + ("xf", "V_oil")
 
+    def indicator_quadrature_indices(self) -> list[int]:
+        """Indices in x of the quadratures of indicator functions (time with the tyre lifted off, on an end stop,
+        above each travel-bin edge: `ride.tyre_integrands`, `ride.end_stop_indicator`,
+        `ride.travel_exceedance_indicators`). Their integrands jump where the motion crosses a threshold, so a
+        higher-order quadrature rule gains nothing over the rectangle rule (a fixed-step solver may integrate
+        them with one evaluation per step)."""
+        names = ("I_lift", "I_stop", "I_above")
+        return [k for k, nm in enumerate(self.layout.names) if nm.split("[")[0].rstrip("0123456789") in names]
+
     def slow_state_indices(self) -> list[int]:
         """Indices in x of the slow states (`SLOW_STATES`, any station)."""
         return [k for k, nm in enumerate(self.layout.names[:self.n_dynamic]) if nm.split("[")[0] in self.SLOW_STATES]
