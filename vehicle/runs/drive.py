@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Callable, Protocol
 
 import numpy as np
@@ -209,19 +210,32 @@ class Drive:
     def distance_at(self, t):
         return np.interp(t, self.t_grid, self.s_grid)
 
+    @cached_property
+    def _input_groups(self) -> list[tuple]:
+        """The stations grouped by the surface their tyre reads: (enveloped road, track, pass, station indices,
+        their distances behind the first axle [m])."""
+        m, P = self.model, self.model.params
+        groups: dict = {}
+        for i in range(m.n):
+            track = "left" if i % 2 == 0 else "right"
+            surface, k = self.station_roads[i], P.station_axle(i)
+            key = (id(surface), track, id(surface.heights(track, k)))
+            groups.setdefault(key, (surface, track, k, []))[3].append(i)
+        return [(surface, track, k, np.array(st), np.array([float(m.a[i]) for i in st]))
+                for surface, track, k, st in groups.values()]
+
     def inputs(self, t: np.ndarray) -> np.ndarray:
         """Input matrix (nu, len(t)) by name (`VehicleModel.input_matrix`): road height and rate under each
         tyre (axle k reads pass k of the ground, terrain.passes: the wheels ahead of it have rolled over it),
         speed, ambient, the speed profile's longitudinal acceleration a = v dv/ds (0 at constant speed)."""
         m = self.model
-        P = m.params
         s = self.distance_at(t)
         v = self.settings.speed.speed(s)
         road, rate = np.empty((m.n, len(t))), np.empty((m.n, len(t)))
-        for i in range(m.n):
-            track = "left" if i % 2 == 0 else "right"
-            road[i], slope = self.station_roads[i].evaluate(s - m.a[i], track, pass_index=P.station_axle(i))
-            rate[i] = slope * v
+        for surface, track, pass_index, stations, offsets in self._input_groups:
+            # the stations on one surface in one call (elementwise: the same values as one call per station)
+            road[stations], slope = surface.evaluate(s[None, :] - offsets[:, None], track, pass_index=pass_index)
+            rate[stations] = slope * v
         return m.input_matrix(len(t), road=road, road_rate=rate, speed=v, ambient=self.settings.ambient_K,
                               acceleration=self.settings.speed.acceleration(s))
 
