@@ -119,3 +119,28 @@ def test_cli_bad_time_parallel_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--time-parallel" in err and "[1, 64]" in err and "Traceback" not in err
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_the_error_check_gives_the_same_in_the_pool_as_here(runs):
+    """The join's second coarse correction (two multiscale propagations of the segment from the predicted and
+    the corrected start) runs in the pool's processes: the same numbers as run in this process."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    from vehicle.runs import time_parallel
+
+    *_, drive = runs
+    t = drive.parareal["boundaries_s"]
+    x_a = drive.initial_state().x
+    names = [drive.model.layout.names[j] for j in drive.slow_index]
+    delta = np.array([0.5 if nm.startswith("T_") else 0.0 for nm in names])      # every temperature 0.5 K warmer
+    x_b = x_a + drive._slaving(x_a) @ delta
+    here = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1))
+    time_parallel._PARENT = drive
+    try:
+        with ProcessPoolExecutor(2, mp_context=mp.get_context("fork")) as pool:
+            there = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1, pool))
+    finally:
+        time_parallel._PARENT = None
+    assert np.any(np.abs(here) > 1e-3)
+    np.testing.assert_allclose(there, here, rtol=1e-9, atol=1e-12)

@@ -225,14 +225,10 @@ class TimeParallelDrive(MultiscaleDrive):
                 out.append(res.state.x.copy())
         return out
 
-    def _coarse_difference(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> np.ndarray:
-        """G(x_b) - G(x_a) of the slow states at t1: the multiscale propagation (`MultiscaleDrive._window`, the
-        linear slow model across the gaps) from each start at t0 over the same n_windows windows, one at the start
-        of each equal stretch of the segment. With a process pool, the two propagations run at once in it."""
-        return self._coarse_difference_result(self._coarse_difference_submit(t0, t1, x_a, x_b, n_windows, pool))
-
     def _coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None):
-        """The two propagations of `_coarse_difference`, started in the pool (futures) or run here."""
+        """G(x_b) - G(x_a) of the slow states at t1 (`_coarse_propagate` from each start at t0 over the same
+        windows, whose road noise cancels in the difference), as its two propagations: started in the pool
+        (futures) or, without one, run here. `_coarse_difference_result` takes the difference."""
         if pool is None:
             return [self._coarse_propagate(t0, t1, x, n_windows) for x in (x_a, x_b)]
         S = self._slaving(np.asarray(x_a, float))
