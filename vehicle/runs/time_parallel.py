@@ -4,8 +4,8 @@ P processes at once, with a correction of the slow states (issue 11 §1).
 Parareal with a cheap coarse propagator (Lions, Maday, Turinici 2001; Gander & Vandewalle 2007, SIAM J.
 Sci. Comput. 29(2)), one correction sweep:
 
-1. Coarse G: one multiscale run (vehicle.runs.multiscale) from the start to the last segment's start predicts
-   the slow states (`model.SLOW_STATES`: thermal nodes, filtered deflection, levelling oil) at every segment
+1. Coarse G: one multiscale run (vehicle.runs.multiscale; one 500 m window per COARSE_SPACING_M, no control
+   variate) from the start to the last segment's start predicts the slow states (`model.SLOW_STATES`: thermal nodes, filtered deflection, levelling oil) at every segment
    start. Segment 0 needs no prediction and starts at once, while G runs.
 2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in its own
    process (forked: the built model and compiled stepper are inherited). Segment k > 0 starts from the vehicle
@@ -28,7 +28,8 @@ Sci. Comput. 29(2)), one correction sweep:
    (d) A has the fast states slaved as the standing vehicle's: how the dissipation responds to the mismatch
    through the ride is not in it (first order in delta). One cheap second coarse correction sees it: the
    multiscale propagation of both starts (predicted and corrected) over the segment on the same CHECK_WINDOWS
-   windows, whose difference against e^{A T} delta is taken where it exceeds (a) + (b). Written to the
+   windows, whose difference against e^{A T} delta is taken where it exceeds (a) + (b). Its two propagations
+   run in the pool's processes (free once the segments are done) while the join corrects and writes the series. Written to the
    summary per axle (temperature [K]) and through the after-drive equilibrium's sensitivity (wheel-load
    change [pp]), as estimated_error_* like the multiscale mode's.
 
