@@ -356,3 +356,37 @@ def test_linear_model_proxy_can_match_a_given_rms_strut_velocity():
         assert np.sqrt(np.mean(ms)) == pytest.approx(target, rel=0.03)
         found[target] = drive.proxy_friction_velocity_m_s
     assert found[0.05] < found[0.08]
+
+
+def test_stated_covariance_of_the_regression_estimate_matches_monte_carlo():
+    """Synthetic strata with a known residual variance: window y_k = a + c t_k + b p_k + e_w,k, the stretch it
+    stands for a + c t_k + b q_k + e_s,k (Var e_s = Var e_w L/tu); the regression estimate of the weighted sum
+    sum_k Q_k stretch_k. The stated covariance (`stratified_error_covariance`) equals the Monte Carlo variance of
+    the error; leaving out the covariance of each window's residual in its stratum and in the slope does not
+    (a layout where the weights grow with the proxy, so that term is large)."""
+    from vehicle.runs.multiscale import control_variate, stratified_error_covariance
+
+    rng = np.random.default_rng(5)
+    nw, trials, sd = 12, 4000, 0.5
+    t = np.linspace(0.0, 1e4, nw)
+    pw = rng.normal(0.0, 1.0, nw)
+    ps = pw + 1.0 + 0.3 * rng.normal(size=nw)          # the stretches' proxy away from the windows'
+    Q = 1.0 + 0.8 * (pw - pw.mean()) / pw.std()         # weights growing with the proxy
+    own = np.full(nw, 0.2)                              # L / tu
+    errs = []
+    for _ in range(trials):
+        y = 1.0 + 2e-4 * t + 2.0 * pw + rng.normal(0.0, sd, nw)
+        truth = 1.0 + 2e-4 * t + 2.0 * ps + rng.normal(0.0, sd * np.sqrt(own))
+        yc, beta, res, dof, H = control_variate(y[:, None], pw[:, None], ps[:, None], t)
+        errs.append(float(Q @ (yc[:, 0] - truth)))
+    _, _, _, _, H = control_variate(y[:, None], pw[:, None], ps[:, None], t)   # H depends on the design only
+    Cb = np.array([[sd ** 2]])
+    Mb = np.array([[float(Q @ (ps - pw))]])
+    Qk = Q[:, None, None]
+    stated = stratified_error_covariance(Qk, own, Cb, Mb, H)[0, 0]
+    without_cross = (stratified_error_covariance(Qk, own, Cb)[0, 0] + (Mb @ (Cb * (H @ H.T)) @ Mb.T)[0, 0])
+    measured = np.var(errs)
+    assert stated == pytest.approx(measured, rel=0.08)
+    assert abs(without_cross / measured - 1) > 0.25
+    # no control variate: the plain stratified variance, sum (1 + L/tu) Q^2 sd^2
+    assert stratified_error_covariance(Qk, own, Cb)[0, 0] == pytest.approx(np.sum((1 + own) * Q ** 2) * sd ** 2)
