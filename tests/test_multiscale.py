@@ -448,3 +448,26 @@ def test_pattern_regression_keeps_a_common_scatter_out_of_the_station_difference
     for measured, stated in out.values():
         assert stated == pytest.approx(measured, rel=0.12)
     assert out["patterns"][0] < 0.3 * out["stations"][0]
+
+
+def test_warm_up_correction_carries_the_difference_through_the_window():
+    """A linear slow model x' = b + A x with a fast (oil against wall, 2 min) and a slow mode: a window whose
+    warm-up was simulated with extra heat (x_warm_end off the modelled crossing) and then followed the model for
+    L. Its end state plus the correction equals the end state of the model crossing the warm-up and the window
+    from x_start; the difference added undecayed would not (the fast mode has shed part of it)."""
+    from vehicle.runs.multiscale import _LinearFlow, warm_up_correction
+
+    A = np.array([[-1 / 120.0, 1 / 120.0], [1 / 240.0, -1 / 240.0 - 1 / 6000.0]])
+    b = np.array([0.05, 0.001])
+    flow = _LinearFlow(A)
+    x_start, tw, L = np.array([360.0, 352.0]), 6.0, 68.0
+
+    def cross(x, t):
+        return flow.phi(t) @ x + flow.gamma(t) @ b
+    modelled_end = cross(cross(x_start, tw), L)
+    x_warm_end = cross(x_start, tw) + np.array([5.0, 0.2])       # a start transient's heat
+    simulated_end = cross(x_warm_end, L)
+    corrected = simulated_end + warm_up_correction(flow, b, x_start, x_warm_end, tw, L)
+    np.testing.assert_allclose(corrected, modelled_end, rtol=0, atol=1e-9)
+    undecayed = simulated_end + (cross(x_start, tw) - x_warm_end)
+    assert abs(undecayed[0] - modelled_end[0]) > 1.0
