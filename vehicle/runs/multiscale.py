@@ -12,8 +12,9 @@ A window is a stretch of the real road driven with the full model and the compil
 in equilibrium at the current slow states (`EquilibriumSolver`, `VehicleModel.state_at_rest`),
 drives a warm-up stretch that settles the start transient (the tyres meet a road that is not
 flat: its extra dissipation is not the road's, so the slow states cross the warm-up by the
-window's averaged model, as they cross a gap; the first window, which is the drive's own start,
-keeps it) and then the averaged stretch. From the averaged stretch it takes
+window's averaged model, as they cross a gap, the difference from the simulated crossing carried
+through the averaged stretch by the same model, `warm_up_correction`; the first window, which is
+the drive's own start, keeps it) and then the averaged stretch. From the averaged stretch it takes
   r   = mean rate of the slow states (x_b - x_a) / (t_b - t_a): exactly the slow equations under
         the window-averaged dissipation (the slow rates are linear in the dissipated powers, e.g.
         C dT/dt = P_valve + P_friction + P_gas + P_end_stop - losses(T));
@@ -66,7 +67,7 @@ oil temperatures' window forcings (`window_forcings`) alike (106 km test, 16 win
 scatter of an axle's oil forcing about the vehicle's mean, which the after-drive load changes follow, is
 ~25 % smaller, so the stated load-change error is ~40 % smaller (0.09 against 0.15 pp on that test) and the
 stated temperature error spread more evenly over the axles (largest 0.45 / 0.48 K against 0.53 / 0.67 K).
-Its set-up (~0.6 s for the 106 km road: the linearisation ~0.35 s, the FFT at `LINEAR_PROXY_RATE_HZ`) runs
+Its set-up (~1.2 s for the 106 km road with the RMS match: a linearisation ~0.35 s, the FFT at `LINEAR_PROXY_RATE_HZ`) runs
 after the first window (`_linear_proxy_setup`, which can match the linear vehicle's RMS strut velocity to that
 window's: on, see LINEAR_PROXY_MATCH_RMS), only for a drive of at least MIN_CV_WINDOWS windows.
 
@@ -84,8 +85,9 @@ strut's). Per pattern that part stays in the mean. On the 106 km test (16 window
 residual of the oil forcings per axle was, in mK/min, seed 0: 13 / 22 / 13 / 7.5 without a proxy, 8.6 / 11 /
 17 / 11 per station (the third axle's worse than without), 6.5 / 10 / 8.1 / 4.9 per pattern; the stated load-
 change error fell from 0.094 / 0.091 to 0.078 / 0.079 pp (seeds 0 / 1); the scenario's 20 windows of 350 m
-every 5.3 km (~10 % more integration) state 0.052 / 0.064 / 0.061 / 0.071 pp and 0.27-0.38 K (road seeds 0-3;
-measured 0.025-0.046 pp, 0.11-0.24 K, none of the 32 per-axle figures over). An orthonormal change of basis keeps
+every 5.3 km (~10 % more integration) state 0.029 / 0.042 / 0.048 / 0.040 pp and 0.18-0.28 K (road seeds 0-3,
+with the RMS-matched proxy, LINEAR_PROXY_MATCH_RMS, and `warm_up_correction`; measured 0.014-0.022 pp,
+0.10-0.16 K, none of the 32 per-axle figures over). An orthonormal change of basis keeps
 the estimate's form (the regression estimate holds for any linear combination of the strata, Cochran 1977
 ch. 7; tests/test_multiscale.py checks the stated covariance against Monte Carlo in both bases). What is left
 of the load error is the proxy's: the oil forcings' x^2 and x^3 patterns follow the windows' own valve power
@@ -203,7 +205,8 @@ class MultiscaleSettings:
     # vehicle's damping stands for the seal friction and the valves' non-linear damping together; V ~ 0.05 m/s on
     # the 106 km test (first window's RMS strut velocity 0.075 m/s). It was off while the measured errors exceeded
     # the stated ones (16 x 400 m, seed 1: 0.23 K on axle 2 against 0.19 K; 20 x 350 m, seed 0: 0.022 against
-    # 0.020 pp): most of that was the warm-up's difference added at a window's end undecayed (`run`, fixed). With
+    # 0.020 pp). The warm-up's difference was then added at a window's end undecayed (`warm_up_correction`, fixed);
+    # with the fix those figures are within (0.014 / 0.008 against 0.021 / 0.019 pp; 0.155 against 0.177 K). With
     # the fix and the station patterns (CV_PATTERNS), 106 km test, road seeds 0-3: the scenario's 20 x 350 m states
     # 0.029 / 0.042 / 0.048 / 0.040 pp (at V = 0.1 m/s 0.052-0.069 pp; 16 x 400 m, per station, before: 0.094 /
     # 0.089 pp), 16 x 400 m 0.036-0.055 pp, 22 x 500 m 0.028-0.041 pp; 1 of the 96 per-axle measured figures over
@@ -357,7 +360,7 @@ def station_patterns(position_m: np.ndarray, side: np.ndarray) -> np.ndarray:
     The first is the vehicle's mean (heave-like), the second linear in x (pitch-like), the side difference
     roll-like; the higher ones are the patterns a rigid hull cannot follow, the ones the standing vehicle's
     wheel loads respond to (106 km test: the load sensitivity to a uniform or a linear oil temperature pattern is
-    ~1 % of that to a single strut's). The identity if the stations do not give n independent patterns."""
+    1-3 % of that to a single strut's). The identity if the stations do not give n independent patterns."""
     x = np.asarray(position_m, float)
     x = x - x.mean()
     n = x.size
