@@ -1,6 +1,7 @@
 """Parallel in time against the serial run, in one process: wall time and accuracy.
 
-    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--baseline] [--json]
+    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--baseline]
+                                       [--reference-dt 1ms] [--dt STEP] [--json]
 
 Two runs of the same scenario into memory (vehicle.runs.results.run_in_memory, what sweeps and UQ use):
   serial         the full drive (compiled ROS2 at the scenario's dt) in this process;
@@ -9,7 +10,8 @@ Two runs of the same scenario into memory (vehicle.runs.results.run_in_memory, w
 Printed: drive wall time of each (the summary's wall_s: without building the model, the same for both) and
 their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
 temperature and wheel-load change differences (time-parallel - serial), without the correction for the
-temperatures, and the run's own a-posteriori estimate. On a machine shared with other work the wall ratio
+temperatures, and the run's own a-posteriori estimate; with --reference-dt every run's largest per-axle error
+of the final strut temperature and the load change against the serial run at that step (the issue's 1 ms). On a machine shared with other work the wall ratio
 understates what P free cores give: the CPU sum says how much work was done.
 """
 from __future__ import annotations
@@ -38,6 +40,12 @@ def main(argv=None):
     ap.add_argument("--distance", default=None, help="override the scenario's distance, e.g. '10 km'")
     ap.add_argument("--baseline", action="store_true",
                     help="also run the engine of issue 11's filing serially first (Ros2(engine='baseline'), same model)")
+    ap.add_argument("--dt", default=None,
+                    help="the serial and time-parallel runs' step (default the scenario's; the old engine of "
+                         "--baseline keeps the scenario's: today's engine as configured), e.g. '1/260 s' as '3.846153846 ms'")
+    ap.add_argument("--reference-dt", default=None,
+                    help="also run the full model serially at this step (e.g. 1ms: the issue's tight reference) and "
+                         "report every run's final temperatures and load changes against it")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
 
@@ -52,16 +60,16 @@ def main(argv=None):
 
     cpu = {}
 
-    def run(solver_extra):
+    def run(solver_extra, name):
         d = {**data, "solver": {**(data.get("solver") or {}), **solver_extra}}
         s = read_scenario_text(yaml.safe_dump(d), src.name, src.base_dir)
         t0, c0 = time.perf_counter(), time.process_time()
         marks = []
         # the serial drive's CPU time: from its first block to its last (progress is called after each block)
-        sink = run_in_memory(s, progress=None if solver_extra else (lambda *a: marks.append(time.process_time())))
+        sink = run_in_memory(s, progress=None if name != "serial" else (lambda *a: marks.append(time.process_time())))
         if marks:
             cpu["serial_drive"] = marks[-1] - marks[0]
-        cpu["parallel" if solver_extra else "serial"] = time.process_time() - c0
+        cpu[name] = time.process_time() - c0
         total = time.perf_counter() - t0
         return sink, report_from(sink, src.name), total
 
@@ -78,9 +86,22 @@ def main(argv=None):
         drive = Drive(model, prep.road(), settings, solver=Ros2(settings.dt_s, engine="baseline"))
         t0 = time.perf_counter()
         res_b = drive.run()
-        baseline = {"wall_s": time.perf_counter() - t0, "T_end_C": (res_b.state.x[drive.T_index] - 273.15).tolist()}
-    serial, rs, total_s = run({})
-    par, rp, total_p = run({"time_parallel": args.segments})
+        wall_b = time.perf_counter() - t0
+        ax = np.array([model.params.station_axle(i) for i in range(model.n)])
+        N0 = np.asarray(drive.initial_equilibrium().wheel_loads_N, float)
+        N1 = np.asarray(res_b.after.wheel_loads_N, float)
+        dN_b = [float(100.0 * (N1[ax == k].mean() - N0[ax == k].mean()) / N0[ax == k].mean())
+                for k in range(model.params.n_axles)]
+        baseline = {"wall_s": wall_b, "T_end_C": (res_b.state.x[drive.T_index] - 273.15).tolist(), "dN_pct": dN_b}
+    step = {"dt": args.dt} if args.dt else {}
+    serial, rs, total_s = run(step, "serial")
+    par, rp, total_p = run({**step, "time_parallel": args.segments}, "parallel")
+    reference = None
+    if args.reference_dt:
+        # the tight reference: the same drive at a smaller step (second order: 1 ms is 16x tighter than 4 ms)
+        ref_sink, rr, _ = run({"dt": args.reference_dt}, "reference")
+        reference = {"T": np.array([a["T_end_C"] for a in rr["axles"]]),
+                     "dN": np.array([a["dN_pct"] for a in rr["axles"]])}
     ss, sp = serial.summary_attrs(), par.summary_attrs()
     T_s = np.array([a["T_end_C"] for a in rs["axles"]])
     T_p = np.array([a["T_end_C"] for a in rp["axles"]])
@@ -104,6 +125,15 @@ def main(argv=None):
            "estimated_error_K": np.asarray(vals.get("estimated_error_axle_temperature", [np.nan]), float).tolist(),
            "estimated_error_pp": np.asarray(vals.get("estimated_error_load_change", [np.nan]), float).tolist(),
            "energy_rel_diff": (rp["energy_dissipated_MJ"] - rs["energy_dissipated_MJ"]) / rs["energy_dissipated_MJ"]}
+    if reference is not None:
+        def against(T, dN):
+            return {"max_temperature_error_K": float(np.max(np.abs(T - reference["T"]))),
+                    "max_load_error_pp": float(np.max(np.abs(dN - reference["dN"])))}
+        out["reference_dt"] = args.reference_dt
+        out["serial_vs_reference"] = against(T_s, dN_s)
+        out["parallel_vs_reference"] = against(T_p, dN_p)
+        if baseline is not None:
+            out["baseline_vs_reference"] = against(_axle(baseline["T_end_C"]), np.array(baseline["dN_pct"]))
     if baseline is not None:
         out.update(baseline_wall_s=baseline["wall_s"], baseline_vs_serial=baseline["wall_s"] / out["serial_wall_s"],
                    baseline_vs_parallel=baseline["wall_s"] / out["parallel_wall_s"])
@@ -123,6 +153,12 @@ def main(argv=None):
     print(f"  time-parallel critical path in CPU time (segment 0, or the coarse run {out['coarse_cpu_s']:.1f} s + the "
           f"slowest other segment; + the join {out['join_cpu_s']:.1f} s): {out['critical_cpu_s']:.1f} s, against the serial "
           f"drive's CPU {out['serial_drive_cpu_s']:.1f} s -> {out['serial_drive_cpu_s'] / out['critical_cpu_s']:.2f}x on P free cores")
+    if reference is not None:
+        parts = [f"{name} {out[key]['max_temperature_error_K']:.3f} K / {out[key]['max_load_error_pp']:.4f} pp"
+                 for name, key in (("serial", "serial_vs_reference"), ("time-parallel", "parallel_vs_reference"),
+                                   ("old engine", "baseline_vs_reference")) if key in out]
+        print(f"  against the serial run at {args.reference_dt} (largest over the axles: final strut temperature, "
+              f"load change): " + ", ".join(parts))
     print("  per axle  T_end serial [C]   dT [K]   ddN [pp]   estimate [K]   estimate [pp]")
     for i in range(len(T_s)):
         print(f"  {i + 1:8d}  {T_s[i]:16.3f}  {out['dT_K'][i]:+7.4f}  {out['ddN_pp'][i]:+8.4f}  "
