@@ -10,11 +10,18 @@ REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
 
 
+# `hpsim` as a command started at a terminal: Ctrl-C raises KeyboardInterrupt. A test run started in the
+# background by a non-interactive shell (`cmd &`, nohup) has SIGINT ignored, and an ignored signal stays
+# ignored across fork and exec (Python then installs no handler): the interrupt tests would test nothing
+_AS_AT_A_TERMINAL = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                     "runpy.run_module('vehicle.cli', run_name='__main__', alter_sys=True)")
+
+
 def hpsim_subprocess(args: list[str], cwd=None, env=None, **kw) -> subprocess.Popen:
-    """`hpsim ARGS` in a new Python process."""
+    """`hpsim ARGS` in a new Python process, with Ctrl-C's default meaning (see _AS_AT_A_TERMINAL)."""
     e = dict(os.environ)
     e.update(env or {})
-    return subprocess.Popen([sys.executable, "-m", "vehicle.cli", *map(str, args)], cwd=cwd, env=e, **kw)
+    return subprocess.Popen([sys.executable, "-c", _AS_AT_A_TERMINAL, *map(str, args)], cwd=cwd, env=e, **kw)
 
 
 def run_hpsim(args: list[str], cwd=None, timeout=300, env=None) -> subprocess.CompletedProcess:
