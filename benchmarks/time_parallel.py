@@ -28,11 +28,6 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def _axle(v):
-    v = np.asarray(v, float)
-    return 0.5 * (v[0::2] + v[1::2])
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1] / "scenarios/mileage_106km.yaml"))
@@ -49,6 +44,7 @@ def main(argv=None):
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
 
+    from benchmarks.engine import summarize
     from vehicle.runs.results import run_in_memory
     from vehicle.runs.scenario import read_scenario, read_scenario_text
     from vehicle.runs.summary import report_from
@@ -86,13 +82,8 @@ def main(argv=None):
         drive = Drive(model, prep.road(), settings, solver=Ros2(settings.dt_s, engine="baseline"))
         t0 = time.perf_counter()
         res_b = drive.run()
-        wall_b = time.perf_counter() - t0
-        ax = np.array([model.params.station_axle(i) for i in range(model.n)])
-        N0 = np.asarray(drive.initial_equilibrium().wheel_loads_N, float)
-        N1 = np.asarray(res_b.after.wheel_loads_N, float)
-        dN_b = [float(100.0 * (N1[ax == k].mean() - N0[ax == k].mean()) / N0[ax == k].mean())
-                for k in range(model.params.n_axles)]
-        baseline = {"wall_s": wall_b, "T_end_C": (res_b.state.x[drive.T_index] - 273.15).tolist(), "dN_pct": dN_b}
+        # per axle final temperature and load change as benchmarks/engine.py summarises its engines
+        baseline = summarize(drive, res_b, 0.0, time.perf_counter() - t0)
     step = {"dt": args.dt} if args.dt else {}
     serial, rs, total_s = run(step, "serial")
     par, rp, total_p = run({**step, "time_parallel": args.segments}, "parallel")
@@ -133,7 +124,7 @@ def main(argv=None):
         out["serial_vs_reference"] = against(T_s, dN_s)
         out["parallel_vs_reference"] = against(T_p, dN_p)
         if baseline is not None:
-            out["baseline_vs_reference"] = against(_axle(baseline["T_end_C"]), np.array(baseline["dN_pct"]))
+            out["baseline_vs_reference"] = against(np.array(baseline["T_end_K"]) - 273.15, np.array(baseline["dN_pct"]))
     if baseline is not None:
         out.update(baseline_wall_s=baseline["wall_s"], baseline_vs_serial=baseline["wall_s"] / out["serial_wall_s"],
                    baseline_vs_parallel=baseline["wall_s"] / out["parallel_wall_s"])

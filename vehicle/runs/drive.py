@@ -413,10 +413,6 @@ class Drive:
             block[f"energy_{e}_J"] = X[m.energy_index[e]]
         return block
 
-    def _stats(self, st: DriveState, X, t, s) -> list[dict]:
-        """Statistics rows for every interval boundary crossed in this block (and the last partial one)."""
-        return [self._stats_row(*interval) for interval in self._stats_intervals(st, X, t, s)]
-
     def _stats_intervals(self, st: DriveState, X, t, s) -> list[tuple]:
         """Every statistics interval ended in this block, as the arguments of `_stats_row` (distance at the end,
         duration, quadrature differences, state at the end, interval mean gas temperature); the last partial
