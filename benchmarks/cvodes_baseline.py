@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 def make_drive(distance_m: float, dt_s: float):
     import yaml
 
-    from vehicle.runs.scenario import prepare, read_scenario_text
+    from vehicle.scenario.schema import prepare, read_scenario_text
 
     data = {"vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 0}, "speed": "20 km/h",
             "distance": f"{distance_m} m", "ambient_temperature": "25 degC", "solver": {"dt": f"{dt_s} s"},

@@ -7,7 +7,7 @@
 
 The drive: the apc_8x8 on ISO class D (seed 0) at 20 km/h, 25 degC, struts starting at ambient
 (or the given scenario). Three runs in one process, through the scenario machinery `hpsim run` uses
-(vehicle.runs.scenario.prepare -> Drive / MultiscaleDrive, no results file):
+(vehicle.scenario.schema.prepare -> Drive / MultiscaleDrive, no results file):
   full        the production solver (compiled ROS2) at 4 ms (or the scenario's dt);
   multiscale  `solver: {mode: multiscale}` with --window / --spacing / --warm-up;
   reference   the full model with ROS2 at 1 ms (--reference-dt): the step's own error is second order,
@@ -59,7 +59,7 @@ def scenario_data(args) -> dict:
 def run(data: dict, base_dir: str) -> dict:
     import yaml
 
-    from vehicle.runs.scenario import prepare, read_scenario_text
+    from vehicle.scenario.schema import prepare, read_scenario_text
 
     t0 = time.perf_counter()
     prep = prepare(read_scenario_text(yaml.safe_dump(data), "benchmark", base_dir))

@@ -46,7 +46,7 @@ def scenario_text(distance: str, dt: str) -> str:
 
 
 def build_drive(prep, model, road, solver):
-    from vehicle.runs.drive import Drive
+    from vehicle.engines.full import Drive
 
     t0 = time.perf_counter()
     drive = Drive(model, road, prep.settings(), solver=solver)
@@ -152,7 +152,7 @@ def main(argv=None):
         os.environ["HPSIM_CACHE"] = tempfile.mkdtemp(prefix="hpsim_bench_")
     from hpsim.units import parse_quantity
     from vehicle.numerics.solvers import Ros2
-    from vehicle.runs.scenario import prepare, read_scenario_text
+    from vehicle.scenario.schema import prepare, read_scenario_text
 
     dt = parse_quantity(args.dt, "s", where="--dt")
     t0 = time.perf_counter()

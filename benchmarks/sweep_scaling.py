@@ -4,7 +4,7 @@
 
 The cases are the apc_8x8 on ISO class D roads that differ only in the road seed, so they share
 one compiled model (compiled once before timing; each worker process still loads it). They run
-through `hpsim sweep`'s machinery (vehicle.runs.sweep.run_sweep: local processes, one HDF5 file
+through `hpsim sweep`'s machinery (vehicle.studies.sweep.run_sweep: local processes, one HDF5 file
 per case, the summary), first with one worker, then with --workers. Printed: wall time of each,
 the speed-up and the efficiency per worker = T(1 worker) / (k x T(k workers)); 1.0 is perfect.
 The machine's cores are shared with whatever else runs: repeat the measurement before trusting
@@ -36,7 +36,7 @@ output: {{interval: 1 s, stats_interval: 1 km}}
 
 
 def timed_sweep(sweep: Path, out: Path, workers: int) -> tuple[float, dict]:
-    from vehicle.runs.sweep import run_sweep
+    from vehicle.studies.sweep import run_sweep
 
     t0 = time.perf_counter()
     result = run_sweep(sweep, output_dir=out, workers=workers)
@@ -54,7 +54,7 @@ def main(argv=None):
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     from hpsim.units import parse_quantity
-    from vehicle.runs.results import run_scenario
+    from vehicle.results.run import run_scenario
 
     distance_m = parse_quantity(args.distance, "m", where="--distance")
     with tempfile.TemporaryDirectory() as tmp:

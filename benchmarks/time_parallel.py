@@ -3,10 +3,10 @@
     python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--baseline]
                                        [--reference-dt 1ms] [--dt STEP] [--json]
 
-Two runs of the same scenario into memory (vehicle.runs.results.run_in_memory, what sweeps and UQ use):
+Two runs of the same scenario into memory (vehicle.results.run.run_in_memory, what sweeps and UQ use):
   serial         the full drive (compiled ROS2 at the scenario's dt) in this process;
   time_parallel  `solver: {time_parallel: P}`: P segments in P processes, a multiscale coarse run predicting
-                 the segment starts, the slow-state correction (vehicle.runs.time_parallel).
+                 the segment starts, the slow-state correction (vehicle.engines.time_parallel).
 Printed: drive wall time of each (the summary's wall_s: without building the model, the same for both) and
 their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
 temperature and wheel-load change differences (time-parallel - serial), without the correction for the
@@ -45,9 +45,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     from benchmarks.engine import summarize
-    from vehicle.runs.results import run_in_memory
-    from vehicle.runs.scenario import read_scenario, read_scenario_text
-    from vehicle.runs.summary import report_from
+    from vehicle.results.run import run_in_memory
+    from vehicle.scenario.schema import read_scenario, read_scenario_text
+    from vehicle.analysis.summary import report_from
 
     src = read_scenario(args.scenario)
     data = dict(src.data)
@@ -74,8 +74,8 @@ def main(argv=None):
         # the engine as it was when issue 11 was filed, on the same model and road, serial, no sink (what a drive
         # costs without the results file: the serial and parallel runs below write into memory, a small difference)
         from vehicle.numerics.solvers import Ros2
-        from vehicle.runs.drive import Drive
-        from vehicle.runs.scenario import prepare
+        from vehicle.engines.full import Drive
+        from vehicle.scenario.schema import prepare
 
         prep = prepare(read_scenario_text(yaml.safe_dump(data), src.name, src.base_dir))
         model, settings = prep.model(), prep.settings()

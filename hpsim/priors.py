@@ -18,7 +18,7 @@ axle: the same hardware); tied priors must be identical.
 `collect_priors(data, source)` walks a loaded YAML mapping and returns every prior with its key
 path (`axles.0.unsprung_mass`), in SI; errors name the file and the key path. The loaders of
 parameter files ignore `prior` (hpsim.config), so a file with priors runs at its `value`s.
-Sampling and the sensitivity analysis live in vehicle.runs.uq.
+Sampling and the sensitivity analysis live in vehicle.studies.uq.
 """
 from __future__ import annotations
 

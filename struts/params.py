@@ -165,7 +165,7 @@ class EndStops(Model):
 
 
 class Limits(Model):
-    """Temperature limits of the strut's materials, for validity warnings (vehicle.runs.warnings).
+    """Temperature limits of the strut's materials, for validity warnings (vehicle.results.validity).
 
     None: not known (no warning). The oil data's own range is that of the viscosity datasheet
     points (oil.viscosity_T1 .. viscosity_T2): beyond it the viscosity law extrapolates.

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from vehicle.runs.calibration import _run, calibrate_heat
-from vehicle.runs.scenario import read_scenario
+from vehicle.studies.calibration import _run, calibrate_heat
+from vehicle.scenario.schema import read_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

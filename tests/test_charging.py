@@ -15,7 +15,7 @@ from struts import gas as gaslaw
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY, load_vehicle
-from vehicle.runs.scenario import load_prepared
+from vehicle.scenario.schema import load_prepared
 
 
 def _model(method, strut_overrides=None, **overrides):

@@ -173,8 +173,8 @@ def warm_imports():
     cli.build_parser()
     registry()
     import vehicle.presentation.plots  # noqa: F401
-    import vehicle.runs.results  # noqa: F401
-    import vehicle.runs.sweep  # noqa: F401
+    import vehicle.results.run  # noqa: F401
+    import vehicle.studies.sweep  # noqa: F401
     import struts.fit  # noqa: F401
     import struts.rig  # noqa: F401
     import terrain.stats  # noqa: F401
@@ -543,7 +543,7 @@ def test_calibrate_tolerance(case_dir, tolerance):
 ])
 def test_limits_agree_with_their_messages(tmp_path, key, value, accepted):
     from hpsim.errors import UserInputError
-    from vehicle.runs.scenario import read_scenario_text, validate_scenario
+    from vehicle.scenario.schema import read_scenario_text, validate_scenario
 
     text = _replace_line(SCENARIO, key, f"{key}: {value}")
     src = read_scenario_text(text, "s.yaml", tmp_path)

@@ -13,7 +13,7 @@ import pytest
 from hpsim.errors import UserInputError
 from vehicle import cli
 from vehicle.physics.params import load_vehicle
-from vehicle.runs.scenario import prepare, read_scenario_text
+from vehicle.scenario.schema import prepare, read_scenario_text
 
 SCENARIO = """\
 vehicle: {name: apc_8x8}
@@ -132,7 +132,7 @@ def test_foreign_file_content_is_not_echoed(tmp_path, capsys):
 def synthetic_calibration(tmp_path, monkeypatch):
     """calibrate_heat with `_run` replaced by rise(ratio) = 60 K / (1 + 20 ratio): smooth and monotone
     decreasing like the real one, between 60 K (no forced convection) and ~1.5 K (ratio 2)."""
-    import vehicle.runs.calibration as cal
+    import vehicle.studies.calibration as cal
 
     (tmp_path / "s.yaml").write_text(SCENARIO)
     calls = []

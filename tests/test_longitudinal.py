@@ -13,9 +13,9 @@ from terrain import RoadSpec, build_road
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY, load_vehicle
-from vehicle.runs.drive import Drive, DriveSettings
-from vehicle.runs.sinks import MemorySink
-from vehicle.runs.speed import SpeedProfile
+from vehicle.engines.full import Drive, DriveSettings
+from vehicle.results.sinks import MemorySink
+from vehicle.scenario.speed import SpeedProfile
 
 T0 = 298.15
 BRAKING = -2.5      # m/s^2
@@ -148,7 +148,7 @@ def test_a_drive_braking_on_a_flat_road_settles_to_the_static_load_transfer():
 
 
 def test_constant_speed_feeds_no_acceleration_and_variable_speed_does(tmp_path):
-    from vehicle.runs.scenario import prepare, read_scenario_text
+    from vehicle.scenario.schema import prepare, read_scenario_text
 
     from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Multiscale mode (vehicle.runs.multiscale, issue 11 §2): windows of the road with the full model, the slow
+"""Multiscale mode (vehicle.engines.multiscale, issue 11 §2): windows of the road with the full model, the slow
 states advanced between them, an a-posteriori error estimate.
 
 - on a short drive the multiscale result matches the full run within the error the multiscale run states
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import yaml
 
-from vehicle.runs.results import run_in_memory
-from vehicle.runs.scenario import read_scenario_text
-from vehicle.runs.summary import report_from
+from vehicle.results.run import run_in_memory
+from vehicle.scenario.schema import read_scenario_text
+from vehicle.analysis.summary import report_from
 
 from .test_run_helpers import assert_bad_scenario_exits_2
 
@@ -150,7 +150,7 @@ def _strata(nw=12, m=3, seed=5):
 def test_control_variate_is_exact_when_the_forcing_is_linear_in_the_proxy():
     """y = a + b p in every window and stretch: the corrected stratum values are the stretch's own, the
     residuals vanish (the stated error with them), with or without the time column."""
-    from vehicle.runs.multiscale import control_variate
+    from vehicle.engines.multiscale import control_variate
 
     _, pw, ps = _strata()
     a, b = np.array([0.3, -1.0, 2.0]), np.array([1.5, 0.2, -4.0])
@@ -167,7 +167,7 @@ def test_control_variate_reduces_to_the_plain_estimate_for_an_uncorrelated_proxy
     """A proxy orthogonal to the forcings (after the intercept and the time trend) gets a zero slope: the
     strata keep the plain window values and the residuals are those of the plain estimate; a proxy without
     scatter likewise."""
-    from vehicle.runs.multiscale import control_variate
+    from vehicle.engines.multiscale import control_variate
 
     rng, _, ps = _strata()
     nw, m = ps.shape
@@ -193,7 +193,7 @@ def test_control_variate_cuts_the_sampling_error_of_a_noisy_linear_forcing():
     """Monte Carlo of the estimator on synthetic strata: y = a + b p + noise (noise 1/3 of the proxy's scatter).
     The regression estimate of the strata total has a smaller error than the plain one, near the theory's
     1 - R^2 (Cochran 1977 eq. 7.10), and its slope's spread matches the stated H H^T sigma^2."""
-    from vehicle.runs.multiscale import control_variate
+    from vehicle.engines.multiscale import control_variate
 
     rng = np.random.default_rng(11)
     nw, trials, b, sd = 15, 400, 2.0, 1.0 / 3.0
@@ -217,7 +217,7 @@ def test_control_variate_cuts_the_sampling_error_of_a_noisy_linear_forcing():
 def test_linear_flow_matches_the_matrix_exponential():
     """The gaps' propagators by one eigen-decomposition equal scipy's expm (with a zero eigenvalue: oil volume
     without levelling)."""
-    from vehicle.runs.multiscale import _LinearFlow, _propagators
+    from vehicle.engines.multiscale import _LinearFlow, _propagators
 
     rng = np.random.default_rng(2)
     A = -np.diag([1 / 6300, 1 / 110, 1 / 10, 0.0]) + 1e-4 * rng.normal(size=(4, 4))
@@ -232,7 +232,7 @@ def test_linear_flow_matches_the_matrix_exponential():
 def test_weighted_layout_ends_with_the_drive():
     """The last window of the weighted placement ends at the drive's end (the final state's short thermal
     memories are simulated), windows never overlap and stay inside the drive."""
-    from vehicle.runs.multiscale import MultiscaleSettings
+    from vehicle.engines.multiscale import MultiscaleSettings
 
     ms = MultiscaleSettings(window_m=400.0, spacing_m=7000.0, warm_up_m=30.0)
     v = 20 / 3.6
@@ -255,7 +255,7 @@ def test_window_forcings_take_out_the_state_dependence_window_by_window():
     proxy explains; carried by each window's own Jacobian they are road_k - h_k x_ref, a function of the road
     alone: a proxy linear in the road explains them exactly (zero residuals of `control_variate`).
     (3) A linear model (one A) gives r - A xbar plus a constant: the same scatter as before."""
-    from vehicle.runs.multiscale import control_variate, window_forcings
+    from vehicle.engines.multiscale import control_variate, window_forcings
 
     # (1) rate f(x) = road - k0 (1 + c x) x  (x: K above a reference)
     k0, c, road = 0.02, 0.01, 0.3
@@ -300,7 +300,7 @@ def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehic
 
     from vehicle.physics import linear
     from vehicle.physics.params import load_vehicle
-    from vehicle.runs.multiscale import MultiscaleSettings, linear_strut_velocity
+    from vehicle.engines.multiscale import MultiscaleSettings, linear_strut_velocity
 
     lin = linear.linearise(load_vehicle("apc_8x8"), None,
                            friction_velocity_m_s=MultiscaleSettings.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
@@ -343,7 +343,7 @@ def test_linear_model_proxy_can_match_a_given_rms_strut_velocity():
     """The optional equivalent linearisation by variance (`_linear_proxy_setup(match)`, off by default): the
     friction velocity amplitude found gives the linear vehicle the requested RMS strut velocity over the stretch,
     and a smaller RMS needs a smaller amplitude (more friction damping, c = 4 F_C / (pi V))."""
-    from vehicle.runs.scenario import prepare
+    from vehicle.scenario.schema import prepare
 
     data = {**BASE, "solver": MULTISCALE}
     _, drive = prepare(read_scenario_text(yaml.safe_dump(data), "ms.yaml", ".")).drive()
@@ -364,7 +364,7 @@ def test_stated_covariance_of_the_regression_estimate_matches_monte_carlo():
     sum_k Q_k stretch_k. The stated covariance (`stratified_error_covariance`) equals the Monte Carlo variance of
     the error; leaving out the covariance of each window's residual in its stratum and in the slope does not
     (a layout where the weights grow with the proxy, so that term is large)."""
-    from vehicle.runs.multiscale import control_variate, stratified_error_covariance
+    from vehicle.engines.multiscale import control_variate, stratified_error_covariance
 
     rng = np.random.default_rng(5)
     nw, trials, sd = 12, 4000, 0.5
@@ -396,7 +396,7 @@ def test_station_patterns_are_orthonormal_mean_first_then_position():
     """The apc's 8 stations (4 axles, 2 sides): orthonormal patterns, the first the vehicle's mean, the second
     linear in the station's position, the side-difference ones opposite on the two sides; stations that do not
     give n independent patterns: the identity."""
-    from vehicle.runs.multiscale import station_patterns
+    from vehicle.engines.multiscale import station_patterns
 
     x = np.repeat([0.0, 1.55, 3.45, 5.0], 2)
     side = np.arange(8) % 2
@@ -420,7 +420,7 @@ def test_pattern_regression_keeps_a_common_scatter_out_of_the_station_difference
     (per-station slopes fit the common part differently and it leaks into the difference), and in both cases
     the stated covariance (`stratified_error_covariance` in the regression's basis) matches the Monte Carlo
     variance."""
-    from vehicle.runs.multiscale import control_variate, station_patterns, stratified_error_covariance
+    from vehicle.engines.multiscale import control_variate, station_patterns, stratified_error_covariance
 
     rng = np.random.default_rng(8)
     n, nw, trials, sd_c, sd_e = 8, 14, 1500, 3.0, 0.2
@@ -455,7 +455,7 @@ def test_warm_up_correction_carries_the_difference_through_the_window():
     warm-up was simulated with extra heat (x_warm_end off the modelled crossing) and then followed the model for
     L. Its end state plus the correction equals the end state of the model crossing the warm-up and the window
     from x_start; the difference added undecayed would not (the fast mode has shed part of it)."""
-    from vehicle.runs.multiscale import _LinearFlow, warm_up_correction
+    from vehicle.engines.multiscale import _LinearFlow, warm_up_correction
 
     A = np.array([[-1 / 120.0, 1 / 120.0], [1 / 240.0, -1 / 240.0 - 1 / 6000.0]])
     b = np.array([0.05, 0.001])

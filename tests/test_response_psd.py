@@ -1,4 +1,4 @@
-"""Response PSDs from stored series (vehicle.runs.psd, `hpsim report --psd`): a known signal's PSD peaks
+"""Response PSDs from stored series (vehicle.analysis.psd, `hpsim report --psd`): a known signal's PSD peaks
 at its frequency and integrates to its variance (Parseval); series too sparse for the modes are refused
 with the interval to use."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hpsim.errors import UserInputError
-from vehicle.runs.psd import response_psd
+from vehicle.analysis.psd import response_psd
 
 
 class SeriesView:

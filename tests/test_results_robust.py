@@ -186,7 +186,7 @@ def test_a_kill_during_the_final_write_leaves_a_file_that_resumes(work, capsys):
 
 
 def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, capsys):
-    from vehicle.runs import sinks
+    from vehicle.results import sinks
 
     d, ref = work
     out = d / "full.h5"
@@ -212,7 +212,7 @@ def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, 
     def full_clone(*a, **kw):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr("vehicle.runs.results.clone_group", full_clone)
+    monkeypatch.setattr("vehicle.results.run.clone_group", full_clone)
     assert cli.main(["run", str(d / "drive.yaml"), "-o", str(out), "--resume", "--no-progress"]) == 3
     assert "disk full" in capsys.readouterr().err
     assert out.read_bytes() == before and not (d / "full.h5.resume").exists()
@@ -273,8 +273,8 @@ def test_a_reader_holding_a_new_file_delays_the_run_instead_of_failing_it(tmp_pa
     the case with "unable to lock file"), and gives up with the lock error only after its wait."""
     import time
 
-    from vehicle.runs.results import open_for_append
-    from vehicle.runs.sinks import LIBVER
+    from vehicle.results.run import open_for_append
+    from vehicle.results.sinks import LIBVER
 
     path = tmp_path / "run.h5"
     with h5py.File(path, "x", libver=LIBVER) as f:

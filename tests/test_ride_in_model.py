@@ -1,5 +1,5 @@
 """Ride and road-holding metrics accumulated inside the integrator (vehicle.physics.model ride states,
-vehicle.runs.drive statistics rows) against the same quantities from dense stored series.
+vehicle.engines.full statistics rows) against the same quantities from dense stored series.
 
 The drives run the 8x8 at 36 km/h over a sinusoidal road (2 Hz at the wheels) with output at every
 4 ms step. After the start transient the motion is periodic, so the exact ISO 2631-1 weighting of the
@@ -24,8 +24,8 @@ from terrain.road import Road
 from vehicle.physics import ride
 from vehicle.physics.model import TRAVEL_BINS, VehicleModel
 from vehicle.physics.params import load_vehicle
-from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
-from vehicle.runs.sinks import MemorySink
+from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+from vehicle.results.sinks import MemorySink
 
 SPEED = 10.0            # m/s
 WAVELENGTH = 5.0        # m: 2 Hz at 10 m/s

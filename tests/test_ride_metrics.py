@@ -1,4 +1,4 @@
-"""Drive totals of the ride statistics rows (vehicle.runs.ride_metrics): a signal cut into statistics
+"""Drive totals of the ride statistics rows (vehicle.analysis.ride_metrics): a signal cut into statistics
 intervals of unequal length must give the whole signal's ISO 2631-1 weighted RMS and VDV, mean
 absorbed power, dynamic load coefficient, time shares and travel percentiles."""
 from __future__ import annotations
@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from vehicle.physics import ride
-from vehicle.runs import ride_metrics
-from vehicle.runs.warnings import _name
+from vehicle.analysis import ride_metrics
+from vehicle.results.validity import _name
 
 EDGES = np.linspace(0.0, 0.24, 49)            # strut travel bins [m]
 
 
 class RowsView:
-    """The part of a results view (vehicle.runs.reader.ResultsView) the totals read."""
+    """The part of a results view (vehicle.results.reader.ResultsView) the totals read."""
 
     def __init__(self, rows: dict, seats, stations):
         self.rows = {_name(k): np.asarray(v, float) for k, v in rows.items()}

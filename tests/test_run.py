@@ -49,7 +49,7 @@ def reference(workdir):
 
 
 def _final_state(f):
-    from vehicle.runs.results import read_state
+    from vehicle.results.run import read_state
 
     return read_state(f)
 
@@ -148,7 +148,7 @@ def test_report_agrees_with_the_file(reference, capsys):
 
 
 def _wait_for_samples(path: Path, proc: subprocess.Popen, n: int, timeout: float = 120.0) -> int:
-    from vehicle.runs.results import open_read, valid_counts
+    from vehicle.results.run import open_read, valid_counts
 
     t0 = time.time()
     while time.time() - t0 < timeout:
@@ -221,7 +221,7 @@ def test_ctrl_c_leaves_a_readable_resumable_file(reference, workdir):
 
 def test_solver_failure_stops_with_a_message_and_keeps_the_data(workdir, monkeypatch, capsys):
     from hpsim.errors import SimulationError
-    from vehicle.runs.drive import Drive
+    from vehicle.engines.full import Drive
 
     def failing_check(self, X, t, s, *more):
         if s[-1] > 1200.0:

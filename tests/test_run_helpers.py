@@ -37,7 +37,7 @@ def assert_bad_scenario_exits_2(path: Path, key: str, words, capsys) -> None:
 
     from hpsim.errors import UserInputError
     from vehicle import cli
-    from vehicle.runs.scenario import load_prepared
+    from vehicle.scenario.schema import load_prepared
 
     with pytest.raises(UserInputError) as err:
         load_prepared(path)

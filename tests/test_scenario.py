@@ -11,7 +11,7 @@ import pytest
 
 from hpsim.errors import UserInputError
 from vehicle import cli
-from vehicle.runs.scenario import apply_overrides, load_prepared, prepare, read_scenario
+from vehicle.scenario.schema import apply_overrides, load_prepared, prepare, read_scenario
 
 from .test_run_helpers import assert_bad_scenario_exits_2
 
@@ -46,7 +46,7 @@ def _run_cli(argv, capsys):
 @pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.name)
 def test_shipped_files_validate(path):
     if "sweep" in path.name:
-        from vehicle.runs.sweep import load_sweep
+        from vehicle.studies.sweep import load_sweep
 
         _, _, cases = load_sweep(path)
         assert cases and all(c["source"].data for c in cases)

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from hpsim.errors import UserInputError
-from vehicle.runs.scenario import load_prepared
-from vehicle.runs.speed import (MIN_SPEED_M_PER_S, CsvSpeedSpec, RandomSpeedSpec, SpeedTable, StopGoSpec,
+from vehicle.scenario.schema import load_prepared
+from vehicle.scenario.speed import (MIN_SPEED_M_PER_S, CsvSpeedSpec, RandomSpeedSpec, SpeedTable, StopGoSpec,
                                 parse_column, random_profile, read_speed_csv, smooth_noise, stop_go_profile)
 
 

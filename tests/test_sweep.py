@@ -97,8 +97,8 @@ def test_compensation_reduces_load_redistribution(two_cases):
 
 def test_summary_csv_carries_each_case_s_ride_numbers_and_bands(two_cases):
     """The CSV's per-axle interior temperatures, weighing bands and ride numbers are the case report's values
-    (vehicle.runs.summary.report), and the band columns bracket the frictionless load change."""
-    from vehicle.runs.summary import report
+    (vehicle.analysis.summary.report), and the band columns bracket the frictionless load change."""
+    from vehicle.analysis.summary import report
 
     rows = _summary(two_cases)
     for name, row in rows.items():
@@ -193,7 +193,7 @@ def _running_workers(p, out, timeout=120.0) -> list[int]:
     import json
     import time
 
-    from vehicle.runs.results import open_read, valid_counts
+    from vehicle.results.run import open_read, valid_counts
 
     t0 = time.time()
     while time.time() - t0 < timeout:
@@ -219,7 +219,7 @@ def test_kill_9_of_the_sweep_leaves_no_worker_running(tmp_path):
     import signal
     import time
 
-    from vehicle.runs.results import _pid_alive
+    from vehicle.results.run import _pid_alive
 
     p, out = _start_sweep(tmp_path)
     try:
@@ -253,7 +253,7 @@ def test_ctrl_c_stops_the_sweep_with_130_and_a_command_that_continues_it(tmp_pat
         _, err = p.communicate(timeout=120)
         # the parent may exit a moment before its workers have released their results files' locks: wait for
         # them, so that the continuing sweep below does not meet a live writer
-        from vehicle.runs.results import _pid_alive
+        from vehicle.results.run import _pid_alive
 
         deadline = time.time() + 60
         while any(_pid_alive(pid) for pid in workers) and time.time() < deadline:

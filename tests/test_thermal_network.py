@@ -14,7 +14,7 @@ from struts.params import load_strut
 from terrain import RoadSpec, build_road
 from vehicle.physics import thermal
 from vehicle.physics.params import load_vehicle
-from vehicle.runs.sinks import MemorySink
+from vehicle.results.sinks import MemorySink
 
 from .vehicle_helpers import make_drive
 
@@ -236,7 +236,7 @@ def test_a_local_heat_source_warms_only_its_axle():
 
 def test_scenario_overrides_reach_an_axles_heat_environment():
     """A scenario sets one axle's environment by dotted override; a bad value names the key and its range."""
-    from vehicle.runs.scenario import prepare, read_scenario_text
+    from vehicle.scenario.schema import prepare, read_scenario_text
 
     text = """\
 description: per-axle heat

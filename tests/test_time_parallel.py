@@ -1,4 +1,4 @@
-"""Parallel in time (vehicle.runs.time_parallel, issue 11 §1): a drive split into segments run in parallel
+"""Parallel in time (vehicle.engines.time_parallel, issue 11 §1): a drive split into segments run in parallel
 processes, joined with a correction of the slow states.
 
 - on a short drive whose struts start far from ambient (their temperatures move within the drive), P = 2
@@ -18,10 +18,10 @@ import yaml
 
 from hpsim.errors import UserInputError
 from vehicle import cli
-from vehicle.runs.results import final_info, run_in_memory, run_info
-from vehicle.runs.scenario import prepare, read_scenario_text
-from vehicle.runs.sinks import MemorySink
-from vehicle.runs.summary import report_from
+from vehicle.results.run import final_info, run_in_memory, run_info
+from vehicle.scenario.schema import prepare, read_scenario_text
+from vehicle.results.sinks import MemorySink
+from vehicle.analysis.summary import report_from
 
 BASE = {"description": "time-parallel test", "vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 3},
         "speed": "20 km/h", "distance": "2.4 km", "ambient_temperature": "25 degC",
@@ -127,7 +127,7 @@ def test_the_error_check_gives_the_same_in_the_pool_as_here(runs):
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    from vehicle.runs import time_parallel
+    from vehicle.engines import time_parallel
 
     *_, drive = runs
     t = drive.parareal["boundaries_s"]

@@ -1,4 +1,4 @@
-"""Uncertainty quantification (`hpsim uq`, vehicle.runs.uq, hpsim.priors).
+"""Uncertainty quantification (`hpsim uq`, vehicle.studies.uq, hpsim.priors).
 
 - the study machinery (design, runner, records, SALib analysis) reproduces the analytic Sobol'
   indices of the Ishigami function routed through the same code as the drives;
@@ -21,7 +21,7 @@ import yaml
 from hpsim.errors import UserInputError
 from hpsim.priors import collect_priors, parse_prior
 from vehicle import cli
-from vehicle.runs import uq
+from vehicle.studies import uq
 
 # --- the Ishigami function: analytic Sobol' indices (Ishigami & Homma 1990; Sobol' & Levitan 1999)
 A, B = 7.0, 0.1
@@ -164,14 +164,14 @@ output: {interval: 1 s, stats_interval: 0.1 km}
 
 
 def _source(text: str):
-    from vehicle.runs.scenario import read_scenario_text
+    from vehicle.scenario.schema import read_scenario_text
 
     return read_scenario_text(text, "s.yaml", ".")
 
 
 def test_drawn_values_reach_the_vehicle_and_every_strut():
     from struts.params import load_strut
-    from vehicle.runs.scenario import ScenarioSource, prepare
+    from vehicle.scenario.schema import ScenarioSource, prepare
 
     src = _source(SCENARIO)
     params, notes, _ = uq.scenario_parameters(src)
@@ -260,8 +260,8 @@ def test_uq_command_rejects_bad_settings_with_one_line(tmp_path, capsys):
 
 
 def test_tiny_drive_study_end_to_end(tmp_path, capsys):
-    from vehicle.runs.results import run_scenario
-    from vehicle.runs.summary import report
+    from vehicle.results.run import run_scenario
+    from vehicle.analysis.summary import report
 
     scen = tmp_path / "s.yaml"
     scen.write_text(SCENARIO.replace("200 m", "1 km"))

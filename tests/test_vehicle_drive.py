@@ -7,7 +7,7 @@ from terrain import RoadSpec, build_road
 from vehicle.physics import thermal
 from vehicle.physics.model import ENERGY_TERMS
 from vehicle.physics.params import GRAVITY, load_vehicle
-from vehicle.runs.sinks import MemorySink
+from vehicle.results.sinks import MemorySink
 
 from .vehicle_helpers import make_drive
 
@@ -97,7 +97,7 @@ def test_energy_balance_closes_with_a_variable_speed(anti):
     counted the mechanical balance residual falls at second order with the step, to a small fraction
     of that work (measured, anti 0: 700 J of work, residual -183 J at 2 ms, -20 J at 1 ms; without the
     term the residual would stay near -700 J)."""
-    from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+    from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
     from vehicle.physics.model import VehicleModel
 
     road = build_road(RoadSpec(iso_class="D", length=320.0, seed=3))

@@ -14,7 +14,7 @@ import pytest
 
 from struts import valves
 from terrain import RoadSpec, build_road
-from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
 from vehicle.physics.equilibrium import charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle

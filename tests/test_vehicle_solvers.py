@@ -9,7 +9,7 @@ from terrain import RoadSpec, build_road
 from vehicle.numerics import solvers
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import VehicleParams, load_vehicle
-from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
 
 from .vehicle_helpers import make_drive
 
@@ -121,7 +121,7 @@ def test_a_parameter_change_reuses_the_compiled_model(monkeypatch):
     solvers._BLOCK_FUNCTIONS.clear()
 
     def run(overrides):
-        from vehicle.runs.scenario import apply_overrides
+        from vehicle.scenario.schema import apply_overrides
 
         data = apply_overrides(load_vehicle("apc_8x8").model_dump(), overrides or {})
         m = VehicleModel(VehicleParams.model_validate(data))
@@ -190,7 +190,7 @@ def test_a_drive_compiles_its_libraries_together(monkeypatch, tmp_path):
     together = d.run().state.x
     # one by one (compile_function alone, as before precompile existed), into another empty cache
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache2"))
-    monkeypatch.setattr("vehicle.runs.drive.precompile", lambda fns: 0)
+    monkeypatch.setattr("vehicle.engines.full.precompile", lambda fns: 0)
     solvers._BLOCK_FUNCTIONS.clear()
     alone = Drive(m, road, DriveSettings(**settings)).run().state.x
     assert len(spans) == 6

@@ -1,4 +1,4 @@
-"""Validity warnings (vehicle.runs.warnings), each provoked by a small drive made to provoke it.
+"""Validity warnings (vehicle.results.validity), each provoked by a small drive made to provoke it.
 
 * hot: struts started at 190 degC on a class E road (a tiny version of the class E case of
   scenarios/compensation_sweep.yaml, whose struts reach 167-213 degC): the gas pushes every strut
@@ -21,11 +21,11 @@ import pytest
 
 from struts.params import load_strut
 from vehicle.presentation.report import format_report
-from vehicle.runs import warnings as W
-from vehicle.runs.reader import open_results
-from vehicle.runs.results import run_scenario
-from vehicle.runs.scenario import read_scenario_text
-from vehicle.runs.summary import report
+from vehicle.results import validity as W
+from vehicle.results.reader import open_results
+from vehicle.results.run import run_scenario
+from vehicle.scenario.schema import read_scenario_text
+from vehicle.analysis.summary import report
 
 SCENARIOS = {
     "hot": """\
@@ -147,7 +147,7 @@ def test_rows_with_stop_time_lift_off_and_solver_error(runs):
 
 
 def test_sweep_summary_has_a_warnings_column(runs, tmp_path):
-    from vehicle.runs.sweep import summarise
+    from vehicle.studies.sweep import summarise
 
     cases = [{"name": n, "overrides": {"case": n}, "file": runs[n]} for n in ("hot", "benign")]
     result = summarise(tmp_path / "sweep.yaml", tmp_path, cases, {n: {"status": "done"} for n in ("hot", "benign")})

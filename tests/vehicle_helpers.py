@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from terrain import RoadSpec, build_road
-from vehicle.runs.drive import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from vehicle.runs.scenario import ScenarioSource, apply_overrides, prepare, read_scenario
+from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
 
 __all__ = ["Simulation", "Results", "open_results"]
 
@@ -26,12 +26,12 @@ class Results:
     """Results of one drive, in memory or in a file: the same reading interface either way."""
 
     def __init__(self, view, path: Path | None = None):
-        self.view = view            # vehicle.runs.reader.ResultsView (MemorySink or ResultsFile)
+        self.view = view            # vehicle.results.reader.ResultsView (MemorySink or ResultsFile)
         self.path = path
 
     def summary(self) -> dict:
         """The per-axle numbers `hpsim report --json` prints (temperatures, dh, dN, bands, warnings, ...)."""
-        from vehicle.runs.summary import report_from
+        from vehicle.analysis.summary import report_from
 
         return report_from(self.view, str(self.path or self.view.name))
 
@@ -48,8 +48,8 @@ class Results:
         """Ride and road holding over the drive (what `hpsim report` tables and `--json` "ride" hold): per seat
         the ISO 2631-1 weighted RMS accelerations (Wk vertical, Wd lateral), comfort band, VDV and absorbed
         power; per station the dynamic load coefficient, lift-off share, end-stop time and energy, strut
-        travel min/max/percentiles and histogram (vehicle.runs.ride_metrics)."""
-        from vehicle.runs.ride_metrics import summarise
+        travel min/max/percentiles and histogram (vehicle.analysis.ride_metrics)."""
+        from vehicle.analysis.ride_metrics import summarise
 
         return summarise(self.view)
 
@@ -116,7 +116,7 @@ class Simulation:
     def run(self, out: str | Path | None = None, *, overwrite: bool = False, resume: bool = False,
             progress: bool = False) -> Results:
         """Drive the scenario: in memory (default) or into an HDF5 file exactly as `hpsim run` writes it."""
-        from vehicle.runs.results import run_in_memory, run_scenario
+        from vehicle.results.run import run_in_memory, run_scenario
 
         if out is None:
             return Results(run_in_memory(self.source))
@@ -126,6 +126,6 @@ class Simulation:
 
 def open_results(path: str | Path) -> Results:
     """Any hpsim results file (also one written by an older hpsim, or a run that stopped) -> Results."""
-    from vehicle.runs.reader import open_results as _open
+    from vehicle.results.reader import open_results as _open
 
     return Results(_open(path), Path(path))

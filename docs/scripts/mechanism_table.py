@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vehicle.runs.summary import report
+from vehicle.analysis.summary import report
 
 # case -> (mechanism, what was varied, reference case). The CG height acts only through an
 # acceleration, so its cases drive the variable speed and compare with it. A baseline reference is

@@ -1,11 +1,11 @@
-"""`hpsim calibrate`: the one heat-transfer parameter against a measured mean rise (vehicle.runs.calibration)."""
+"""`hpsim calibrate`: the one heat-transfer parameter against a measured mean rise (vehicle.studies.calibration)."""
 from __future__ import annotations
 
 from hpsim.errors import UserInputError
 from hpsim.tables import format_table, print_json
 from hpsim.units import parse_quantity
 
-from vehicle.runs.calibration import calibrate_heat
+from vehicle.studies.calibration import calibrate_heat
 
 
 def register(sub):

@@ -115,7 +115,7 @@ def cmd_equilibrium(args):
 # --- run -------------------------------------------------------------------------------------------
 def cmd_run(args):
     from vehicle.presentation.report import format_report, report
-    from vehicle.runs.results import RunInterrupted, run_scenario
+    from vehicle.results.run import RunInterrupted, run_scenario
 
     scen = Path(args.scenario)
     out = Path(args.output) if args.output else Path(scen.stem + ".h5")
@@ -140,8 +140,8 @@ def cmd_run(args):
 
 def _with_time_parallel(scen: Path, value: str):
     """The scenario with solver.time_parallel set from --time-parallel (checked here: int in range or auto)."""
-    from vehicle.runs.scenario import apply_overrides, read_scenario
-    from vehicle.runs.time_parallel import SEGMENTS_RANGE
+    from vehicle.scenario.schema import apply_overrides, read_scenario
+    from vehicle.engines.time_parallel import SEGMENTS_RANGE
 
     lo, hi = SEGMENTS_RANGE
     v = value.strip().lower()
@@ -166,9 +166,9 @@ def cmd_report(args):
     if args.psd:
         from vehicle.presentation.plots import psd_plot
         from vehicle.presentation.report import format_psd
-        from vehicle.runs.psd import response_psd
+        from vehicle.analysis.psd import response_psd
 
-        from vehicle.runs.reader import open_results
+        from vehicle.results.reader import open_results
 
         check_figure_file(args.psd, "--psd", make_parents=True)
         with open_results(args.results) as r:
@@ -224,7 +224,7 @@ def cmd_sweep(args):
 
     from vehicle.presentation.plots import compare_plot
     from vehicle.presentation.report import format_summary
-    from vehicle.runs.sweep import run_sweep
+    from vehicle.studies.sweep import run_sweep
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")

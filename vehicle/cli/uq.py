@@ -50,7 +50,7 @@ def register(sub):
 def cmd_uq(args):
     from hpsim.tables import print_json
 
-    from vehicle.runs.uq import run_scenario_study
+    from vehicle.studies.uq import run_scenario_study
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
@@ -81,8 +81,8 @@ def cmd_uq(args):
 def _list(args, patterns) -> int:
     from hpsim.tables import format_table, print_json
 
-    from vehicle.runs.scenario import ScenarioSource, read_scenario
-    from vehicle.runs.uq import check_settings, n_cases, scenario_parameters, select
+    from vehicle.scenario.schema import ScenarioSource, read_scenario
+    from vehicle.studies.uq import check_settings, n_cases, scenario_parameters, select
 
     src = read_scenario(args.scenario)
     if args.distance is not None:

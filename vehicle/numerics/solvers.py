@@ -152,7 +152,7 @@ def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.
 class Ros2:
     """The production solver: compiled fixed-step ROS2 over blocks of steps (see the module docstring).
 
-    A solver object is passed to a drive (`vehicle.runs.drive.Drive(..., solver=Ros2(dt=0.004))`)
+    A solver object is passed to a drive (`vehicle.engines.full.Drive(..., solver=Ros2(dt=0.004))`)
     and bound to a model there (`bind`). It owns the warm-start memory of the eliminated valve
     pressure drops (`memory`), which a checkpoint saves (`get_state`/`set_state`).
 

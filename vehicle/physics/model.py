@@ -3,7 +3,7 @@
 `VehicleModel` is equations only (PyBaMM-style): it names its states, algebraic variables,
 inputs and run parameters, and builds CasADi expressions for
     dx/dt = f(x, z, u, p),   0 = g(x, z, u, p),   outputs y(x, z, u, p).
-Solvers (`vehicle.numerics.solvers`) decide how to integrate it; `vehicle.runs.drive` ties it to a road and a
+Solvers (`vehicle.numerics.solvers`) decide how to integrate it; `vehicle.engines.full` ties it to a road and a
 speed profile.
 
 States (per station i, stations axle-major, left first):
@@ -521,7 +521,7 @@ class VehicleModel:
             k += 1
         return dps
 
-    # base names of the slow states (minutes to hours): what the multiscale mode (vehicle.runs.multiscale)
+    # base names of the slow states (minutes to hours): what the multiscale mode (vehicle.engines.multiscale)
     # advances between its windows of road; everything else in x[:n_dynamic] is fast. A model that adds
     # slow states (e.g. thermal nodes) lists their base names here.
     SLOW_STATES = tuple(f"T_{node}" for node in thermal.NODES) + ("xf", "V_oil")

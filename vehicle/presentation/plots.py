@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from vehicle.presentation.report import compare, open_results, report_from
-from vehicle.runs.summary import _equilibrium_temperature
+from vehicle.analysis.summary import _equilibrium_temperature
 
 MECHANISMS = (("valve", "valve (damping)"), ("friction", "seal friction"), ("gas", "gas heat"),
               ("end_stop", "end stops"))
@@ -36,7 +36,7 @@ def _moving_mean(y: np.ndarray, window: int) -> np.ndarray:
 
 
 def _series(r, name):
-    """A time series of the results (vehicle.runs.reader.ResultsView), rows covered by the checkpoint."""
+    """A time series of the results (vehicle.results.reader.ResultsView), rows covered by the checkpoint."""
     return r.series(name)
 
 
@@ -46,7 +46,7 @@ def dashboard(path, out: str | Path) -> Path:
     loads over the drive, dissipated power by mechanism, and, when the drive's statistics rows
     carry them, ride comfort at the seats and strut travel per interval, and the hull's response PSDs when the
     series are stored densely enough (output.interval <= 1/30 s). `path`: a results file or any
-    `vehicle.runs.reader.ResultsView` (e.g. in-memory results)."""
+    `vehicle.results.reader.ResultsView` (e.g. in-memory results)."""
     import contextlib
 
     plt = _plt()
@@ -252,10 +252,10 @@ def dashboard(path, out: str | Path) -> Path:
 
 
 def _dense_psd(f):
-    """The response PSDs of the run when its stored series are dense enough for them (vehicle.runs.psd; the
+    """The response PSDs of the run when its stored series are dense enough for them (vehicle.analysis.psd; the
     default 1 s output interval is not: then None and the dashboard has no spectrum panel)."""
     from hpsim.errors import UserInputError
-    from vehicle.runs.psd import response_psd
+    from vehicle.analysis.psd import response_psd
 
     try:
         return response_psd(f)
@@ -267,7 +267,7 @@ def _ride_rows(f) -> dict:
     """Per-interval ride statistics of a results view, when the drive stored them."""
     import json
 
-    from vehicle.runs.warnings import _name
+    from vehicle.results.validity import _name
 
     out = {"km": f.stats_series("km")}
     if out["km"] is None or len(out["km"]) == 0:
@@ -361,7 +361,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
 
 
 def psd_plot(psd: dict, out: str | Path, stations=None, title: str = "") -> Path:
-    """Response PSDs (vehicle.runs.psd.response_psd): hull heave, pitch and roll acceleration and the strut
+    """Response PSDs (vehicle.analysis.psd.response_psd): hull heave, pitch and roll acceleration and the strut
     forces (one curve per station), log-log, with the peak frequency marked."""
     plt = _plt()
     out = Path(out)

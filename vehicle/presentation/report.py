@@ -1,9 +1,9 @@
-"""Text tables of drive summaries: `hpsim report` and `hpsim compare` (data from vehicle.runs.summary)."""
+"""Text tables of drive summaries: `hpsim report` and `hpsim compare` (data from vehicle.analysis.summary)."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from vehicle.runs.summary import compare, open_results, report, report_from  # noqa: F401  (re-exported)
+from vehicle.analysis.summary import compare, open_results, report, report_from  # noqa: F401  (re-exported)
 
 
 def format_report(rep: dict) -> str:
@@ -64,7 +64,7 @@ def format_report(rep: dict) -> str:
 
 
 def format_warnings(warnings) -> list[str]:
-    from vehicle.runs.warnings import format_warnings as lines
+    from vehicle.results.validity import format_warnings as lines
 
     return lines(warnings)
 
@@ -104,7 +104,7 @@ def _ride_table(rows, columns, first):
 
 def format_ride(ride: dict, n_axles: int) -> str:
     """The ride (per seat) and road-holding (per axle, worst of left and right) tables of a drive."""
-    from vehicle.runs.ride_metrics import axle_rows
+    from vehicle.analysis.ride_metrics import axle_rows
 
     parts = []
     if ride.get("seats"):

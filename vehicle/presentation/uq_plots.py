@@ -1,4 +1,4 @@
-"""Figures of an uncertainty study (`hpsim uq`, vehicle.runs.uq): prediction bands per axle and the
+"""Figures of an uncertainty study (`hpsim uq`, vehicle.studies.uq): prediction bands per axle and the
 sensitivity ranking (Sobol' indices or partial rank correlations). Drawn from the study summary."""
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The one table of results variables: what each key a drive hands to its sink is called in a
 results file (and in `to_xarray()`), its dimensions, CF/UDUNITS units and long name.
 
-A drive (vehicle.runs.drive) hands its sink dicts keyed by *drive keys* (`strut_temperature_K`,
+A drive (vehicle.engines.full) hands its sink dicts keyed by *drive keys* (`strut_temperature_K`,
 `wheel_load`, `hull_acceleration`, ...): blocks of time series, arrays (n,) or (width, n);
 statistics rows, scalars or (width,); equilibria (vehicle.physics.equilibrium.Equilibrium
 fields). The file and the xarray datasets use *variable names* from this table: CF-style, no unit
@@ -114,8 +114,8 @@ VARIABLES: dict[str, Var | Split] = {
     **{f"power_{e}_W": Var(f"power_{e}", "W", f"mean {text} over the interval", "station") for e, text in _POWER.items()},
     "window_start_m": Var("window_start", "km", "multiscale mode: distance at the start of the window's averaged "
                           "stretch (the row's interval ends at km)", None, "coord", 1e-3),
-    # summary of a multiscale run (vehicle.runs.multiscale): a-posteriori error of the sampled road; of a
-    # time-parallel run (vehicle.runs.time_parallel): estimated error of the slow-state correction at the joins
+    # summary of a multiscale run (vehicle.engines.multiscale): a-posteriori error of the sampled road; of a
+    # time-parallel run (vehicle.engines.time_parallel): estimated error of the slow-state correction at the joins
     "estimated_error_strut_temperature_K": Var("estimated_error_strut_temperature", "K", "multiscale mode: "
                                                "estimated error (95 % interval) of the final strut temperature; "
                                                "time_parallel: of the correction", "station"),
@@ -127,7 +127,7 @@ VARIABLES: dict[str, Var | Split] = {
                                            "time_parallel: of the correction", "axle"),
     "rms_strut_velocity_m_per_s": Var("rms_strut_velocity", "m s-1", "RMS strut velocity over the interval",
                                       "station"),
-    # ride and road holding (vehicle.physics.ride, vehicle.runs.ride_metrics)
+    # ride and road holding (vehicle.physics.ride, vehicle.analysis.ride_metrics)
     "weighted_rms_acceleration_m_s2": Var("weighted_rms_acceleration", "m s-2", "ISO 2631-1 Wk frequency-weighted "
                                           "RMS vertical acceleration at the seat over the interval", "seat"),
     "weighted_rms_lateral_acceleration_m_s2": Var("weighted_rms_lateral_acceleration", "m s-2",
@@ -193,7 +193,7 @@ def lookup(key: str) -> Var | Split:
         return VARIABLES[key]
     except KeyError:
         raise UnknownDriveKey(
-            f"results variable table (vehicle/runs/variables.py VARIABLES) has no entry for the drive key {key!r}: "
+            f"results variable table (vehicle/engines/outputs.py VARIABLES) has no entry for the drive key {key!r}: "
             f"add one line, e.g. {key!r}: Var(\"<cf_name>\", \"<udunits>\", \"<long name>\")") from None
 
 
@@ -241,7 +241,7 @@ def _width_dim(key: str, var: Var, shape: tuple, n_stations: int, n_axles: int) 
         dims = [d for d, n in sizes.items() if n == width]
         if len(dims) != 1:
             raise ValueError(f"drive key {key!r}: width {width} is neither the {n_stations} stations nor the "
-                             f"{n_axles} axles; give its dim in vehicle/runs/variables.py VARIABLES")
+                             f"{n_axles} axles; give its dim in vehicle/engines/outputs.py VARIABLES")
         return (dims[0],)
     if var.dim is None or sizes.get(var.dim) != width:
         raise ValueError(f"drive key {key!r}: width {width} does not match the table's dim {var.dim!r}")

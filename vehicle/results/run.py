@@ -20,14 +20,14 @@
    which `--resume` completes.
 
 Ctrl-C closes the file cleanly (status "interrupted"). A file whose writer was killed is still
-readable (vehicle.runs.reader opens it as an SWMR reader). `--resume` checks the whole file first
+readable (vehicle.results.reader opens it as an SWMR reader). `--resume` checks the whole file first
 (a damaged one is refused untouched), copies what the checkpoint covers into a fresh file
 (`<out>.resume`), rebuilds the drive from the scenario text stored in the file and continues from
 the checkpoint: the result equals an uninterrupted run. A full disk stops the run with "disk
 full" (exit 3); what was checkpointed stays readable and `--resume` continues once there is space.
 No temporary path (`.partial`, `.resume`, `.final`, `.lock`) is written through a symbolic link.
 
-`run_in_memory()` runs the same scenario into a MemorySink (vehicle.runs.sinks): the same
+`run_in_memory()` runs the same scenario into a MemorySink (vehicle.results.sinks): the same
 variables, read through the same interface.
 """
 from __future__ import annotations
@@ -48,10 +48,10 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
-from vehicle.runs.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
+from vehicle.results.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
                                  open_results)
-from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
-from vehicle.runs.sinks import (LIBVER, Checkpoint, H5Sink, MemorySink, clone_group, create_file, create_h5,  # noqa: F401
+from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
+from vehicle.results.sinks import (LIBVER, Checkpoint, H5Sink, MemorySink, clone_group, create_file, create_h5,  # noqa: F401
                                 finish_file, is_disk_full, remove_stale, sync_replace)
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
@@ -83,7 +83,7 @@ def drive_class():
     """The drive class run_scenario uses: `Drive`, which has `describe()` (the keys and shapes of what it
     will hand to the sink, so the file's datasets can all be created before the drive starts: SWMR mode
     cannot create objects); a subclass adds it to a Drive without one."""
-    from vehicle.runs.drive import Drive
+    from vehicle.engines.full import Drive
 
     if hasattr(Drive, "describe"):
         return Drive
@@ -127,7 +127,7 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
                         # the weighing as a measurement: what seal friction lets a standing vehicle show
                         "before_band": weighing_band_datasets(drive, before.temperatures_K)},
         "summary": {"status": "running", "complete": False, "build_s": float(drive.build_s)},
-        # ride metrics (vehicle.runs.ride_metrics): the seat labels and the strut-travel bin edges
+        # ride metrics (vehicle.analysis.ride_metrics): the seat labels and the strut-travel bin edges
         "seats": list(getattr(model, "seat_names", [])),
         "stats_attrs": {"strut_travel_histogram": {"bin_edges_m": drive.travel_bin_edges_m}},
     }
@@ -181,7 +181,7 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     res = drive.run(sink, progress=progress)
     n_samples, n_stats = sink.counts()
     sink.finish(final_info(drive, res, n_samples, n_stats, time.perf_counter() - t0))
-    from vehicle.runs.warnings import check, summary_cell
+    from vehicle.results.validity import check, summary_cell
 
     found = check(sink)                 # the validity warnings, as run_scenario records them in the file
     sink.final["summary"].update(warnings=summary_cell(found), warnings_json=json.dumps(found))
@@ -390,7 +390,7 @@ def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
 
 
 def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_every_blocks) -> dict:
-    from vehicle.runs.drive import DriveState
+    from vehicle.engines.full import DriveState
 
     with open_results(out, check=False) as r:
         sc = r.scenario_attrs
@@ -566,7 +566,7 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
     final = final_info(drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     try:
         _final_write(out, final)
-        from vehicle.runs.warnings import record
+        from vehicle.results.validity import record
 
         record(out)                     # the validity warnings, in the file (/summary attrs)
     except (OSError, RuntimeError) as exc:
@@ -579,7 +579,7 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
 
 def _final_write(out: Path, final: dict) -> None:
     if os.environ.get("HPSIM_FAULT") == "during_final_write":
-        import vehicle.runs.sinks as sinks
+        import vehicle.results.sinks as sinks
 
         real = sinks.write_static_group
 

@@ -14,15 +14,15 @@ moves them:
    with other settings is refused, a re-run with the same settings resumes.
 3. cases: each draw becomes scenario overrides (`vehicle.overrides.<key path>`,
    `struts.<all|axleN>.overrides.<key path>`), run by a pluggable case runner (the drive
-   runner writes DIR/cases/<case>.h5 through vehicle.runs.sweep.run_case) on local processes
-   or a Dask cluster (vehicle.runs.sweep.execute). Finished cases are appended to
+   runner writes DIR/cases/<case>.h5 through vehicle.studies.sweep.run_case) on local processes
+   or a Dask cluster (vehicle.studies.sweep.execute). Finished cases are appended to
    DIR/cases.jsonl: a re-run skips them and resumes an interrupted drive from its checkpoint.
 4. analysis: 5/50/95 % bands of every output (DIR/bands.csv), first-order and total Sobol
    indices with bootstrap 95 % confidence intervals (SALib.analyze.sobol, DIR/sobol.csv) or,
    for `lhs`, Spearman and partial rank correlation coefficients (DIR/ranking.csv), and
    DIR/summary.json. The figures are drawn by vehicle.presentation.uq_plots.
 
-The outputs of a drive come from its per-axle report (vehicle.runs.summary.report) through
+The outputs of a drive come from its per-axle report (vehicle.analysis.summary.report) through
 `case_outputs`: add a line there to study another number.
 """
 from __future__ import annotations
@@ -55,7 +55,7 @@ NUM_RESAMPLES = 200          # bootstrap resamples of the Sobol confidence inter
 NOMINAL = "nominal"
 
 # --- outputs of a drive ------------------------------------------------------------------------
-# name -> (unit, value from a per-axle row of vehicle.runs.summary.report); "axle<k>.<name>"
+# name -> (unit, value from a per-axle row of vehicle.analysis.summary.report); "axle<k>.<name>"
 AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "rise_K": ("K", lambda a: None if a.get("T_end_C") is None or a.get("T_start_C") is None
                else a["T_end_C"] - a["T_start_C"]),
@@ -63,7 +63,7 @@ AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "dN_pct": ("%", lambda a: a.get("dN_pct")),
 }
 # optional per-axle outputs, kept when the results hold them (None otherwise): the [low, high] band
-# of the wheel-load change two weighings with seal friction can give (vehicle.runs.summary)
+# of the wheel-load change two weighings with seal friction can give (vehicle.analysis.summary)
 OPTIONAL_AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "dN_band_low_pct": ("%", lambda a: (a.get("dN_band_pct") or [None, None])[0]),
     "dN_band_high_pct": ("%", lambda a: (a.get("dN_band_pct") or [None, None])[1]),
@@ -76,7 +76,7 @@ VEHICLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
 
 
 def case_outputs(rep: dict) -> dict[str, float]:
-    """The numbers a study follows, from one drive's report (vehicle.runs.summary.report)."""
+    """The numbers a study follows, from one drive's report (vehicle.analysis.summary.report)."""
     out: dict[str, float] = {}
     for a in rep["axles"]:
         for name, (_, get) in AXLE_OUTPUTS.items():
@@ -135,11 +135,11 @@ def _plain(v):
 
 
 def scenario_parameters(src, *, per_axle_struts: bool = False) -> tuple[list[Parameter], list[str], dict]:
-    """Parameters of a scenario (a vehicle.runs.scenario.ScenarioSource), notes on what was left
+    """Parameters of a scenario (a vehicle.scenario.schema.ScenarioSource), notes on what was left
     out, and the resolved parameter data (for the study's fingerprint)."""
     from struts.params import strut_file
 
-    from vehicle.runs.scenario import validate_scenario, vehicle_data
+    from vehicle.scenario.schema import validate_scenario, vehicle_data
 
     S = validate_scenario(src)
     data, vpath = vehicle_data(S, src)
@@ -356,9 +356,9 @@ class DriveRunner:
         return f"# case {case} of an hpsim uq study of {self.name}\n" + yaml.safe_dump(data, sort_keys=False)
 
     def __call__(self, case: str, values: dict) -> dict:
-        from vehicle.runs.results import results_status
-        from vehicle.runs.summary import report
-        from vehicle.runs.sweep import run_case
+        from vehicle.results.run import results_status
+        from vehicle.analysis.summary import report
+        from vehicle.studies.sweep import run_case
 
         out = Path(self.cases_dir) / f"{case}.h5"
         if results_status(out) != "complete":
@@ -378,7 +378,7 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
     """Sample, run (resuming), analyse. `runner(case, {parameter name: SI value}) -> {output: value}`
     must be picklable for more than one worker. `model` identifies what the runner computes (a
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
-    from vehicle.runs.sweep import _dask_client, execute
+    from vehicle.studies.sweep import _dask_client, execute
 
     log = log or (lambda m: None)
     check_settings(method, samples, groups, len(params))
@@ -444,7 +444,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
                        log: Callable[[str], None] | None = None) -> dict:
     """`hpsim uq`: the study of a scenario file's priors with the drive runner."""
-    from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario
+    from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario
 
     log = log or (lambda m: None)
     src = read_scenario(scenario)

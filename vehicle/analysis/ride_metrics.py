@@ -1,6 +1,6 @@
 """Ride and road-holding numbers of a whole drive from its statistics rows (what `hpsim report` shows).
 
-The drive accumulates, per statistics interval i of duration T_i (vehicle.runs.drive; the model's
+The drive accumulates, per statistics interval i of duration T_i (vehicle.engines.full; the model's
 filter states and quadratures, vehicle.physics.ride), under these drive keys:
 
     weighted_rms_acceleration_m_s2    per seat: ISO 2631-1 Wk vertical a_w,i
@@ -34,7 +34,7 @@ PERCENTILES = (1, 50, 99)
 
 
 def _name(key: str) -> str:
-    from vehicle.runs.warnings import _name as name
+    from vehicle.results.validity import _name as name
 
     return name(key)
 

@@ -5,8 +5,8 @@
 
 Both take the drive's protocol (`samples(block)`, `stats(rows)`, `checkpoint(state)`, and the
 runner's `start(info)` / `finish(info)`), and both are read through the same interface
-(vehicle.runs.reader.ResultsView: series, stats_series, equilibrium, ..., to_xarray), with the
-same variable names, dimensions, coordinates and attributes (vehicle.runs.variables).
+(vehicle.results.reader.ResultsView: series, stats_series, equilibrium, ..., to_xarray), with the
+same variable names, dimensions, coordinates and attributes (vehicle.engines.outputs).
 
 This module also holds the low-level pieces of writing a results file safely: netCDF dimension
 scales, never following a symbolic link at a temporary path, the copy-and-rename of the final
@@ -23,8 +23,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from vehicle.runs.reader import ResultsView, drive_key_for
-from vehicle.runs.variables import (LABEL_DIMS, FileVariable, file_variables, group_dataset,
+from vehicle.results.reader import ResultsView, drive_key_for
+from vehicle.engines.outputs import (LABEL_DIMS, FileVariable, file_variables, group_dataset,
                                     label_attrs)
 
 LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
@@ -519,7 +519,7 @@ class MemorySink(ResultsView):
 
 
 def require_xr():
-    from vehicle.runs.variables import require_xarray
+    from vehicle.engines.outputs import require_xarray
 
     return require_xarray()
 

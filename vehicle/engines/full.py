@@ -1,7 +1,7 @@
 """A drive: the vehicle DAE over a road with a speed profile, fast, in bounded memory.
 
 `Drive` ties a `VehicleModel` to a road (terrain.Road, enveloped by each axle's tyre contact
-length), a speed profile (`vehicle.runs.speed.SpeedProfile`: constant, table, recorded or
+length), a speed profile (`vehicle.scenario.speed.SpeedProfile`: constant, table, recorded or
 generated), ambient and initial temperatures and levelling on/off. It integrates with the compiled
 ROS2 stepper in blocks; each block's inputs (road under each tyre at its own distance behind axle 1
 on its axle's pass surface, speed, ambient, the profile's longitudinal acceleration) are sampled just
@@ -27,7 +27,7 @@ from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERA
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.numerics.codegen import precompile
 from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
-from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
+from vehicle.scenario.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
 
 
 @dataclass
@@ -96,7 +96,7 @@ class DriveState:
 
 
 class BlockObserver(Protocol):
-    """What a caller of `Drive.run` sees of every block besides the sink's outputs (vehicle.runs.time_parallel
+    """What a caller of `Drive.run` sees of every block besides the sink's outputs (vehicle.engines.time_parallel
     keeps a segment's states and raw statistics intervals to correct them when the segments are joined)."""
 
     def block(self, X: np.ndarray, U: np.ndarray, memory: np.ndarray, outputs: dict) -> None:
@@ -150,7 +150,7 @@ class Drive:
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
-        # continues (vehicle.runs.time_parallel) leaves it open
+        # continues (vehicle.engines.time_parallel) leaves it open
         self.close_last_interval = True
         self.build_s = time.perf_counter() - t0
         n = model.n
@@ -470,7 +470,7 @@ class Drive:
 
     def _ride_row(self, duration, dq, end_stop_energy_J) -> dict:
         """Ride and road-holding statistics of an interval from the differences of the ride quadratures
-        (vehicle.physics.ride; the keys vehicle.runs.ride_metrics reads)."""
+        (vehicle.physics.ride; the keys vehicle.analysis.ride_metrics reads)."""
         Q = {q: dq[k] for q, k in self.ride_slots.items()}
         T = max(duration, 1e-12)
         row = {}

@@ -153,7 +153,7 @@ from scipy.linalg import expm
 from hpsim.errors import UserInputError
 
 from vehicle.physics.model import DISSIPATION_TERMS
-from vehicle.runs.drive import Drive, DriveResult, DriveState
+from vehicle.engines.full import Drive, DriveResult, DriveState
 
 MODE = "multiscale"
 ERROR_COVERAGE = 0.95       # the stated error: a 95 % interval of the sampling error (Student t, see error_factor)
@@ -169,7 +169,7 @@ def error_factor(dof: int) -> float:
 
 @dataclass
 class MultiscaleSettings:
-    """Window layout of a multiscale drive (scenario `solver:` keys; ranges in vehicle.runs.scenario)."""
+    """Window layout of a multiscale drive (scenario `solver:` keys; ranges in vehicle.scenario.schema)."""
 
     window_m: float = 500.0          # averaged stretch of each window
     spacing_m: float = 5000.0        # one window per this much road (stratum)

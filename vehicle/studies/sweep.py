@@ -33,7 +33,7 @@ from pydantic import ValidationError
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, UserInputError
 
-from vehicle.runs.scenario import ScenarioSource, apply_overrides, prepare, read_scenario
+from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
 
 
 class SweepSpec(Model):
@@ -109,7 +109,7 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
 
 def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
     """One case in a worker process: never raises, returns status and message."""
-    from vehicle.runs.results import RunInterrupted, run_scenario
+    from vehicle.results.run import RunInterrupted, run_scenario
 
     t0 = time.perf_counter()
     try:
@@ -146,7 +146,7 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
     In this process (workers == 1), in local processes (ProcessPoolExecutor, default: one per CPU)
     or on a Dask distributed `client`. `fn` must be picklable and return a dict without raising;
     an exception escaping a worker (e.g. a process killed by the OS) becomes a failed result.
-    Used by `hpsim sweep` and `hpsim uq` (vehicle.runs.uq).
+    Used by `hpsim sweep` and `hpsim uq` (vehicle.studies.uq).
     """
     import os
 
@@ -203,7 +203,7 @@ def worker_init(parent_pid: int) -> None:
     once the parent is gone. Ctrl-C is ignored between cases (a running case handles it itself)."""
     import ctypes
 
-    from vehicle.runs.sinks import add_checkpoint_hook
+    from vehicle.results.sinks import add_checkpoint_hook
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if sys.platform.startswith("linux"):
@@ -220,7 +220,7 @@ def worker_init(parent_pid: int) -> None:
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
               scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
-    from vehicle.runs.results import results_status
+    from vehicle.results.run import results_status
 
     log = log or (lambda m: None)
     path = Path(path)
@@ -284,9 +284,9 @@ AXLE_CSV_KEYS = ("dynamic_load_coefficient", "lift_off_share", "end_stop_time_s"
 
 
 def ride_columns(ride: dict, n_axles: int) -> dict:
-    """Flat CSV columns of a report's ride summary (vehicle.runs.ride_metrics): `<key>_<seat>` per seat and
+    """Flat CSV columns of a report's ride summary (vehicle.analysis.ride_metrics): `<key>_<seat>` per seat and
     `<key>_axle<k>` per axle; keys a run did not store are left out."""
-    from vehicle.runs.ride_metrics import axle_rows
+    from vehicle.analysis.ride_metrics import axle_rows
 
     out = {}
     for seat in ride.get("seats", []):
@@ -297,7 +297,7 @@ def ride_columns(ride: dict, n_axles: int) -> dict:
 
 
 def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
-    from vehicle.runs.summary import report
+    from vehicle.analysis.summary import report
 
     keys = []
     for c in cases:
@@ -332,9 +332,9 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
                         if a.get(q) is not None:
                             row[f"{q}_low_axle{a['axle']}"], row[f"{q}_high_axle{a['axle']}"] = a[q]
                 row.update(ride_columns(rep.get("ride") or {}, len(rep["axles"])))
-                warnings = rep.get("warnings")          # the report's validity warnings (vehicle.runs.warnings)
+                warnings = rep.get("warnings")          # the report's validity warnings (vehicle.results.validity)
                 if warnings:
-                    from vehicle.runs.warnings import summary_cell
+                    from vehicle.results.validity import summary_cell
 
                     row["warnings"] = warnings if isinstance(warnings, str) else summary_cell(warnings)
                 ok_files.append(c["file"])

@@ -1,6 +1,6 @@
 """Speed profiles of a drive: constant, tables over distance, recorded drives (CSV) and generated cycles.
 
-The drive is parametrised by distance (`vehicle.runs.drive.Drive` integrates t(s) = ∫ ds / v(s)),
+The drive is parametrised by distance (`vehicle.engines.full.Drive` integrates t(s) = ∫ ds / v(s)),
 so every profile ends as a piecewise-linear table v(s) with v > 0 (`SpeedProfile`, the one speed
 profile class of the drive and the scenario; `SpeedTable` is its former name). A stop cannot be v = 0: it is driven at the creeping speed
 MIN_SPEED_M_PER_S (0.5 km/h) for the stop's duration, so the time at (near) standstill is kept and
@@ -10,7 +10,7 @@ load transfer needs is that of the motion the drive performs: a(s) = v dv/ds on 
 
 Sources (the scenario's `speed:` key, docs/scenarios.md):
   "20 km/h"                                    constant
-  {profile: [[0 km, 20 km/h], ...]}            table over distance (vehicle.runs.scenario)
+  {profile: [[0 km, 20 km/h], ...]}            table over distance (vehicle.scenario.schema)
   {csv: drive.csv, by: time|distance}          a recorded drive; header names column and unit:
                                                time_s | time_min | time_h | distance_m | distance_km,
                                                and speed_m_s | speed_km_h | speed_mph (or "speed [km/h]")
@@ -161,7 +161,7 @@ def constant(speed_m_per_s: float) -> SpeedProfile:
     return SpeedProfile.constant(speed_m_per_s)
 
 
-SpeedTable = SpeedProfile     # its former name (the table of vehicle.runs.speed before the two classes merged)
+SpeedTable = SpeedProfile     # its former name (the table of vehicle.scenario.speed before the two classes merged)
 
 
 # --- scenario specifications -------------------------------------------------------------------------

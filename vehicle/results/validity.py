@@ -1,6 +1,6 @@
 """Validity warnings of a drive's results: what makes a result suspect, with the strut and the km.
 
-`check(view)` reads a results view (vehicle.runs.reader: a file or memory) and returns a list of
+`check(view)` reads a results view (vehicle.results.reader: a file or memory) and returns a list of
 warnings, each a dict:
 
     code       what was found (one of CODES)
@@ -49,7 +49,7 @@ class Thresholds:
 
 
 def check(view, thresholds: Thresholds | None = None) -> list[dict]:
-    """All warnings of a results view (vehicle.runs.reader.ResultsView)."""
+    """All warnings of a results view (vehicle.results.reader.ResultsView)."""
     th = thresholds or Thresholds()
     data = _Data(view)
     out = []
@@ -65,8 +65,8 @@ def record(path) -> list[dict]:
     `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list)."""
     from pathlib import Path
 
-    from vehicle.runs.reader import open_results
-    from vehicle.runs.sinks import finish_file
+    from vehicle.results.reader import open_results
+    from vehicle.results.sinks import finish_file
 
     with open_results(path, check=False) as r:
         found = check(r)
@@ -85,9 +85,9 @@ def summary_cell(warnings: list[dict]) -> str:
 
 # --- reading ----------------------------------------------------------------------------------------
 def _name(drive_key: str) -> str:
-    """The results variable name of a drive key (vehicle.runs.variables), or the key itself."""
+    """The results variable name of a drive key (vehicle.engines.outputs), or the key itself."""
     try:
-        from vehicle.runs.variables import VARIABLES
+        from vehicle.engines.outputs import VARIABLES
     except ImportError:        # pragma: no cover - older layout
         return drive_key
     entry = VARIABLES.get(drive_key)

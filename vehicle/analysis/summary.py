@@ -1,5 +1,5 @@
 """Per-axle summaries of drive results (what `hpsim report` and `hpsim compare` print), from any
-results (a file through vehicle.runs.reader.open_results, or a MemorySink).
+results (a file through vehicle.results.reader.open_results, or a MemorySink).
 
 Per axle, values are the mean of the left and right station:
   T_start_C / T_end_C    strut temperature before / after the drive: the outer surface (what the
@@ -29,7 +29,7 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
-from vehicle.runs.reader import ResultsView, open_results  # noqa: F401  (re-exported)
+from vehicle.results.reader import ResultsView, open_results  # noqa: F401  (re-exported)
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 
@@ -155,7 +155,8 @@ def report_from(r: ResultsView, name: str) -> dict:
             out[k] = num(summ[k]) if k != "solver_advice" else str(summ[k])
     if "error" in summ:
         out["error"] = str(summ["error"])
-    from vehicle.runs import ride_metrics, warnings as validity
+    from vehicle.analysis import ride_metrics
+    from vehicle.results import validity
 
     out["ride"] = ride_metrics.summarise(r)
     out["warnings"] = validity.check(r)
@@ -164,7 +165,7 @@ def report_from(r: ResultsView, name: str) -> dict:
 
 def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
     """`solver_mode` (full, multiscale or time_parallel) and, for a time-parallel run, its segments and the
-    correction's estimated error per axle; for a multiscale run (vehicle.runs.multiscale), its window layout
+    correction's estimated error per axle; for a multiscale run (vehicle.engines.multiscale), its window layout
     and a-posteriori error estimate: per axle, the error of T_end [K] and of dN [pp] (estimated_error_sigmas
     standard deviations of the road-sampling error)."""
     mode = str(summ.get("solver_mode", "full"))
@@ -178,7 +179,7 @@ def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
         return [None] * n_axles if v is None else [float(x) for x in np.asarray(v, float)]
 
     if mode == "time_parallel":
-        # vehicle.runs.time_parallel: the estimated error of the slow-state correction (not a sampling interval)
+        # vehicle.engines.time_parallel: the estimated error of the slow-state correction (not a sampling interval)
         out["estimated_error"] = {
             "T_end_K": per_axle("estimated_error_axle_temperature"),
             "dN_pct": per_axle("estimated_error_load_change"),
@@ -208,7 +209,7 @@ def weighing_difference_bands(eq, n_axles: int) -> dict:
     none = {"dN_band_pct": [None] * n_axles, "dh_band_mm": [None] * n_axles}
     if not eq or eq.get("before_band") is None or eq.get("after_band") is None:
         return none
-    from vehicle.runs.variables import VARIABLES
+    from vehicle.engines.outputs import VARIABLES
 
     # the reader names variables as the file does (CF names): back to the drive's keys
     by_name = {v.name: k for k, v in VARIABLES.items() if hasattr(v, "name")}

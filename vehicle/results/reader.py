@@ -2,12 +2,12 @@
 (summary, report, plots, compare, resume).
 
     open_results(path)        a results file -> ResultsFile (checked first: a damaged file fails fast)
-    ResultsView               the read interface shared by files and vehicle.runs.sinks.MemorySink:
+    ResultsView               the read interface shared by files and vehicle.results.sinks.MemorySink:
                               stations, axles, scenario_attrs, summary_attrs(), status(), counts(),
                               state(), series(name), stats_series(name), equilibrium(which),
                               summary_values(), dataset(group), to_xarray()
 
-Names are the file's variable names (vehicle.runs.variables): `series("strut_temperature")` is
+Names are the file's variable names (vehicle.engines.outputs): `series("strut_temperature")` is
 (n, 8) time-major, `series("time")`, `stats_series("km")`, `equilibrium("after")["wheel_load"]`.
 
 Files of format version 1 (hpsim before the netCDF/CF layout: drive keys as dataset names, no
@@ -33,7 +33,7 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
-from vehicle.runs.variables import (VARIABLES, DATA_GROUPS, FileVariable, Split, file_variables, group_dataset,
+from vehicle.engines.outputs import (VARIABLES, DATA_GROUPS, FileVariable, Split, file_variables, group_dataset,
                                     require_xarray)
 
 FORMAT = "hpsim-drive"
@@ -273,7 +273,7 @@ class ResultsFile(ResultsView):
         return {} if g is None else {k: _attr_value(v) for k, v in g.attrs.items()}
 
     def _checkpoint(self):
-        from vehicle.runs.sinks import Checkpoint
+        from vehicle.results.sinks import Checkpoint
 
         with self._reading("/checkpoint"):
             return Checkpoint(self.f["checkpoint"]).read()

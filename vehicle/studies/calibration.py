@@ -23,7 +23,7 @@ import numpy as np
 from hpsim.errors import UserInputError
 
 from vehicle.physics import thermal
-from vehicle.runs.scenario import apply_overrides, read_scenario, prepare
+from vehicle.scenario.schema import apply_overrides, read_scenario, prepare
 
 
 def _run(src, parameter: str, value: float):

@@ -4,7 +4,7 @@ P processes at once, with a correction of the slow states (issue 11 §1).
 Parareal with a cheap coarse propagator (Lions, Maday, Turinici 2001; Gander & Vandewalle 2007, SIAM J.
 Sci. Comput. 29(2)), one correction sweep:
 
-1. Coarse G: one multiscale run (vehicle.runs.multiscale; one 500 m window per COARSE_SPACING_M, no control
+1. Coarse G: one multiscale run (vehicle.engines.multiscale; one 500 m window per COARSE_SPACING_M, no control
    variate) from the start to the last segment's start predicts the slow states (`model.SLOW_STATES`: thermal nodes, filtered deflection, levelling oil) at every segment
    start. Segment 0 needs no prediction and starts at once, while G runs.
 2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in its own
@@ -50,8 +50,8 @@ from scipy.linalg import expm
 from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
-from vehicle.runs.drive import Drive, DriveResult, DriveState
-from vehicle.runs.multiscale import MultiscaleDrive, MultiscaleSettings, _LinearFlow, _propagators
+from vehicle.engines.full import Drive, DriveResult, DriveState
+from vehicle.engines.multiscale import MultiscaleDrive, MultiscaleSettings, _LinearFlow, _propagators
 
 MODE = "time_parallel"
 SEGMENTS_RANGE = (1, 64)          # solver.time_parallel
@@ -328,7 +328,7 @@ class TimeParallelDrive(MultiscaleDrive):
         wall0 = time.perf_counter()
         t, tw = self.layout()
         P = self.segments
-        from vehicle.runs.sweep import worker_init
+        from vehicle.studies.sweep import worker_init
 
         _PARENT = self
         try:

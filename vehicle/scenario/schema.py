@@ -8,7 +8,7 @@ A scenario is a YAML mapping validated in two steps *before any work starts*:
    (`vehicle.physics.params.VehicleParams`), the strut files with their overrides, the road
    (`terrain.RoadSpec`) and the count of initial temperatures (1, one per axle or one per
    station) — are validated the same way, then `Prepared.drive()` builds the
-   `vehicle.runs.drive.Drive`.
+   `vehicle.engines.full.Drive`.
 
 Key paths in overrides may be dotted and may index lists: `axles.0.unsprung_mass` or
 `{axles: {0: {unsprung_mass: ...}}}` (see `apply_overrides`).
@@ -39,7 +39,7 @@ DISTANCE_RANGE_M = (1.0, 1000e3)
 SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
 AMBIENT_RANGE_K = (273.15 - 60, 273.15 + 60)  # -60 .. 60 degC
 STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
-DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.runs.drive.DriveSettings.validate
+DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.engines.full.DriveSettings.validate
 # multiscale window layout (solver.window, .spacing, .warm_up): a window must hold some seconds of ride
 # (50 m: 9 s at 20 km/h); at most the longest drive
 MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
@@ -47,7 +47,7 @@ MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control
 MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
 TOLERANCE_RANGE = (1e-4, 1.0)                 # solver.tolerance: 0.01 .. 100 % relative error of the strut heat
 
-# time series a drive produces (vehicle.runs.drive.Drive._block_outputs); `output.store` picks from these
+# time series a drive produces (vehicle.engines.full.Drive._block_outputs); `output.store` picks from these
 SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperature_K", "wall_temperature_K",
           "oil_temperature_K", "axle_height_change_m",
           "hull_acceleration", "heave_m", "pitch_rad", "roll_rad", "oil_added_m3", "strut_force", "strut_deflection",
@@ -163,7 +163,7 @@ class SolverSpec(Model):
     dt: float = 0.004                        # fixed step of the ROS2 solver
     samples_per_block: StrictInt = Field(10, ge=1, le=1000)   # output samples per compiled call
     # full: the whole road with the full model; multiscale: windows of the road with the full model, the
-    # slow states advanced between them, with an error estimate (vehicle.runs.multiscale)
+    # slow states advanced between them, with an error estimate (vehicle.engines.multiscale)
     mode: Literal["full", "multiscale"] = "full"
     window: float | None = None              # multiscale: averaged stretch of each window (default 500 m)
     spacing: float | None = None             # multiscale: one window per this much road (default 5 km)
@@ -175,7 +175,7 @@ class SolverSpec(Model):
     # multiscale: the control variate's proxy of each window's dissipation: linear_model (default: the linearised
     # vehicle's squared strut velocity under the whole road) or road_rate (the band-passed road rate under each tyre)
     proxy: Literal["road_rate", "linear_model"] | None = None
-    # parallel in time (vehicle.runs.time_parallel): the full drive split into this many segments run in as many
+    # parallel in time (vehicle.engines.time_parallel): the full drive split into this many segments run in as many
     # processes at once, joined with a correction of the slow states; "auto": one per CPU; 1: serial
     time_parallel: Literal["auto"] | StrictInt | None = None
     # step-doubling error estimate (vehicle.numerics.error_estimate): the largest relative error of a strut's
@@ -200,7 +200,7 @@ class SolverSpec(Model):
     @field_validator("time_parallel", mode="after")
     @classmethod
     def _time_parallel(cls, v):
-        from vehicle.runs.time_parallel import SEGMENTS_RANGE
+        from vehicle.engines.time_parallel import SEGMENTS_RANGE
 
         if isinstance(v, int) and not SEGMENTS_RANGE[0] <= v <= SEGMENTS_RANGE[1]:
             raise ValueError(f"must be in [{SEGMENTS_RANGE[0]}, {SEGMENTS_RANGE[1]}] (segments, one process each) "
@@ -221,7 +221,7 @@ class SolverSpec(Model):
                              f"({self.window_m:g} m + {self.warm_up_m:g} m): the windows would overlap")
         return self
 
-    # the multiscale layout with its defaults (vehicle.runs.multiscale.MultiscaleSettings)
+    # the multiscale layout with its defaults (vehicle.engines.multiscale.MultiscaleSettings)
     @property
     def window_m(self) -> float:
         return 500.0 if self.window is None else self.window
@@ -235,7 +235,7 @@ class SolverSpec(Model):
         return 50.0 if self.warm_up is None else self.warm_up
 
     def multiscale_settings(self):
-        from vehicle.runs.multiscale import MultiscaleSettings
+        from vehicle.engines.multiscale import MultiscaleSettings
 
         return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
                                   placement=self.placement or "weighted", seed=self.seed or 0,
@@ -286,7 +286,7 @@ class Scenario(Model):
     struts: dict[str, StrutChoice] = {}      # keys: "all" or "axle1", "axle2", ...
     road: dict[str, Any]                     # terrain.RoadSpec fields (validated in prepare())
     # "20 km/h", {profile: [[0 km, 20 km/h], ...]}, {csv: ..., by: ...}, {stop_go: {...}} or {random: {...}}
-    # (the last three: vehicle.runs.speed specs; every form becomes a speed table in prepare())
+    # (the last three: vehicle.scenario.speed specs; every form becomes a speed table in prepare())
     speed: float | SpeedProfileSpec | Any
     distance: float
     ambient_temperature: float
@@ -303,7 +303,7 @@ class Scenario(Model):
         if isinstance(v, dict):
             if "profile" in v:
                 return _speed_profile(v)
-            from vehicle.runs.speed import parse_speed_spec
+            from vehicle.scenario.speed import parse_speed_spec
 
             return parse_speed_spec(v)
         return _in_range(_quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
@@ -450,11 +450,11 @@ class Prepared:
     vehicle: Any                 # vehicle.physics.params.VehicleParams
     road_spec: Any               # terrain.RoadSpec
     initial_temperatures_K: np.ndarray
-    speed_profile: Any = None    # vehicle.runs.speed.SpeedTable (built and checked in prepare())
+    speed_profile: Any = None    # vehicle.scenario.speed.SpeedTable (built and checked in prepare())
 
     def settings(self):
-        from vehicle.runs.drive import DriveSettings
-        from vehicle.runs.speed import build_speed_profile
+        from vehicle.engines.full import DriveSettings
+        from vehicle.scenario.speed import build_speed_profile
 
         S = self.scenario
         speed = self.speed_profile or build_speed_profile(S.speed, S.distance, self.source.base_dir)
@@ -490,17 +490,17 @@ class Prepared:
 
     def drive(self, drive_class=None):
         """(model, Drive) ready to run."""
-        from vehicle.runs.drive import Drive
+        from vehicle.engines.full import Drive
 
         model = self.model()
         road = self.road()
         cls = drive_class or Drive
         try:
             if self.scenario.solver.mode == "multiscale":
-                from vehicle.runs.multiscale import MultiscaleDrive
+                from vehicle.engines.multiscale import MultiscaleDrive
 
                 return model, MultiscaleDrive(model, road, self.settings(), self.scenario.solver.multiscale_settings())
-            from vehicle.runs.time_parallel import TimeParallelDrive, resolve_segments
+            from vehicle.engines.time_parallel import TimeParallelDrive, resolve_segments
 
             P = resolve_segments(self.scenario.solver.time_parallel)
             if P > 1:
@@ -609,7 +609,7 @@ def prepare(src: ScenarioSource) -> Prepared:
     # road
     road_spec = road_spec_from(S, vehicle, src)
     # speed: every form as the drive's distance -> speed table (a recorded drive is read here)
-    from vehicle.runs.speed import build_speed_profile
+    from vehicle.scenario.speed import build_speed_profile
 
     try:
         speed = build_speed_profile(S.speed, S.distance, src.base_dir)
@@ -621,7 +621,7 @@ def prepare(src: ScenarioSource) -> Prepared:
 
 def road_length_needed(S: Scenario, vehicle) -> float:
     """Road length [m] the front axle reads: the drive's distance plus its last step (1 m, as
-    vehicle.runs.drive samples it) plus the tyre's enveloping length ahead of the contact point."""
+    vehicle.engines.full samples it) plus the tyre's enveloping length ahead of the contact point."""
     return S.distance + 1.0 + vehicle.max_contact_length()
 
 

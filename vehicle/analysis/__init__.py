@@ -1,0 +1,6 @@
+"""What is computed from results (read-only numbers): per-axle summary, ride metrics, PSD.
+
+    summary       per-axle numbers read back from results
+    ride_metrics  ISO 2631 ride numbers per seat
+    psd           power spectral densities of stored series
+"""

@@ -1,0 +1,6 @@
+"""Studies of many runs: parameter sweeps, uncertainty quantification, calibration.
+
+    sweep        many scenarios in parallel
+    uq           priors drawn, Sobol' indices, prediction bands
+    calibration  the one heat-transfer parameter against a measured mean rise
+"""
