@@ -47,7 +47,9 @@ def make_drive(distance_m: float, dt_s: float):
 
 def ros2(distance_m: float, dt_s: float):
     prep = make_drive(distance_m, dt_s)
-    model, drive = prep.drive()
+    from vehicle.engines.build import build_engine
+
+    model, drive = build_engine(prep)
     t0 = time.perf_counter()
     res = drive.run()
     return drive, res, time.perf_counter() - t0
@@ -82,7 +84,9 @@ def cvodes_integrator(model, drive, rtol, atol, newton: int, jit: bool):
 
 def cvodes(distance_m: float, rtol: float, atol: float, newton: int, jit: bool):
     prep = make_drive(distance_m, 0.004)
-    model, drive = prep.drive()
+    from vehicle.engines.build import build_engine
+
+    model, drive = build_engine(prep)
     t0 = time.perf_counter()
     F = cvodes_integrator(model, drive, rtol, atol, newton, jit)
     build = time.perf_counter() - t0

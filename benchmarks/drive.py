@@ -59,11 +59,12 @@ def scenario_data(args) -> dict:
 def run(data: dict, base_dir: str) -> dict:
     import yaml
 
+    from vehicle.engines.build import build_engine
     from vehicle.scenario.schema import prepare, read_scenario_text
 
     t0 = time.perf_counter()
     prep = prepare(read_scenario_text(yaml.safe_dump(data), "benchmark", base_dir))
-    model, drive = prep.drive()
+    model, drive = build_engine(prep)
     build = time.perf_counter() - t0
     res = drive.run()
     wall = time.perf_counter() - t0

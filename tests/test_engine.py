@@ -10,7 +10,9 @@ from terrain import RoadSpec, build_road
 from vehicle.numerics.solvers import Ros2
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle
-from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive
+from vehicle.scenario.settings import DriveSettings
+from vehicle.scenario.speed import SpeedProfile
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,8 @@ from terrain import RoadSpec, build_road
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY, load_vehicle
-from vehicle.engines.full import Drive, DriveSettings
+from vehicle.engines.full import Drive
+from vehicle.scenario.settings import DriveSettings
 from vehicle.results.sinks import MemorySink
 from vehicle.scenario.speed import SpeedProfile
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
+from vehicle.engines.build import build_engine
 from vehicle.results.run import run_in_memory
 from vehicle.scenario.schema import read_scenario_text
 from vehicle.analysis.summary import report_from
@@ -150,7 +151,7 @@ def _strata(nw=12, m=3, seed=5):
 def test_control_variate_is_exact_when_the_forcing_is_linear_in_the_proxy():
     """y = a + b p in every window and stretch: the corrected stratum values are the stretch's own, the
     residuals vanish (the stated error with them), with or without the time column."""
-    from vehicle.engines.multiscale import control_variate
+    from vehicle.engines.control_variate import control_variate
 
     _, pw, ps = _strata()
     a, b = np.array([0.3, -1.0, 2.0]), np.array([1.5, 0.2, -4.0])
@@ -167,7 +168,7 @@ def test_control_variate_reduces_to_the_plain_estimate_for_an_uncorrelated_proxy
     """A proxy orthogonal to the forcings (after the intercept and the time trend) gets a zero slope: the
     strata keep the plain window values and the residuals are those of the plain estimate; a proxy without
     scatter likewise."""
-    from vehicle.engines.multiscale import control_variate
+    from vehicle.engines.control_variate import control_variate
 
     rng, _, ps = _strata()
     nw, m = ps.shape
@@ -193,7 +194,7 @@ def test_control_variate_cuts_the_sampling_error_of_a_noisy_linear_forcing():
     """Monte Carlo of the estimator on synthetic strata: y = a + b p + noise (noise 1/3 of the proxy's scatter).
     The regression estimate of the strata total has a smaller error than the plain one, near the theory's
     1 - R^2 (Cochran 1977 eq. 7.10), and its slope's spread matches the stated H H^T sigma^2."""
-    from vehicle.engines.multiscale import control_variate
+    from vehicle.engines.control_variate import control_variate
 
     rng = np.random.default_rng(11)
     nw, trials, b, sd = 15, 400, 2.0, 1.0 / 3.0
@@ -217,14 +218,14 @@ def test_control_variate_cuts_the_sampling_error_of_a_noisy_linear_forcing():
 def test_linear_flow_matches_the_matrix_exponential():
     """The gaps' propagators by one eigen-decomposition equal scipy's expm (with a zero eigenvalue: oil volume
     without levelling)."""
-    from vehicle.engines.multiscale import _LinearFlow, _propagators
+    from vehicle.engines.slow_flow import LinearFlow, propagators
 
     rng = np.random.default_rng(2)
     A = -np.diag([1 / 6300, 1 / 110, 1 / 10, 0.0]) + 1e-4 * rng.normal(size=(4, 4))
     A[3] = 0.0
-    flow = _LinearFlow(A)
+    flow = LinearFlow(A)
     for t in (0.0, 5.0, 400.0, 5000.0):
-        Phi, _, Gam = _propagators(A, np.zeros(4), t)
+        Phi, _, Gam = propagators(A, np.zeros(4), t)
         np.testing.assert_allclose(flow.phi(t), Phi, rtol=1e-8, atol=1e-10)
         np.testing.assert_allclose(flow.gamma(t), Gam, rtol=1e-8, atol=1e-8 * max(t, 1))
 
@@ -232,7 +233,7 @@ def test_linear_flow_matches_the_matrix_exponential():
 def test_weighted_layout_ends_with_the_drive():
     """The last window of the weighted placement ends at the drive's end (the final state's short thermal
     memories are simulated), windows never overlap and stay inside the drive."""
-    from vehicle.engines.multiscale import MultiscaleSettings
+    from vehicle.scenario.settings import MultiscaleSettings
 
     ms = MultiscaleSettings(window_m=400.0, spacing_m=7000.0, warm_up_m=30.0)
     v = 20 / 3.6
@@ -255,7 +256,8 @@ def test_window_forcings_take_out_the_state_dependence_window_by_window():
     proxy explains; carried by each window's own Jacobian they are road_k - h_k x_ref, a function of the road
     alone: a proxy linear in the road explains them exactly (zero residuals of `control_variate`).
     (3) A linear model (one A) gives r - A xbar plus a constant: the same scatter as before."""
-    from vehicle.engines.multiscale import control_variate, window_forcings
+    from vehicle.engines.control_variate import control_variate
+    from vehicle.engines.slow_flow import window_forcings
 
     # (1) rate f(x) = road - k0 (1 + c x) x  (x: K above a reference)
     k0, c, road = 0.02, 0.01, 0.3
@@ -300,7 +302,8 @@ def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehic
 
     from vehicle.physics import linear
     from vehicle.physics.params import load_vehicle
-    from vehicle.engines.multiscale import MultiscaleSettings, linear_strut_velocity
+    from vehicle.scenario.settings import MultiscaleSettings
+    from vehicle.engines.control_variate import linear_strut_velocity
 
     lin = linear.linearise(load_vehicle("apc_8x8"), None,
                            friction_velocity_m_s=MultiscaleSettings.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
@@ -346,7 +349,7 @@ def test_linear_model_proxy_can_match_a_given_rms_strut_velocity():
     from vehicle.scenario.schema import prepare
 
     data = {**BASE, "solver": MULTISCALE}
-    _, drive = prepare(read_scenario_text(yaml.safe_dump(data), "ms.yaml", ".")).drive()
+    _, drive = build_engine(prepare(read_scenario_text(yaml.safe_dump(data), "ms.yaml", ".")))
     t_a, t_b = 20.0, 80.0
     found = {}
     for target in (0.05, 0.08):
@@ -364,7 +367,7 @@ def test_stated_covariance_of_the_regression_estimate_matches_monte_carlo():
     sum_k Q_k stretch_k. The stated covariance (`stratified_error_covariance`) equals the Monte Carlo variance of
     the error; leaving out the covariance of each window's residual in its stratum and in the slope does not
     (a layout where the weights grow with the proxy, so that term is large)."""
-    from vehicle.engines.multiscale import control_variate, stratified_error_covariance
+    from vehicle.engines.control_variate import control_variate, stratified_error_covariance
 
     rng = np.random.default_rng(5)
     nw, trials, sd = 12, 4000, 0.5
@@ -396,7 +399,7 @@ def test_station_patterns_are_orthonormal_mean_first_then_position():
     """The apc's 8 stations (4 axles, 2 sides): orthonormal patterns, the first the vehicle's mean, the second
     linear in the station's position, the side-difference ones opposite on the two sides; stations that do not
     give n independent patterns: the identity."""
-    from vehicle.engines.multiscale import station_patterns
+    from vehicle.engines.control_variate import station_patterns
 
     x = np.repeat([0.0, 1.55, 3.45, 5.0], 2)
     side = np.arange(8) % 2
@@ -420,7 +423,7 @@ def test_pattern_regression_keeps_a_common_scatter_out_of_the_station_difference
     (per-station slopes fit the common part differently and it leaks into the difference), and in both cases
     the stated covariance (`stratified_error_covariance` in the regression's basis) matches the Monte Carlo
     variance."""
-    from vehicle.engines.multiscale import control_variate, station_patterns, stratified_error_covariance
+    from vehicle.engines.control_variate import control_variate, station_patterns, stratified_error_covariance
 
     rng = np.random.default_rng(8)
     n, nw, trials, sd_c, sd_e = 8, 14, 1500, 3.0, 0.2
@@ -455,11 +458,11 @@ def test_warm_up_correction_carries_the_difference_through_the_window():
     warm-up was simulated with extra heat (x_warm_end off the modelled crossing) and then followed the model for
     L. Its end state plus the correction equals the end state of the model crossing the warm-up and the window
     from x_start; the difference added undecayed would not (the fast mode has shed part of it)."""
-    from vehicle.engines.multiscale import _LinearFlow, warm_up_correction
+    from vehicle.engines.slow_flow import LinearFlow, warm_up_correction
 
     A = np.array([[-1 / 120.0, 1 / 120.0], [1 / 240.0, -1 / 240.0 - 1 / 6000.0]])
     b = np.array([0.05, 0.001])
-    flow = _LinearFlow(A)
+    flow = LinearFlow(A)
     x_start, tw, L = np.array([360.0, 352.0]), 6.0, 68.0
 
     def cross(x, t):

@@ -19,7 +19,8 @@ from vehicle.results.reader import open_results  # noqa: E402
 from vehicle.results.run import run_in_memory  # noqa: E402
 from vehicle.scenario.schema import read_scenario  # noqa: E402
 from vehicle.analysis.summary import report, report_from  # noqa: E402
-from vehicle.engines.outputs import VARIABLES, UnknownDriveKey, file_variables  # noqa: E402
+from vehicle.physics.outputs import VARIABLES, UnknownDriveKey  # noqa: E402
+from vehicle.results.variables import file_variables  # noqa: E402
 
 SCENARIO = """\
 vehicle: {name: apc_8x8}
@@ -115,7 +116,7 @@ def test_memory_sink_and_file_give_identical_datasets(runs):
 
 
 def test_a_drive_key_missing_from_the_table_is_a_clear_error():
-    with pytest.raises(UnknownDriveKey, match="vehicle/engines/outputs.py.*'seal_temperature_K'.*add one line"):
+    with pytest.raises(UnknownDriveKey, match="vehicle/physics/outputs.py.*'seal_temperature_K'.*add one line"):
         file_variables("seal_temperature_K", (8,), "timeseries", 8, 4)
     # a key with the table's default dim gets it from its width: stations or axles
     assert file_variables("wheel_load", (8,), "timeseries", 8, 4)[0].dims == ("time", "station")

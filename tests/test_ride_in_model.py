@@ -24,7 +24,9 @@ from terrain.road import Road
 from vehicle.physics import ride
 from vehicle.physics.model import TRAVEL_BINS, VehicleModel
 from vehicle.physics.params import load_vehicle
-from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive
+from vehicle.scenario.settings import DriveSettings
+from vehicle.scenario.speed import SpeedProfile
 from vehicle.results.sinks import MemorySink
 
 SPEED = 10.0            # m/s

@@ -148,7 +148,8 @@ def test_report_agrees_with_the_file(reference, capsys):
 
 
 def _wait_for_samples(path: Path, proc: subprocess.Popen, n: int, timeout: float = 120.0) -> int:
-    from vehicle.results.run import open_read, valid_counts
+    from vehicle.results.reader import open_read
+    from vehicle.results.run import valid_counts
 
     t0 = time.time()
     while time.time() - t0 < timeout:

@@ -17,6 +17,7 @@ import pytest
 import yaml
 
 from hpsim.errors import UserInputError
+from vehicle.engines.build import build_engine
 from vehicle import cli
 from vehicle.results.run import final_info, run_in_memory, run_info
 from vehicle.scenario.schema import prepare, read_scenario_text
@@ -37,7 +38,7 @@ def _src(solver: dict, **changes):
 def runs():
     serial = run_in_memory(_src({}))
     prep = prepare(_src({"time_parallel": 2}))
-    model, drive = prep.drive()
+    model, drive = build_engine(prep)
     sink = MemorySink("tp")
     sink.start(run_info(prep.source, prep, model, drive, drive.initial_equilibrium()))
     res = drive.run(sink)
@@ -107,7 +108,7 @@ def test_cli_time_parallel_writes_a_complete_file_that_report_reads(tmp_path, ca
 ])
 def test_bad_time_parallel_is_refused_before_any_work(solver, words):
     with pytest.raises(UserInputError) as exc:
-        prepare(_src(solver)).drive()
+        build_engine(prepare(_src(solver)))
     for w in words:
         assert w in str(exc.value), str(exc.value)
 
@@ -124,23 +125,16 @@ def test_cli_bad_time_parallel_exits_2(tmp_path, capsys):
 def test_the_error_check_gives_the_same_in_the_pool_as_here(runs):
     """The join's second coarse correction (two multiscale propagations of the segment from the predicted and
     the corrected start) runs in the pool's processes: the same numbers as run in this process."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    from vehicle.engines import time_parallel
+    from vehicle.engines.pool import fork_pool
 
     *_, drive = runs
     t = drive.parareal["boundaries_s"]
     x_a = drive.initial_state().x
-    names = [drive.model.layout.names[j] for j in drive.slow_index]
+    names = [drive.model.layout.names[j] for j in drive.coarse.slow_index]
     delta = np.array([0.5 if nm.startswith("T_") else 0.0 for nm in names])      # every temperature 0.5 K warmer
-    x_b = x_a + drive._slaving(x_a) @ delta
+    x_b = x_a + drive.coarse._slaving(x_a) @ delta
     here = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1))
-    time_parallel._PARENT = drive
-    try:
-        with ProcessPoolExecutor(2, mp_context=mp.get_context("fork")) as pool:
-            there = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1, pool))
-    finally:
-        time_parallel._PARENT = None
+    with fork_pool(2, drive) as pool:
+        there = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1, pool))
     assert np.any(np.abs(here) > 1e-3)
     np.testing.assert_allclose(there, here, rtol=1e-9, atol=1e-12)

@@ -97,7 +97,9 @@ def test_energy_balance_closes_with_a_variable_speed(anti):
     counted the mechanical balance residual falls at second order with the step, to a small fraction
     of that work (measured, anti 0: 700 J of work, residual -183 J at 2 ms, -20 J at 1 ms; without the
     term the residual would stay near -700 J)."""
-    from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+    from vehicle.engines.full import Drive
+    from vehicle.scenario.settings import DriveSettings
+    from vehicle.scenario.speed import SpeedProfile
     from vehicle.physics.model import VehicleModel
 
     road = build_road(RoadSpec(iso_class="D", length=320.0, seed=3))

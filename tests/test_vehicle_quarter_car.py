@@ -14,7 +14,9 @@ import pytest
 
 from struts import valves
 from terrain import RoadSpec, build_road
-from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive
+from vehicle.scenario.settings import DriveSettings
+from vehicle.scenario.speed import SpeedProfile
 from vehicle.physics.equilibrium import charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle

@@ -9,7 +9,9 @@ from terrain import RoadSpec, build_road
 from vehicle.numerics import solvers
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import VehicleParams, load_vehicle
-from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive
+from vehicle.scenario.settings import DriveSettings
+from vehicle.scenario.speed import SpeedProfile
 
 from .vehicle_helpers import make_drive
 

@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 from terrain import RoadSpec, build_road
-from vehicle.engines.full import Drive, DriveSettings, SpeedProfile
+from vehicle.engines.full import Drive
+from vehicle.scenario.settings import DriveSettings
+from vehicle.scenario.speed import SpeedProfile
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle
 

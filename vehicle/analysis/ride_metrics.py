@@ -29,29 +29,24 @@ import json
 import numpy as np
 
 from vehicle.physics import ride
+from vehicle.physics.outputs import variable_name
 
 PERCENTILES = (1, 50, 99)
 
 
-def _name(key: str) -> str:
-    from vehicle.results.validity import _name as name
-
-    return name(key)
-
-
 def _rows(view, key):
-    a = view.stats_series(_name(key))
+    a = view.stats_series(variable_name(key))
     return None if a is None or len(a) == 0 else np.asarray(a, float)
 
 
 def _bin_edges(view, key="strut_travel_histogram_s"):
     """Travel-bin edges [m]: the histogram dataset's attribute, or a summary value."""
     f = getattr(view, "f", None)
-    if f is not None and "stats" in f and _name(key) in f["stats"]:
-        edges = f["stats"][_name(key)].attrs.get("bin_edges_m")
+    if f is not None and "stats" in f and variable_name(key) in f["stats"]:
+        edges = f["stats"][variable_name(key)].attrs.get("bin_edges_m")
         if edges is not None:
             return np.asarray(edges, float)
-    v = view.summary_values().get(_name("strut_travel_bin_edges_m"))
+    v = view.summary_values().get(variable_name("strut_travel_bin_edges_m"))
     return None if v is None else np.asarray(v, float)
 
 

@@ -29,6 +29,8 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
+from vehicle.physics.outputs import VARIABLES, Var
+from vehicle.physics.weighing import difference_bands
 from vehicle.results.reader import ResultsView, open_results  # noqa: F401  (re-exported)
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
@@ -204,15 +206,11 @@ def weighing_difference_bands(eq, n_axles: int) -> dict:
     """Per axle [low, high] of dN [%] and dh [mm] from /equilibrium/before_band and /after_band
     (vehicle.physics.weighing.band_datasets; two independent weighings: low = after_low -
     before_high, see difference_bands), or None per axle when the file has no bands."""
-    from vehicle.physics.weighing import difference_bands
-
     none = {"dN_band_pct": [None] * n_axles, "dh_band_mm": [None] * n_axles}
     if not eq or eq.get("before_band") is None or eq.get("after_band") is None:
         return none
-    from vehicle.engines.outputs import VARIABLES
-
     # the reader names variables as the file does (CF names): back to the drive's keys
-    by_name = {v.name: k for k, v in VARIABLES.items() if hasattr(v, "name")}
+    by_name = {v.name: k for k, v in VARIABLES.items() if isinstance(v, Var)}
 
     def drive_keys(group):
         return {by_name.get(name, name): value for name, value in group.items()}

@@ -12,103 +12,31 @@ run that fails or is interrupted keeps what it did and can resume.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 
-from hpsim.errors import SimulationError, UserInputError
+from hpsim.errors import SimulationError
 
 from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
+from vehicle.physics.outputs import VARIABLES, From
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.numerics.codegen import precompile
 from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
-from vehicle.scenario.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
-
-
-@dataclass
-class DriveSettings:
-    distance_m: float
-    speed: SpeedProfile
-    ambient_K: float = 298.15
-    initial_temperatures_K: np.ndarray | float = 298.15
-    compensation: bool = False
-    dt_s: float = 0.004
-    output_interval_s: float = 1.0
-    samples_per_block: int = 10
-    stats_interval_m: float = 1000.0
-    # step-doubling error estimate (vehicle.numerics.error_estimate): tolerance on the relative error of
-    # the strut heat, and every how many sample blocks one window is checked (0: no estimate)
-    tolerance: float = 0.10
-    error_check_every: int = 10
-
-    def validate(self):
-        if not self.distance_m > 0:
-            raise UserInputError(f"distance: must be > 0 m, got {self.distance_m}")
-        if not 1e-4 <= self.dt_s <= 0.02:
-            raise UserInputError(f"solver.dt: must be in [0.1, 20] ms, got {self.dt_s * 1e3:.4g} ms")
-        k = self.output_interval_s / self.dt_s
-        if abs(k - round(k)) > 1e-6 or round(k) < 1:
-            raise UserInputError(f"output.interval: must be a whole number of steps of {self.dt_s * 1e3:.4g} ms, "
-                                 f"got {self.output_interval_s} s")
-
-
-class DriveSink(Protocol):
-    def start(self, info: dict) -> None: ...
-    def samples(self, block: dict) -> None: ...
-    def stats(self, rows: list[dict]) -> None: ...
-    def checkpoint(self, state: dict) -> None: ...
-
-
-@dataclass
-class DriveState:
-    """Everything needed to continue a drive: the resume checkpoint."""
-
-    t_s: float
-    s_m: float
-    x: np.ndarray
-    next_stats_m: float
-    last_stats: dict               # quadratures and time at the last km boundary
-    sample_index: int = 0
-    solver_memory: np.ndarray = field(default_factory=lambda: np.zeros(0))   # what the solver carries
-
-    def as_dict(self) -> dict:
-        return {"t_s": self.t_s, "s_m": self.s_m, "x": self.x.copy(), "next_stats_m": self.next_stats_m,
-                "last_stats_t_s": self.last_stats["t_s"], "last_stats_q": self.last_stats["q"].copy(),
-                # the running sum of the gas temperature samples since the last boundary (its interval mean)
-                "last_stats_gas_sum": np.asarray(self.last_stats["gas_sum"], float).copy(),
-                "last_stats_gas_n": int(self.last_stats.get("gas_n", 0)),
-                "sample_index": self.sample_index, "solver_memory": np.asarray(self.solver_memory, float).copy()}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "DriveState":
-        return cls(t_s=float(d["t_s"]), s_m=float(d["s_m"]), x=np.asarray(d["x"], float),
-                   next_stats_m=float(d["next_stats_m"]),
-                   last_stats={"t_s": float(d["last_stats_t_s"]), "q": np.asarray(d["last_stats_q"], float),
-                               "gas_sum": np.asarray(d.get("last_stats_gas_sum", 0.0), float),
-                               "gas_n": int(d.get("last_stats_gas_n", 0))},
-                   sample_index=int(d["sample_index"]),
-                   solver_memory=np.atleast_1d(np.asarray(d.get("solver_memory", []), float)))
-
-
-class BlockObserver(Protocol):
-    """What a caller of `Drive.run` sees of every block besides the sink's outputs (vehicle.engines.time_parallel
-    keeps a segment's states and raw statistics intervals to correct them when the segments are joined)."""
-
-    def block(self, X: np.ndarray, U: np.ndarray, memory: np.ndarray, outputs: dict) -> None:
-        """The block's states (nx, samples), inputs and solver memory at the samples, and its output series."""
-
-    def intervals(self, intervals: list[tuple]) -> None:
-        """The statistics intervals the block ended (`Drive._stats_intervals`)."""
+from vehicle.scenario.settings import DriveSettings
+from vehicle.engines.contract import BlockObserver, DriveResult, DriveSink, DriveState
 
 
 class Drive:
     """A drive of `model` over `road` with `settings`, integrated by `solver` (default: the compiled
-    ROS2 at settings.dt_s); `run(sink)` hands samples, statistics and checkpoints to a sink."""
+    ROS2 at settings.dt_s); `run(sink)` hands samples, statistics and checkpoints to a sink. The full-resolution
+    engine (vehicle.engines.contract.Engine)."""
+
+    mode = "full"
 
     def __init__(self, model: VehicleModel, road, settings: DriveSettings, *, gas_masses=None, solver=None):
         if solver is not None:
@@ -133,10 +61,11 @@ class Drive:
         self.M = int(settings.samples_per_block)
         solver = solver or Ros2(settings.dt_s)
         # the block outputs in one compiled call per block (the samples of a full block); the baseline engine of
-        # the benchmarks (solver.legacy_outputs) and an uncompiled solver keep CasADi's virtual machine
-        outputs_compiled = getattr(solver, "compile", False) and not getattr(solver, "legacy_outputs", False)
-        estimate = settings.error_check_every > 0 and hasattr(solver, "refined")
-        if hasattr(solver, "block_graph"):
+        # the benchmarks (capabilities.compiled_outputs False) and an uncompiled solver keep CasADi's virtual machine
+        caps = solver.capabilities
+        outputs_compiled = caps.compiled_outputs
+        estimate = settings.error_check_every > 0 and caps.step_doubling
+        if caps.compiled:
             # the libraries this drive needs, compiled together (one compiler each) when not in the cache yet
             graphs = [solver.block_graph(model, self.K, self.M)]
             if estimate:
@@ -175,6 +104,9 @@ class Drive:
         if model.ride_index:
             self.quad_index = np.concatenate([self.quad_index] + [idx.ravel() for idx in model.ride_index.values()])
         self.travel_bin_edges_m = model.travel_bin_edges()
+        # the output table's time series (vehicle.physics.outputs) and, for those that are states, their rows
+        self.series = {k: v.series for k, v in VARIABLES.items() if v.series is not None}
+        self.series_rows = {k: r for k, f in self.series.items() if (r := self._series_index(f)) is not None}
         self.heat_index = [model.energy_index[e] for e in DISSIPATION_TERMS]
         self.error_estimate = None
         self._probes = {}
@@ -389,7 +321,21 @@ class Drive:
                 f"(t = {t[col]:.1f} s) is outside any physical range ({lo - 273.15:.0f} to {hi - 273.15:.0f} degC): "
                 f"the heat balance has failed; {self._advice()}")
 
+    def _series_index(self, f: From):
+        """The state rows of a time series that is a slice of the states (vehicle.physics.outputs.From), or None."""
+        m = self.model
+        if f.kind == "heat_node":
+            return self.node_index[f.name]
+        if f.kind == "state":
+            return m.idx(f.name)
+        if f.kind == "station_state":
+            return np.array([m.idx(f"{f.name}[{i}]") for i in range(m.n)])
+        if f.kind == "energy":
+            return m.energy_index[f.name]
+        return None
+
     def _block_outputs(self, X, U, t, s, memory) -> dict:
+        """Every time series of the output table (vehicle.physics.outputs) at a block's samples."""
         m = self.model
         n = X.shape[1]
         if self.compiled_outputs is not None and n == self.M:
@@ -398,19 +344,25 @@ class Drive:
             Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
                                                   np.repeat(self.p[:, None], n, axis=1))
         outs = m.split_outputs(np.asarray(Y))
-        block = {"t_s": t, "distance_m": s, "speed_m_per_s": U[m.input_index["speed"]],
-                 "longitudinal_acceleration_m_per_s2": U[m.input_index["acceleration"]],
-                 "strut_temperature_K": X[self.T_index],
-                 "wall_temperature_K": X[self.T_wall_index],
-                 "oil_temperature_K": X[self.T_oil_index],
-                 "axle_height_change_m": np.asarray(heights),
-                 "hull_acceleration": np.asarray(acc),
-                 "heave_m": X[m.idx("z")], "pitch_rad": X[m.idx("theta")], "roll_rad": X[m.idx("phi")],
-                 "oil_added_m3": np.array([X[m.idx(f"V_oil[{i}]")] for i in range(m.n)])}
-        for k in ("strut_force", "strut_deflection", "gas_pressure", "gas_temperature", "wheel_load"):
-            block[k] = outs[k]
-        for e in ENERGY_TERMS:
-            block[f"energy_{e}_J"] = X[m.energy_index[e]]
+        block = {}
+        for key, f in self.series.items():
+            rows = self.series_rows.get(key)
+            if rows is not None:
+                block[key] = X[rows]
+            elif f.kind == "time":
+                block[key] = t
+            elif f.kind == "distance":
+                block[key] = s
+            elif f.kind == "input":
+                block[key] = U[m.input_index[f.name]]
+            elif f.kind == "output":
+                block[key] = outs[f.name]
+            elif f.kind == "axle_heights":
+                block[key] = np.asarray(heights)
+            elif f.kind == "hull_accelerations":
+                block[key] = np.asarray(acc)
+            else:
+                raise ValueError(f"output table: {key!r} has an unknown series kind {f.kind!r}")
         return block
 
     def _stats_intervals(self, st: DriveState, X, t, s) -> list[tuple]:
@@ -488,11 +440,20 @@ class Drive:
         row["strut_travel_histogram_s"] = hist
         return row
 
+    def final_values(self, state: DriveState) -> dict:
+        """The drive's end as stored in /summary: energies since the start, the heat network's temperatures and
+        (with ride metrics) the whole drive's ride numbers from the quadratures since the start."""
+        m = self.model
+        x = state.x
+        values = {f"energy_{e}_J": np.asarray(x[idx], float) for e, idx in m.energy_index.items()}
+        values["strut_temperature_K"] = np.asarray(x[self.T_index], float)          # the surface (pyrometer)
+        values["wall_temperature_K"] = np.asarray(x[self.T_wall_index], float)
+        values["oil_temperature_K"] = np.asarray(x[self.T_oil_index], float)
+        if m.ride_metrics:
+            values.update(self._ride_row(float(state.t_s), x[self.quad_index], x[m.energy_index["end_stop"]]))
+            values["strut_travel_bin_edges_m"] = np.asarray(self.travel_bin_edges_m, float)
+        return values
 
-@dataclass
-class DriveResult:
-    state: DriveState
-    after: object
-    wall_s: float
-    integration_s: float
-    solver_error: dict | None = None         # the step-doubling estimate's summary entries (None: not estimated)
+    def summary_extra(self) -> dict:
+        """The full drive adds nothing to /summary beyond the step-doubling estimate of its result."""
+        return {}

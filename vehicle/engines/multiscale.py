@@ -1,487 +1,25 @@
-"""Multiscale drive (`solver: {mode: multiscale}`): the ride on short windows of the real road, the
-slow states advanced between them (issue 11 §2).
-
-The vehicle's states fall in three time scales:
-  fast       hull, wheels, strut internals (gas temperature, chamber pressures): seconds or less;
-  slow       `VehicleModel.SLOW_STATES` (strut temperature or thermal nodes, filtered deflection,
-             levelling oil): minutes to hours;
-  extensive  the energy and RMS quadratures (model.n_dynamic onwards): they only accumulate.
-
-A window is a stretch of the real road driven with the full model and the compiled ROS2 stepper
-(`Drive.inputs`, `solver.advance`, the same as a full run): it starts from the vehicle standing
-in equilibrium at the current slow states (`EquilibriumSolver`, `VehicleModel.state_at_rest`),
-drives a warm-up stretch that settles the start transient (the tyres meet a road that is not
-flat: its extra dissipation is not the road's, so the slow states cross the warm-up by the
-window's averaged model, as they cross a gap, the difference from the simulated crossing carried
-through the averaged stretch by the same model, `warm_up_correction`; the first window, which is
-the drive's own start, keeps it) and then the averaged stretch. From the averaged stretch it takes
-  r   = mean rate of the slow states (x_b - x_a) / (t_b - t_a): exactly the slow equations under
-        the window-averaged dissipation (the slow rates are linear in the dissipated powers, e.g.
-        C dT/dt = P_valve + P_friction + P_gas + P_end_stop - losses(T));
-  A   = mean over the window's samples of d(slow rates)/d(slow states) (model.ode_function by
-        CasADi AD): how the averaged slow rates change with the slow states (heat loss to ambient,
-        conduction between thermal nodes, the temperature dependence of the dissipation);
-  q'  = mean rates of the quadratures.
-Between windows the slow states follow the linear model dx_s/dt = r + A (x_s - xbar_s) from
-the window's mean slow state xbar_s, integrated exactly (matrix exponential), and the
-quadratures grow at q'. The next window starts there. Generic: no state is named here, the
-slow/fast split is the model's `slow_state_indices()`.
-
-Where the windows go. The error of the mode is the sampling of the road (a window's mean
-dissipation against the mean over the stretch it stands for), not the averaging. There are
-ceil(distance / spacing) windows, the first at the start of the drive; `placement`:
-  weighted (default)  denser towards the end: the density of windows follows the weight an instant
-                      has on the final slow states, e^{-(t_end - t)/tau} (tau: the slowest decay time
-                      of the slow states' linearisation in the first window, ~100 min for the apc's
-                      strut temperatures) plus a uniform floor; this minimises the sampling variance of
-                      the final state for the given number of windows (about half the variance of the
-                      systematic layout on the 106 km test). The last window ends with the drive: the
-                      final state's short memories (the apc strut's oil-to-wall exchange, ~2 min, which
-                      the after-drive loads see) are simulated, not sampled (106 km test, 400 m windows
-                      every 7 km: load-change error 0.08 -> 0.03 pp);
-  systematic          one window at the start of each stretch of `spacing`;
-  stratified          one window at a random place in each stretch (`seed`).
-
-Control variate (`control_variate: true`, default). The whole road is known before the drive, so a
-cheap proxy of each window's dissipation is known for every stretch (`proxy`):
-  linear_model (default)  each strut's mean square velocity in the linearised vehicle (vehicle.physics.linear:
-                          the model linearised at its standing equilibrium at the drive's initial temperatures,
-                          the seal friction by its describing-function damping at
-                          `MultiscaleSettings.LINEAR_PROXY_FRICTION_VELOCITY_M_S`) driven by the road under all
-                          eight tyres, with the wheelbase delays and both tracks: V_i(f) = sum_j H_ij(f) R_j(f) by
-                          one FFT of the whole road (`linear_strut_velocity`), the squared velocity cumulated in
-                          time. A strut's velocity depends on the road under the other wheels through pitch and
-                          roll, which a per-wheel road measure does not see;
-  road_rate               the mean square road rate under each tyre (its enveloped profile, its pass) band-passed
-                          to where a strut's velocity follows the road (`MultiscaleSettings.PROXY_BAND_HZ`).
-Each slow state's and dissipated energy's window forcing is
-regressed on its station's proxy (with the intercept and the time trend; the slope pooled over the
-windows as there is one window per stratum) and every stratum's forcing is corrected by the slope
-times the proxy's difference between the stretch and its window (the regression estimate: Cochran,
-Sampling Techniques, 1977, ch. 7; Glasserman, Monte Carlo Methods in Financial Engineering, 2004,
-sec. 4.1; `control_variate`). The correction is carried to the end of the drive by the linear slow
-model. Both proxies explain the windows' dissipated power well (valve plus friction, r = 0.90-0.96 per strut
-linear_model, 0.87-0.97 road_rate, seed 0; seed 1 0.83-0.95 and 0.59-0.95), and 50-60 % of the scatter of the
-oil temperatures' window forcings (`window_forcings`) alike (106 km test, 16 windows of 400 m, road seeds 0 and
-1). The linear model's residuals are more alike between the stations (it sees the whole vehicle's road): the
-scatter of an axle's oil forcing about the vehicle's mean, which the after-drive load changes follow, is
-~25 % smaller, so the stated load-change error is ~40 % smaller (0.09 against 0.15 pp on that test) and the
-stated temperature error spread more evenly over the axles (largest 0.45 / 0.48 K against 0.53 / 0.67 K).
-Its set-up (~1.2 s for the 106 km road with the RMS match: a linearisation ~0.35 s, the FFT at `LINEAR_PROXY_RATE_HZ`) runs
-after the first window (`_linear_proxy_setup`, which can match the linear vehicle's RMS strut velocity to that
-window's: on, see LINEAR_PROXY_MATCH_RMS), only for a drive of at least MIN_CV_WINDOWS windows.
-
-Station patterns (`station_patterns`, `MultiscaleSettings.CV_PATTERNS`). The slow states' forcings are
-regressed pattern by pattern, not station by station: each kind of per-station slow state (T_oil[0..7], ...)
-is written in orthonormal patterns over the stations (the vehicle's mean, linear in the station's position,
-its higher polynomials, and the same times the side difference) and each pattern is regressed on the same
-pattern of the proxy. The windows' forcings share a large part no road proxy explains: the state dependence's
-remainder, common to all struts (106 km test: the cold first window's oil forcings 0.6-0.8 K/min above the
-line through the others), and the whole vehicle's dissipation level. Fitted with a slope per station it leaks
-into the differences between the stations, and those are what the after-drive loads follow: the loads of the
-statically indeterminate vehicle respond to the oil temperature patterns a rigid hull cannot follow (x^2, x^3
-over the four axles; the load sensitivity to the uniform and to the linear pattern is 1-3 % of that to one
-strut's). Per pattern that part stays in the mean. On the 106 km test (16 windows of 400 m) the load-weighted
-residual of the oil forcings per axle was, in mK/min, seed 0: 13 / 22 / 13 / 7.5 without a proxy, 8.6 / 11 /
-17 / 11 per station (the third axle's worse than without), 6.5 / 10 / 8.1 / 4.9 per pattern; the stated load-
-change error fell from 0.094 / 0.091 to 0.078 / 0.079 pp (seeds 0 / 1); the scenario's 20 windows of 350 m
-every 5.3 km (~10 % more integration) state 0.029 / 0.042 / 0.048 / 0.040 pp and 0.18-0.28 K (road seeds 0-3,
-with the RMS-matched proxy, LINEAR_PROXY_MATCH_RMS, and `warm_up_correction`; measured 0.014-0.022 pp,
-0.10-0.16 K, none of the 32 per-axle figures over). An orthonormal change of basis keeps
-the estimate's form (the regression estimate holds for any linear combination of the strata, Cochran 1977
-ch. 7; tests/test_multiscale.py checks the stated covariance against Monte Carlo in both bases). What is left
-of the load error is the proxy's: the oil forcings' x^2 and x^3 patterns follow the windows' own valve power
-(R^2 0.81-0.97, seeds 0 and 1), of which the linear vehicle's patterns explain 0.59-0.86; per-station
-proxies of other shapes (|v|, |v|^3 of the linear vehicle, the road rate) or a second proxy column (the
-road rate, the vehicle's mean) did not do better (0.09-0.17 pp per station).
-
-Window forcings (`window_forcings`). Each window's mean slow rates carried to one reference state x_ref
-(the windows' mean state) by the window's own Jacobian: b_k = r_k + A_k (x_ref - xbar_k), what window k's road
-drives at x_ref. The windows stand at different slow states and the rates depend on them non-linearly and
-through the road: the oil-to-wall exchange h_k (T_oil - T_wall) has a film coefficient that grows with the
-oil's temperature and with the road's stroking (vehicle.physics.thermal.oil_film_coefficient: ~11 W/K at the
-cold start, 20-24 W/K warm on the 106 km test) times an oil-to-wall difference that differs from window to
-window (the gap model's state). With one mean Jacobian (r_k - Abar xbar_k, the estimate before) the windows
-keep (h_k - hbar) (T_oil - T_wall)_k, a product of road and state that no road proxy explains (anti-
-correlated oil and wall forcings); carried by each window's own Jacobian they keep (h_k - hbar) at one
-temperature difference, a function of the road. On the 106 km test this cut the stated temperature error
-from 0.80 / 0.89 K to 0.53 / 0.67 K (seeds 0 / 1; the proxy's share of the oil forcings' scatter 20 % ->
-50-60 %), the load-change error not (0.15 pp: the after-drive loads follow the differences between the axles'
-oil temperatures, whose scatter is the road's dissipation the proxy does not explain). Measured and found
-not to matter: the heat the fast states hold at a window's ends (gas left hotter or colder than at rest:
-the gas heat into the oil scatters by ~1 W per window against ~13 W of valve power; a quasi-steady
-correction -J_sf J_ff^-1 of the fast states' deviation from rest changed the oil forcings' scatter by
-+1 %); the oil and wall forcings' anti-correlation (heat moved between the nodes) is in the full
-covariance C_b below and cancels in the surface temperature (per station 1-sigma: 0.99 K from the oil
-forcings alone, 0.75 K from the wall's alone, 0.37 K together, seed 0).
-
-A-posteriori error estimate. The window forcings b_k (`window_forcings`: the slow rates with
-the slow-state dependence taken out: dissipation and ambient terms) scatter from window to
-window because each window sees a different piece of road; their covariance C_b over the
-windows (about the time trend, or with the control variate the regression's residuals) estimates the
-sampling error of one window's forcing. A window of duration L standing for a stretch of which tu is
-not driven (warm-up and gap) gives the stratum total an error of variance tu^2 C_b (1 + L/tu) (the
-window's own deviation and that of the stretch; Cochran 1977 eq. 5.6, N^2 (1 - f) S^2 / n, windows much
-longer than the road's correlation length). Propagated through the linear slow model to the end of
-the drive,
-    Cov(x_s,end) = sum_k (1 + L_k/tu_k) Phi_k C_b Phi_k^T,   Phi_k = e^{A (t_end - t_k,gap end)}
-                                                                      int_0^tu_k e^{A s} ds,
-plus, with the control variate, the error of the estimated slope (which moves every stratum's
-correction together: M (C_b o H H^T) M^T) and its covariance with each window's own deviation (the same
-residual is in the slope and in the window's stratum: `stratified_error_covariance`; +0-3 % on the 106 km
-test's stated errors), gives the 1-sigma error of each slow state; the results
-state a 95 % interval (Student t with the regression's degrees of freedom: windows less 2, less 3
-with the control variate) per axle for the temperature and, through the sensitivity of the
-after-drive equilibrium to the final temperatures and oil volumes, for the wheel-load change. The
-estimate assumes independent windows (windows much longer than the road's correlation length, true
-for ISO 8608 roads) and a stationary road and speed within each stratum: a speed profile that changes
-inside a stratum is an error the estimate does not see (shorter spacing then). Nor does it see the errors that
-are not sampling: each window's start transient adds heat a short warm-up does not settle, a bias that grows
-with the number of windows (106 km test, seed 0, 53 windows of 400 m: 0.18-0.24 K too warm with a 30 m warm-up,
-above the stated 0.14-0.17 K; 0.015-0.06 K with 150 m); a stated error below ~0.2 K with 30 m warm-ups
-understates.
-"""
+"""Multiscale drive: the ride simulated on windows of the real road, the slow (thermal, levelling) states
+advanced between them by the windows' averaged linear model, each stretch corrected by a road proxy known
+for the whole road (control variate), with an a-posteriori estimate of the sampling error. How and why,
+with the measurements behind each choice: docs/engines.md, "Multiscale mode"."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
-from scipy.linalg import expm
 
 from hpsim.errors import UserInputError
 
+from vehicle.physics import linear
 from vehicle.physics.model import DISSIPATION_TERMS
+from vehicle.scenario.settings import MultiscaleSettings
 from vehicle.engines.full import Drive, DriveResult, DriveState
+from vehicle.engines.control_variate import (band_power_cumulative, control_variate, linear_strut_velocity, on_grid,
+                                             station_patterns, stratified_error_covariance, variance_ratio)
+from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, warm_up_correction,
+                                       window_forcings)
 
 MODE = "multiscale"
-ERROR_COVERAGE = 0.95       # the stated error: a 95 % interval of the sampling error (Student t, see error_factor)
-
-
-def error_factor(dof: int) -> float:
-    """Standard deviations in the stated error: the two-sided ERROR_COVERAGE quantile of Student's t with the
-    estimate's degrees of freedom (the windows' scatter is estimated from few windows: 3.2 for 3, 2.1 for 20)."""
-    from scipy.stats import t
-
-    return float(t.ppf(0.5 + ERROR_COVERAGE / 2, max(int(dof), 1)))
-
-
-@dataclass
-class MultiscaleSettings:
-    """Window layout of a multiscale drive (scenario `solver:` keys; ranges in vehicle.scenario.schema)."""
-
-    window_m: float = 500.0          # averaged stretch of each window
-    spacing_m: float = 5000.0        # one window per this much road (stratum)
-    warm_up_m: float = 50.0          # stretch driven before the averaged one (start transient)
-    placement: str = "weighted"      # "weighted" (denser where the final slow states remember more), "systematic"
-    #                                  (at the start of each stratum) or "stratified" (random in it)
-    seed: int = 0                    # of the stratified placement
-    control_variate: bool = True     # regression on the road proxy (`road_proxy`, `control_variate`)
-    proxy: str = "linear_model"      # the control variate's proxy: "linear_model" (the linearised vehicle's squared
-    #                                  strut velocity) or "road_rate" (the band-passed road rate under each tyre)
-
-    WEIGHT_FLOOR = 0.15      # weighted placement: share of the window density that stays uniform
-    # the road proxy of the control variate: the mean square road rate under each tyre in the band where a strut's
-    # velocity follows the road (above the body modes, 1-2 Hz, below wheel hop, ~10 Hz: `hpsim modes`). Only
-    # the variance of the estimate depends on it (a poor proxy gives beta ~ 0, the plain estimate); on the 106 km
-    # test it explains ~80 % of the windows' dissipation scatter (R^2 0.70-0.89 per strut, 500 m windows)
-    PROXY_BAND_HZ = (1.0, 10.0)
-    PROXIES = ("road_rate", "linear_model")
-    # the linear-model proxy (`linear_strut_velocity`): the vehicle linearised at its standing equilibrium with the
-    # seal friction replaced by its describing-function damping at this strut velocity amplitude (the start of the
-    # RMS match, LINEAR_PROXY_MATCH_RMS, and the value without it; prior: 0.1 m/s,
-    # plausible 0.03-0.3 m/s; the default of `hpsim vehicle response`; the Gaussian statistical linearisation of
-    # Coulomb friction, c = F_C sqrt(2/pi) / sigma_v, equals the describing function at V = 1.6 sigma_v, 0.12 m/s for
-    # the apc's RMS strut velocity on class D at 20 km/h, 0.075 m/s. The errors depend on it: 106 km test, seeds
-    # 0 / 1, stated 0.30 / 0.32 K at 0.03 m/s, 0.45 / 0.46 K at 0.1 m/s, 0.77 / 1.10 K at 0.3 m/s), the struts' velocities computed on a grid of this rate (prior: 25 Hz, the Nyquist
-    # frequency 12.5 Hz above the wheel hop at ~8 Hz; the tyre's envelope filters the road above) and the transfer
-    # functions on this many frequencies up to the Nyquist frequency, interpolated (smooth: the narrowest resonance,
-    # pitch at 0.9 Hz with a damping ratio 0.18, is 0.3 Hz wide, ~25 points)
-    LINEAR_PROXY_FRICTION_VELOCITY_M_S = 0.1
-    LINEAR_PROXY_V_RANGE_M_S = (0.005, 1.0)   # where the RMS-matched amplitude is sought (`_linear_proxy_setup`)
-    # V matched to the first window's RMS strut velocity instead of the prior (`_linear_proxy_setup`): on. The
-    # equivalent linearisation that reproduces the response's variance (Roberts & Spanos 1990 ch. 5): the linear
-    # vehicle's damping stands for the seal friction and the valves' non-linear damping together; V ~ 0.05 m/s on
-    # the 106 km test (first window's RMS strut velocity 0.075 m/s). It was off while the measured errors exceeded
-    # the stated ones (16 x 400 m, seed 1: 0.23 K on axle 2 against 0.19 K; 20 x 350 m, seed 0: 0.022 against
-    # 0.020 pp). The warm-up's difference was then added at a window's end undecayed (`warm_up_correction`, fixed);
-    # with the fix those figures are within (0.014 / 0.008 against 0.021 / 0.019 pp; 0.155 against 0.177 K). With
-    # the fix and the station patterns (CV_PATTERNS), 106 km test, road seeds 0-3: the scenario's 20 x 350 m states
-    # 0.029 / 0.042 / 0.048 / 0.040 pp (at V = 0.1 m/s 0.052-0.069 pp; 16 x 400 m, per station, before: 0.094 /
-    # 0.089 pp), 16 x 400 m 0.036-0.055 pp, 22 x 500 m 0.028-0.041 pp; 1 of the 96 per-axle measured figures over
-    # its stated error (docs/validation.md)
-    LINEAR_PROXY_MATCH_RMS = True
-    # the control variate regresses each slow state's station pattern (the vehicle's mean, linear in position, ...:
-    # `station_patterns`) on the same pattern of the proxy, not each station on its own (`_control_variate`).
-    # 106 km test, 400 m every 7 km: stated load-change error 0.094 / 0.091 -> 0.078 / 0.079 pp (seeds 0 / 1)
-    CV_PATTERNS = True
-    LINEAR_PROXY_RATE_HZ = 25.0
-    LINEAR_PROXY_FREQUENCIES = 1001
-
-    def weighted_windows(self, distance_m: float, first_end_m: float, tau_s: float, t_of_s, s_of_t,
-                         t_total_s: float) -> list[tuple[float, float]]:
-        """Windows after the first (which ends at first_end_m) placed by the weight of each instant on the final
-        slow states: density proportional to WEIGHT_FLOOR + e^{-(t_end - t)/tau} (tau: the slowest decay time of the
-        slow states, from the first window), same number of windows as the systematic layout. The variance of
-        the final state is sum over windows of (weight x stretch)^2 x (sampling variance), smallest for a density
-        proportional to the weight; the floor keeps the early drive sampled (energy totals, long gaps)."""
-        span = self.warm_up_m + self.window_m
-        n = max(1, int(np.ceil(distance_m / self.spacing_m - 1e-9)))
-        if n == 1:
-            return []
-        t0 = t_of_s(first_end_m)
-        tg = np.linspace(t0, t_total_s, 2001)
-        dens = self.WEIGHT_FLOOR + np.exp(-(t_total_s - tg) / max(tau_s, 1e-9))
-        W = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(tg))])
-        out, last_end = [], first_end_m
-        # strata of equal weight, one window in the middle (by weight) of each; the last strata are the shortest
-        for k in range(n - 1):
-            t_start = float(np.interp(W[-1] * (k + 0.5) / (n - 1), W, tg))
-            c = max(float(s_of_t(t_start)), last_end)
-            if c + span > distance_m:
-                break
-            out.append((c, c + span))
-            last_end = c + span
-        # the last window ends with the drive: the final state's short memories (the oil-to-wall exchange, ~2 min
-        # for the apc strut, what the after-drive loads see) are then simulated, not sampled
-        if out:
-            before = out[-2][1] if len(out) > 1 else first_end_m
-            if distance_m - span >= before:
-                out[-1] = (distance_m - span, distance_m)
-        return out
-
-    def windows(self, distance_m: float) -> list[tuple[float, float]]:
-        """(start, end) of each window (warm-up included) along the drive; the first starts at 0."""
-        span = self.warm_up_m + self.window_m
-        n = max(1, int(np.ceil(distance_m / self.spacing_m - 1e-9)))
-        rng = np.random.default_rng(self.seed)
-        out = []
-        for k in range(n):
-            lo = k * self.spacing_m
-            hi = min((k + 1) * self.spacing_m, distance_m)
-            if k == 0 or self.placement == "systematic" or hi - lo <= span:
-                c = lo
-            else:
-                c = lo + rng.uniform(0.0, hi - lo - span)
-            out.append((c, min(c + span, distance_m)))
-        return out
-
-
-def slow_rate_jacobian(model):
-    """J(x, memory, u, p) = d(rates of the slow states)/d(all states) (CasADi AD of model.ode_function)."""
-    key = "_multiscale_slow_jacobian"
-    fn = model.__dict__.get(key)
-    if fn is None:
-        idx = model.slow_state_indices()
-        x, _, u, p = model.symbols
-        mem = model.memory_symbol
-        f, _ = model.ode_function(x, mem, u, p)
-        fs = ca.vertcat(*[f[i] for i in idx])
-        fn = ca.Function("J_slow", [x, mem, u, p], [ca.jacobian(fs, x)])
-        model.__dict__[key] = fn
-    return fn
-
-
-def window_forcings(A: np.ndarray, r: np.ndarray, xbar: np.ndarray, x_ref: np.ndarray | None = None) -> np.ndarray:
-    """Each window's slow rates carried to one reference slow state by the window's own linearisation:
-        b_k = r_k + A_k (x_ref - xbar_k)          (A: (nw, ns, ns), r and xbar: (nw, ns); x_ref: mean of xbar)
-    what window k's road would drive at x_ref (module docstring, "Window forcings"). Where the state
-    dependence itself depends on the road (the oil film coefficient grows with the stroking and multiplies
-    the oil-to-wall temperature difference), r_k - Abar xbar_k (one mean Jacobian) keeps the product of the
-    road's and the state's deviations, which a road proxy cannot explain; b_k keeps the road's deviation at
-    one state. Exact to first order about each window's own state (remainder: the curvature f''/2 times
-    (x_ref - xbar_k)^2). A linear model (A_k = A) gives r_k - A xbar_k plus a constant: the same scatter."""
-    A, r, xbar = np.asarray(A, float), np.asarray(r, float), np.asarray(xbar, float)
-    if x_ref is None:
-        x_ref = xbar.mean(axis=0)
-    return r + np.einsum("kij,kj->ki", A, x_ref[None, :] - xbar)
-
-
-def _propagators(A: np.ndarray, b: np.ndarray, tau: float):
-    """(e^{A tau}, int_0^tau e^{A s} ds b, int_0^tau e^{A s} ds) by one augmented matrix exponential."""
-    n = A.shape[0]
-    M = np.zeros((2 * n, 2 * n))
-    M[:n, :n] = A * tau
-    M[:n, n:] = np.eye(n) * tau
-    E = expm(M)
-    Phi, Gam = E[:n, :n], E[:n, n:]
-    return Phi, Gam @ b, Gam
-
-
-def control_variate(y: np.ndarray, p_window: np.ndarray, p_stretch: np.ndarray, t: np.ndarray | None = None):
-    """Regression (control-variate) estimate of each stratum's mean forcing (Cochran, Sampling Techniques, 3rd ed.
-    1977, ch. 7: the regression estimate, with the slope pooled over the strata as there is one window per
-    stratum; Glasserman, Monte Carlo Methods in Financial Engineering 2004, sec. 4.1).
-
-    y (nw, m): a value per window (stratum) and component; p_window (nw, m): the proxy of each component over
-    the window; p_stretch (nw, m): the proxy over the part of the stratum the window stands for (known for the
-    whole road); t (nw,): the windows' times, or None. Per component j the window values are regressed on
-    [1, t - mean(t), p_window_j] (least squares; without t if t is None); the stratum estimate is
-        y_k + beta_j (p_stretch_kj - p_window_kj).
-    Returns (y_corrected, beta (m,), residuals (nw, m), dof, H (m, nw)): beta_j = H_j . y_j, so the slope's
-    error has the covariance C_res[j, l] H_j . H_l. A proxy without scatter gives beta_j = 0 (the plain
-    estimate); a y exactly linear in the proxy has zero residuals and the exact stratum values."""
-    y = np.asarray(y, float)
-    pw, ps = np.asarray(p_window, float), np.asarray(p_stretch, float)
-    nw, m = y.shape
-    base = [np.ones(nw)] + ([np.asarray(t, float) - np.mean(t)] if t is not None else [])
-    X0 = np.column_stack(base)
-    beta, H, res = np.zeros(m), np.zeros((m, nw)), np.empty_like(y)
-    for j in range(m):
-        dp = pw[:, j] - pw[:, j].mean()
-        X = np.column_stack([X0, dp])
-        if np.ptp(pw[:, j]) > 1e-12 * max(np.max(np.abs(pw[:, j])), 1e-300) and np.linalg.matrix_rank(X) == X.shape[1]:
-            Xp = np.linalg.pinv(X)
-            H[j] = Xp[-1]
-            beta[j] = H[j] @ y[:, j]
-        else:
-            X = X0
-        res[:, j] = y[:, j] - X @ (np.linalg.pinv(X) @ y[:, j])
-    dof = nw - X0.shape[1] - 1
-    return y + beta * (ps - pw), beta, res, dof, H
-
-
-def warm_up_correction(flow, b: np.ndarray, x_start: np.ndarray, x_warm_end: np.ndarray, tw: float,
-                       L: float) -> np.ndarray:
-    """What to add to a window's simulated end state (slow states) so that its warm-up counts as crossed by the
-    window's averaged model x' = b + A x (`flow`: A) instead of as simulated: the modelled state at the warm-up's
-    end, e^{A tw} x_start + int_0^tw e^{A s} ds b, less the simulated one x_warm_end, carried through the averaged
-    stretch of duration L by e^{A L} (the simulated stretch started from x_warm_end; for the linear model exactly
-    x_end(x_warm_end + d) = x_end(x_warm_end) + e^{A L} d)."""
-    d = flow.phi(tw) @ x_start + flow.gamma(tw) @ b - x_warm_end
-    return flow.phi(L) @ d
-
-
-def station_patterns(position_m: np.ndarray, side: np.ndarray) -> np.ndarray:
-    """Orthonormal patterns over the stations (rows of an (n, n) matrix): for the side sum (1 on every station)
-    and the side difference (+1 left, -1 right) in turn, the polynomials 1, x, x^2, ... in the station's
-    longitudinal position x (Gram-Schmidt, the vehicle's mean first), as many as there are distinct positions.
-    The first is the vehicle's mean (heave-like), the second linear in x (pitch-like), the side difference
-    roll-like; the higher ones are the patterns a rigid hull cannot follow, the ones the standing vehicle's
-    wheel loads respond to (106 km test: the load sensitivity to a uniform or a linear oil temperature pattern is
-    1-3 % of that to a single strut's). The identity if the stations do not give n independent patterns."""
-    x = np.asarray(position_m, float)
-    x = x - x.mean()
-    n = x.size
-    if np.ptp(x) > 0:
-        x = x / np.ptp(x)
-    k = len(np.unique(np.round(x, 9)))
-    sides = [np.ones(n)] + ([np.where(np.asarray(side) == 0, 1.0, -1.0)] if len(np.unique(side)) > 1 else [])
-    cols = [s * x ** j for s in sides for j in range(k)]
-    M = np.column_stack(cols)[:, :n]
-    if M.shape[1] < n or np.linalg.matrix_rank(M) < n:
-        return np.eye(n)
-    Q, R = np.linalg.qr(M)
-    return (Q * np.sign(np.diag(R))[None, :]).T
-
-
-def stratified_error_covariance(Q: np.ndarray, own: np.ndarray, Cb: np.ndarray, Mb: np.ndarray | None = None,
-                                H: np.ndarray | None = None) -> np.ndarray:
-    """Covariance of the final slow states' error of the stratified (and regression) estimate.
-
-    Q (nw, ns, ns): how a unit error of stratum k's mean forcing (over what the window stands for) moves the
-    final slow states; own (nw,): L_k / tu_k, the variance of the stretch's own mean relative to a window's
-    (windows and stretches much longer than the road's correlation length); Cb (ns, ns): the residual
-    covariance of one window's forcing. Stratum k's estimate takes the window's value for the stretch's,
-    error e_w,k - e_s,k. With the control variate (Mb (ns, ns): how the final state moves with the slopes,
-    `MultiscaleDrive._control_variate`; H (ns, nw): slope_j = H_j . y_j) each stratum also carries
-    beta_hat - beta = sum_k H_k o e_w,k, so window k's own residual enters twice, in its stratum and in the
-    slope (R_k = Mb diag(H_k)):
-        error = sum_k (Q_k + R_k) e_w,k - Q_k e_s,k
-        Cov   = sum_k own_k Q_k Cb Q_k^T + (Q_k + R_k) Cb (Q_k + R_k)^T
-    = the strata's own terms (1 + L/tu) Q Cb Q^T, the slope's error Mb (Cb o H H^T) Mb^T, and the covariance of
-    the two (the regression estimator's variance, e.g. Cochran, Sampling Techniques, 1977, sec. 7.3, written
-    for the weighted sum of strata: the windows' residuals are independent, Var(e_w) = Cb)."""
-    Q = np.asarray(Q, float)
-    ns = Cb.shape[0]
-    cov = np.zeros((ns, ns))
-    for k in range(Q.shape[0]):
-        W = Q[k] if Mb is None else Q[k] + Mb * H[:, k][None, :]
-        cov += own[k] * Q[k] @ Cb @ Q[k].T + W @ Cb @ W.T
-    return cov
-
-
-def band_power_cumulative(slope: np.ndarray, spacing_m: float, speed_m_s: np.ndarray, band_hz) -> np.ndarray:
-    """Cumulative time integral [m^2/s] of the squared road rate (slope x speed) passed through a band pass
-    (Butterworth, 2nd order each side, at the mean speed's sampling rate) along the grid: C[i] = int_0^s_i
-    (band-passed rate)^2 dt, so the mean over a stretch is (C(s1) - C(s0)) / (t1 - t0)."""
-    from scipy.signal import butter, sosfilt
-
-    v = np.broadcast_to(np.asarray(speed_m_s, float), slope.shape)
-    fs = float(np.mean(v)) / spacing_m
-    lo, hi = band_hz
-    sos = butter(2, [lo, min(hi, 0.45 * fs)], btype="band", fs=fs, output="sos")
-    y = sosfilt(sos, slope * v)
-    c = np.empty(slope.size)
-    c[0] = 0.0
-    np.cumsum(0.5 * (y[1:] ** 2 / v[1:] + y[:-1] ** 2 / v[:-1]) * spacing_m, out=c[1:])
-    return c
-
-
-def linear_strut_velocity(H_of_f, roads: np.ndarray, rate_hz: float, n_frequencies: int) -> np.ndarray:
-    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights `roads` (n, N) [m]
-    under each tyre sampled at rate_hz (their delays, the wheelbase and the two tracks, are in the signals):
-    V_i(f) = sum_j H_ij(f) R_j(f) by the FFT (H_of_f(f) -> (n_f, n, n), `linear.strut_velocity_response`, on
-    n_frequencies points up to rate_hz / 2, interpolated). The signals are taken periodic: the caller pads them
-    (the vehicle's memory: seconds). Parseval: the time-domain variance of the result equals the FFT sum of
-    |V(f)|^2 (tests/test_multiscale.py checks it against a time-domain simulation of the same linear model)."""
-    from scipy.fft import irfft, next_fast_len, rfft
-
-    n, N = roads.shape
-    L = next_fast_len(N, real=True)
-    R = rfft(roads - roads.mean(axis=1, keepdims=True), n=L, axis=1)          # (n, L//2+1)
-    f = np.fft.rfftfreq(L, 1.0 / rate_hz)
-    fc = np.linspace(0.0, rate_hz / 2, n_frequencies)
-    Hc = H_of_f(fc)                                                            # (nc, n, n)
-    x = f / fc[1]                                                              # linear interpolation on fc
-    k = np.minimum(x.astype(np.intp), n_frequencies - 2)
-    w = x - k
-    V = np.zeros_like(R)
-    for i in range(n):
-        for j in range(n):
-            V[i] += (Hc[k, i, j] * (1.0 - w) + Hc[k + 1, i, j] * w) * R[j]
-    return irfft(V, n=L, axis=1)[:, :N]
-
-
-def _on_grid(c: np.ndarray, spacing_m: float, s_m: float) -> float:
-    """c (on a uniform grid from 0) linearly interpolated at s, held at its ends."""
-    x = min(max(s_m / spacing_m, 0.0), c.size - 1.0)
-    i = min(int(x), c.size - 2)
-    return float(c[i] + (x - i) * (c[i + 1] - c[i]))
-
-
-def _variance_ratio(res: np.ndarray, res0: np.ndarray, slots: np.ndarray) -> float:
-    """Residual variance with the proxy / without it, summed over the given components (oil temperatures)."""
-    a = float(np.sum(res[:, slots] ** 2))
-    b = float(np.sum(res0[:, slots] ** 2))
-    return a / b if b > 0 else float("nan")
-
-
-class _LinearFlow:
-    """e^{A t} and int_0^t e^{A s} ds of one matrix A for many t, by its eigen-decomposition (one per drive
-    instead of a matrix exponential per call); falls back to `_propagators` if A's eigenvectors are ill
-    conditioned."""
-
-    def __init__(self, A: np.ndarray):
-        self.A = A
-        lam, V = np.linalg.eig(A)
-        self.ok = bool(np.all(np.isfinite(lam))) and np.linalg.cond(V) < 1e6
-        if self.ok:
-            self.lam, self.V, self.Vi = lam, V, np.linalg.inv(V)
-
-    def phi(self, t: float) -> np.ndarray:
-        if not self.ok:
-            return expm(self.A * t)
-        return np.real((self.V * np.exp(self.lam * t)) @ self.Vi)
-
-    def gamma(self, t: float) -> np.ndarray:
-        if not self.ok:
-            return _propagators(self.A, np.zeros(self.A.shape[0]), t)[2]
-        z = self.lam * t
-        small = np.abs(z) < 1e-8
-        g = np.where(small, t * (1 + z / 2), np.expm1(np.where(small, 1.0, z)) / np.where(small, 1.0, self.lam))
-        return np.real((self.V * g) @ self.Vi)
 
 
 class MultiscaleDrive(Drive):
@@ -493,6 +31,8 @@ class MultiscaleDrive(Drive):
     def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):
         super().__init__(model, road, settings, **kw)
         self.ms = multiscale
+        self.state_only = False          # True: only the states are wanted (no error estimate), as for a coarse run
+        self._S = None                   # the slaving matrix, once computed (`_slaving`)
         t0 = time.perf_counter()
         self.slow_index = np.asarray(model.slow_state_indices(), int)
         self.ext_index = np.arange(model.n_dynamic, model.nx)
@@ -526,7 +66,7 @@ class MultiscaleDrive(Drive):
         themselves move one to one, the fast ones as the standing vehicle's do (gas temperatures with the strut
         temperature, deflections with gas expansion and oil), the quadratures not at all. Finite differences,
         computed once per drive (it changes little with the slow states)."""
-        if getattr(self, "_S", None) is not None:
+        if self._S is not None:
             return self._S
         base = self._rest_state(x)
         S = np.zeros((self.model.nx, len(self.slow_index)))
@@ -553,8 +93,6 @@ class MultiscaleDrive(Drive):
         valves' non-linear (orifice, blow-off) damping together, which the laminar-bleed linearisation alone does
         not give. Two secant steps in log V from LINEAR_PROXY_FRICTION_VELOCITY_M_S (RMS ~ V^alpha); V kept within
         LINEAR_PROXY_V_RANGE_M_S. match=None: V = LINEAR_PROXY_FRICTION_VELOCITY_M_S."""
-        from vehicle.physics import linear
-
         m, ms = self.model, self.ms
         t0 = time.perf_counter()
         T0 = self.initial_state().x[self.T_oil_index]
@@ -669,7 +207,7 @@ class MultiscaleDrive(Drive):
         out = np.zeros(self.model.n)
         for i, (h, c) in enumerate(self._proxy_c):
             a = float(self.model.a[i])
-            out[i] = (_on_grid(c, h, s1_m - a) - _on_grid(c, h, s0_m - a)) / dt
+            out[i] = (on_grid(c, h, s1_m - a) - on_grid(c, h, s0_m - a)) / dt
         return out
 
     def _time_at(self, s_m: float) -> float:
@@ -761,7 +299,7 @@ class MultiscaleDrive(Drive):
             t_end = min(self._time_at(c1), t_total)
             t_warm = min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end)
             w = self._window(x, t0, t_warm, t_end, sink, integ)
-            w["flow"] = _LinearFlow(w["A"])
+            w["flow"] = LinearFlow(w["A"])
             if k == 0 and self._linear_proxy_pending:
                 iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
                 self._linear_proxy_setup((w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
@@ -819,7 +357,7 @@ class MultiscaleDrive(Drive):
             x = x.copy()
             x[self.slow_index] += cv["dx_slow"]
             x[self.cv_quad] += cv["dq"]
-        self.estimate = self.road_sampling_error(records, t_total, cv)
+        self.estimate = {} if self.state_only else self.road_sampling_error(records, t_total, cv)
         final = DriveState(t_s=float(t_total), s_m=float(self.distance_at(t_total)), x=x, next_stats_m=D + 1.0,
                            last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy(),
                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
@@ -829,7 +367,8 @@ class MultiscaleDrive(Drive):
         V_oil = x[self.oil_index]
         after = self.equilibrium_solver.solve(x[self.T_oil_index], self.gas_masses, V_oil)
         self.window_log = records
-        self.estimate.update(self.load_error(final, after))
+        if not self.state_only:
+            self.estimate.update(self.load_error(final, after))
         return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
 
     # --- control variate ------------------------------------------------------------------------
@@ -853,7 +392,7 @@ class MultiscaleDrive(Drive):
         per pattern it stays in the mean. Returned in that basis: `residuals`, `H`, `beta`, and `M_beta` (final
         slow states per pattern slope); `basis` maps the slow states to the patterns."""
         A_mean = np.mean([w["A"] for w in records], axis=0)
-        flow = _LinearFlow(A_mean)
+        flow = LinearFlow(A_mean)
         st, qst = self.slow_station, self.cv_quad_station
         T = self.cv_basis
         t = np.array([w["t_avg0"] for w in records])
@@ -888,7 +427,7 @@ class MultiscaleDrive(Drive):
         # how much of the forcings' scatter the proxy explains (the plain estimate's residuals: [1, t] only)
         _, _, res0, _, _ = control_variate(Y, np.zeros_like(PW), PW, t)
         return {"dx_slow": dx, "dq": dq, "beta": beta, "residuals": res, "dof": dof, "H": H, "M_beta": Mb,
-                "basis": T, "variance_ratio": _variance_ratio(res, res0, self.T_oil_slots())}
+                "basis": T, "variance_ratio": variance_ratio(res, res0, self.T_oil_slots())}
 
     def T_oil_slots(self) -> np.ndarray:
         pos = {int(j): k for k, j in enumerate(self.slow_index)}
@@ -902,7 +441,7 @@ class MultiscaleDrive(Drive):
         ns = len(self.slow_index)
         nw = len(records)
         A_mean = np.mean([w["A"] for w in records], axis=0)
-        flow = _LinearFlow(A_mean)
+        flow = LinearFlow(A_mean)
         B = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records])
         # the sampling error is the scatter about the forcing's slow drift along the drive (each gap follows its
         # own window, so a drift is followed): residuals of a straight line in time, 2 degrees of freedom

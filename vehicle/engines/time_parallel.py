@@ -33,16 +33,14 @@ Sci. Comput. 29(2)), one correction sweep:
    summary per axle (temperature [K]) and through the after-drive equilibrium's sensitivity (wheel-load
    change [pp]), as estimated_error_* like the multiscale mode's.
 
-A run that is resumed (`--resume`) continues serially (Drive.run): the segments are not checkpointed.
+A run that is resumed (`--resume`) continues serially (the full drive): the segments are not checkpointed.
 """
 from __future__ import annotations
 
 import copy
 import dataclasses
-import multiprocessing as mp
-import os
+from dataclasses import dataclass, field
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from scipy.linalg import expm
@@ -50,11 +48,15 @@ from scipy.linalg import expm
 from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
-from vehicle.engines.full import Drive, DriveResult, DriveState
-from vehicle.engines.multiscale import MultiscaleDrive, MultiscaleSettings, _LinearFlow, _propagators
+from vehicle.physics.outputs import joined
+from vehicle.scenario.settings import SEGMENTS_RANGE, MultiscaleSettings
+from vehicle.engines.contract import DriveResult, DriveState
+from vehicle.engines.full import Drive
+from vehicle.engines.multiscale import MultiscaleDrive
+from vehicle.engines.pool import can_fork, fork_pool, inherited
+from vehicle.engines.slow_flow import LinearFlow, propagators
 
 MODE = "time_parallel"
-SEGMENTS_RANGE = (1, 64)          # solver.time_parallel
 MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
 JACOBIAN_SAMPLES = 120            # samples per segment at which the slow-rate Jacobian is averaged
 CHECK_WINDOWS = 3                 # windows of the second coarse correction over a segment (the error estimate)
@@ -62,23 +64,6 @@ CHECK_WINDOW_M = 500.0            # their averaged stretch (after the coarse run
 COARSE_SPACING_M = 10_000.0      # one coarse window per this much road
 COARSE_COST = 1.5                 # the coarse run's wall time / the full model's over the road its windows drive
 PIECE_SAMPLES = 500               # samples per block handed to the sink when the segments are joined
-# the series computed from states, corrected by the slow-state correction directly (dx = S delta)
-_STATE_SERIES = ("strut_temperature_K", "wall_temperature_K", "oil_temperature_K", "heave_m", "pitch_rad",
-                 "roll_rad", "oil_added_m3")
-# the output series corrected through d(outputs)/d(slow states)
-_OUTPUT_SERIES = ("strut_force", "strut_deflection", "gas_pressure", "gas_temperature", "wheel_load",
-                  "axle_height_change_m")
-
-_PARENT = None                    # the drive the forked workers inherit
-
-
-def resolve_segments(value) -> int:
-    """solver.time_parallel: an int in SEGMENTS_RANGE or "auto" (one segment per CPU)."""
-    if value is None:
-        return 1
-    if value == "auto":
-        return max(1, min(os.cpu_count() or 1, SEGMENTS_RANGE[1]))
-    return int(value)
 
 
 def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate | None:
@@ -99,13 +84,13 @@ def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate |
 
 def _check_worker(t0, t1, x, n_windows, slaving):
     """One propagation of the join's error check (`TimeParallelDrive._coarse_propagate`) in a pool worker."""
-    d = _PARENT
-    d._S = slaving                 # computed once in the parent: the same for every propagation of the drive
+    d = inherited()
+    d.coarse._S = slaving                 # computed once in the parent: the same for every propagation of the drive
     return d._coarse_propagate(t0, t1, x, n_windows)
 
 
 def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
-    d = _PARENT
+    d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
     out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
     out["cpu_s"] = time.process_time() - c0
@@ -140,25 +125,44 @@ class _SegmentRecorder:
                       for s_end, duration, dq, x_end, gas in intervals]
 
 
-class TimeParallelDrive(MultiscaleDrive):
-    """A Drive split into `segments` segments in time, run in parallel processes and joined with a correction
-    of the slow states (module docstring). `correct=False`: joined without the correction (for tests)."""
+@dataclass
+class _JoinState:
+    """What the join carries from one segment to the next."""
+
+    Q: np.ndarray                                 # quadratures at the previous segment's end (absolute)
+    x_true: np.ndarray | None = None              # corrected end of the previous segment
+    x_raw_prev: np.ndarray | None = None          # uncorrected end of the previous segment
+    carry: tuple | None = None                    # (duration, dq, gas_sum, gas_n) of the interval left open
+    prev_tail: np.ndarray | None = None           # the previous segment's slow states past the join
+    prev_end_raw: np.ndarray | None = None
+    mismatch: list = field(default_factory=list)
+    rows: list = field(default_factory=list)
+    n_samples: int = 0
+
+
+class TimeParallelDrive:
+    """A full drive split into `segments` segments in time, run in parallel processes and joined with a correction
+    of the slow states (module docstring). It composes two engines on one model, road and settings: the full
+    drive (`fine`, each segment) and a multiscale drive (`coarse`: the prediction at the segment starts and the
+    join's error checks). `correct=False`: joined without the correction (for tests)."""
 
     mode = MODE
 
     def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
-                 warm_up_m: float = 50.0, correct: bool = True, **kw):
-        # the coarse propagation: one 500 m window per 10 km, no control variate. The correction takes out the
-        # prediction's error to first order, and a proxy's set-up (road_rate: ~1 s for 106 km) or twice the
-        # windows would cost more than the smaller mismatch saves. 106 km, P = 2, against the serial run
-        # (mismatch at the segment start / the correction's estimated error / measured error, largest axle):
-        # road_rate proxy, 5 km: 0.26 / 0.016 / 0.005 K; none, 5 km: 0.42 / 0.028 / 0.005 K; none, 10 km:
-        # 0.42 / 0.022 / 0.006 K
-        super().__init__(model, road, settings,
-                         coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M), **kw)
+                 warm_up_m: float = 50.0, correct: bool = True):
         lo, hi = SEGMENTS_RANGE
         if not lo <= int(segments) <= hi:
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
+        # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
+        # "Time-parallel mode": the correction takes out the prediction's error to first order)
+        self.fine = Drive(model, road, settings)
+        self.coarse = MultiscaleDrive(model, road, settings,
+                                      coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M),
+                                      gas_masses=self.fine.gas_masses)
+        self.model, self.settings, self.gas_masses = model, settings, self.fine.gas_masses
+        self.total_time_s = self.fine.total_time_s
+        self.T_index = self.fine.T_index
+        self.build_s = self.fine.build_s + self.coarse.build_s
         self.segments = int(segments)
         seg_s = self.total_time_s / self.segments
         if self.segments > 1 and seg_s < MIN_SEGMENT_S:
@@ -169,13 +173,23 @@ class TimeParallelDrive(MultiscaleDrive):
         self.correct = correct
         self.parareal: dict = {}
 
+    # --- the engine contract: the full drive's layout, start and end --------------------------------
     def describe(self):
-        return Drive.describe(self)          # the full drive's layout
+        return self.fine.describe()
+
+    def initial_equilibrium(self):
+        return self.fine.initial_equilibrium()
+
+    def initial_state(self) -> DriveState:
+        return self.fine.initial_state()
+
+    def final_values(self, state: DriveState) -> dict:
+        return self.fine.final_values(state)
 
     # --- layout ---------------------------------------------------------------------------------
     def layout(self) -> tuple[np.ndarray, np.ndarray]:
         """(segment boundary times (P+1), warm-up start times (P)) on the output-sample grid."""
-        sample_dt = self.K * self.settings.dt_s
+        sample_dt = self.fine.K * self.settings.dt_s
         n = int(np.floor(self.total_time_s / sample_dt + 1e-9))
         P = self.segments
         # segment 0 starts at once, the others after the coarse run: segment 0 is longer by the coarse run's
@@ -185,29 +199,27 @@ class TimeParallelDrive(MultiscaleDrive):
         lead = 0.0
         if P > 1:
             D = self.settings.distance_m
-            n_w = int(np.ceil(D * (P - 1) / P / self.ms.spacing_m - 1e-9))
-            span_s = n_w * (self.ms.warm_up_m + self.ms.window_m) / (D / (n * sample_dt))
+            n_w = int(np.ceil(D * (P - 1) / P / self.coarse.ms.spacing_m - 1e-9))
+            span_s = n_w * (self.coarse.ms.warm_up_m + self.coarse.ms.window_m) / (D / (n * sample_dt))
             lead = min(COARSE_COST * span_s / sample_dt, n / (2 * P))
         L = (n - lead) / P
         t = np.array([0.0] + [round(lead + k * L) for k in range(1, P)] + [n], float) * sample_dt
         tw = np.zeros(P)
         for k in range(1, P):
-            s = float(self.distance_at(t[k]))
-            lead = t[k] - self._time_at(max(s - self.warm_up_m, 0.0))
+            s = float(self.fine.distance_at(t[k]))
+            lead = t[k] - self.coarse._time_at(max(s - self.warm_up_m, 0.0))
             tw[k] = max(t[k] - np.ceil(lead / sample_dt - 1e-9) * sample_dt, 0.0)
         return t, tw
 
     # --- coarse propagator ---------------------------------------------------------------------
     def coarse_states(self, times) -> list[np.ndarray]:
         """Full states predicted at `times` by one multiscale run from the start to the last of them."""
-        c = copy.copy(self)
+        c = copy.copy(self.coarse)
         t_end = float(max(times))
-        c.settings = dataclasses.replace(self.settings, distance_m=float(self.distance_at(t_end)))
+        c.settings = dataclasses.replace(self.settings, distance_m=float(self.fine.distance_at(t_end)))
         c.total_time_s = t_end
-        # only the states are wanted: the multiscale mode's own error estimate is skipped
-        c.road_sampling_error = lambda *a, **kw: {}
-        c.load_error = lambda *a, **kw: {}
-        res = MultiscaleDrive.run(c, None)
+        c.state_only = True                 # only the states are wanted: no error estimate of its own
+        res = c.run(None)
         out = []
         for t in times:
             if t >= t_end - 1e-9:
@@ -217,9 +229,9 @@ class TimeParallelDrive(MultiscaleDrive):
                 if w["t_start"] - 1e-9 <= t <= w["t_gap_end"] + 1e-9:
                     tau = t - w["t_end"]            # negative inside the window: back from its end, same model
                     x = w["x_end"].copy()
-                    Phi, forced, _ = _propagators(w["A"], w["b"], tau)
-                    x[self.slow_index] = Phi @ x[self.slow_index] + forced
-                    x[self.ext_index] = x[self.ext_index] + w["q_rate"] * tau
+                    Phi, forced, _ = propagators(w["A"], w["b"], tau)
+                    x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
+                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + w["q_rate"] * tau
                     out.append(x)
                     break
             else:
@@ -232,7 +244,7 @@ class TimeParallelDrive(MultiscaleDrive):
         (futures) or, without one, run here. `_coarse_difference_result` takes the difference."""
         if pool is None:
             return [self._coarse_propagate(t0, t1, x, n_windows) for x in (x_a, x_b)]
-        S = self._slaving(np.asarray(x_a, float))
+        S = self.coarse._slaving(np.asarray(x_a, float))
         return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
 
     @staticmethod
@@ -244,67 +256,67 @@ class TimeParallelDrive(MultiscaleDrive):
         """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
         start of each equal stretch of [t0, t1]), the linear slow model across the gaps."""
         n_windows = n_windows or CHECK_WINDOWS
-        span = self.ms.warm_up_m + CHECK_WINDOW_M
-        s0, s1 = float(self.distance_at(t0)), float(self.distance_at(t1))
+        span = self.coarse.ms.warm_up_m + CHECK_WINDOW_M
+        s0, s1 = float(self.fine.distance_at(t0)), float(self.fine.distance_at(t1))
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
         x = np.asarray(x, float).copy()
         for i, c in enumerate(starts):
-            tw0 = self._time_at(c) if i else t0
-            t_end = min(self._time_at(min(c + span, s1)), t1)
-            t_warm = min(self._time_at(min(c + self.ms.warm_up_m, s1)), t_end)
-            w = self._window(self._rest_state(x), tw0, t_warm, t_end, None, [0.0])
-            t_next = self._time_at(starts[i + 1]) if i + 1 < n_windows else t1
+            tw0 = self.coarse._time_at(c) if i else t0
+            t_end = min(self.coarse._time_at(min(c + span, s1)), t1)
+            t_warm = min(self.coarse._time_at(min(c + self.coarse.ms.warm_up_m, s1)), t_end)
+            w = self.coarse._window(self.coarse._rest_state(x), tw0, t_warm, t_end, None, [0.0])
+            t_next = self.coarse._time_at(starts[i + 1]) if i + 1 < n_windows else t1
             x = w["x_end"].copy()
-            Phi, forced, _ = _propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
-            x[self.slow_index] = Phi @ x[self.slow_index] + forced
-        return x[self.slow_index]
+            Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
+            x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
+        return x[self.coarse.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
     def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
-        seg = copy.copy(self)               # the same drive, with this segment's end and error estimate
+        seg = copy.copy(self.fine)          # the same drive, with this segment's end and error estimate
         seg.error_estimate = None
         S = self.settings
-        sample_dt = self.K * S.dt_s
+        sample_dt = self.fine.K * S.dt_s
         n_seg = int(round((t1 - t0) / sample_dt))
         last = t1 >= self._t_total() - 1e-9
         seg.close_last_interval = last      # an interval cut by the segment's end is closed by the next segment
-        rec = _SegmentRecorder(max(1, n_seg // JACOBIAN_SAMPLES), t_mark, self.slow_index)
+        rec = _SegmentRecorder(max(1, n_seg // JACOBIAN_SAMPLES), t_mark, self.coarse.slow_index)
         n = self.model.n
         if k == 0:
             st = seg.initial_state()
         else:
-            x0 = self._rest_state(np.asarray(x_pred, float))
-            x0[self.ext_index] = 0.0
+            x0 = self.coarse._rest_state(np.asarray(x_pred, float))
+            x0[self.coarse.ext_index] = 0.0
             seg.total_time_s = t0
-            stw = DriveState(t_s=float(t_warm), s_m=float(self.distance_at(t_warm)), x=x0, next_stats_m=np.inf,
-                             last_stats={"t_s": float(t_warm), "q": x0[self.quad_index].copy(), "gas_sum": np.zeros(n),
+            stw = DriveState(t_s=float(t_warm), s_m=float(self.fine.distance_at(t_warm)), x=x0, next_stats_m=np.inf,
+                             last_stats={"t_s": float(t_warm), "q": x0[self.fine.quad_index].copy(), "gas_sum": np.zeros(n),
                                          "gas_n": 0},
-                             solver_memory=np.zeros_like(self.solver.get_state()))
-            warm = Drive.run(seg, None, stw) if t0 > t_warm else None
+                             solver_memory=np.zeros_like(self.fine.solver.get_state()))
+            warm = seg.run(None, stw) if t0 > t_warm else None
             x = (warm.state.x if warm is not None else x0).copy()
-            x[self.ext_index] = 0.0                 # the quadratures of the segment start at its first sample
+            x[self.coarse.ext_index] = 0.0                 # the quadratures of the segment start at its first sample
             b = S.stats_interval_m
-            s0 = float(self.distance_at(t0))
+            s0 = float(self.fine.distance_at(t0))
             st = DriveState(t_s=float(t0), s_m=s0, x=x, next_stats_m=b * (np.floor((s0 + 1e-9) / b) + 1),
-                            last_stats={"t_s": float(t0), "q": x[self.quad_index].copy(), "gas_sum": np.zeros(n),
+                            last_stats={"t_s": float(t0), "q": x[self.fine.quad_index].copy(), "gas_sum": np.zeros(n),
                                         "gas_n": 0},
                             solver_memory=(warm.state.solver_memory if warm is not None
-                                           else np.zeros_like(self.solver.get_state())))
+                                           else np.zeros_like(self.fine.solver.get_state())))
         x_start = st.x.copy()
 
         seg.total_time_s = self.total_time_s if last else t1
-        if self.error_estimate is not None:
-            e = self.error_estimate
+        if self.fine.error_estimate is not None:
+            e = self.fine.error_estimate
             seg.error_estimate = StepDoublingEstimate(e.dt_s, e.tolerance, e.interval_s, e.n_struts, names=e.names)
-        res = Drive.run(seg, None, st, observer=rec)
+        res = seg.run(None, st, observer=rec)
         tail = None
         if t_tail is not None and t_tail > t1:
             seg.total_time_s = t_tail
             seg.error_estimate, est = None, seg.error_estimate
-            tail = Drive.run(seg, None, copy.deepcopy(res.state)).state.x[self.slow_index].copy()
+            tail = seg.run(None, copy.deepcopy(res.state)).state.x[self.coarse.slow_index].copy()
             seg.error_estimate = est
         blocks = {key: np.concatenate([b[key] for b in rec.blocks], axis=-1) for key in rec.blocks[0]}
         return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
@@ -314,50 +326,36 @@ class TimeParallelDrive(MultiscaleDrive):
                 "estimate": seg.error_estimate}
 
     def _t_total(self) -> float:
-        sample_dt = self.K * self.settings.dt_s
+        sample_dt = self.fine.K * self.settings.dt_s
         return float(np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt)
 
     # --- the drive -------------------------------------------------------------------------------
     def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
-        global _PARENT
         # serially: a resumed run, one segment, no fork, or inside a daemonic worker (which cannot start processes)
-        if (state is not None and state.s_m > 0) or self.segments <= 1 or "fork" not in mp.get_all_start_methods() \
-                or mp.current_process().daemon:
+        if (state is not None and state.s_m > 0) or self.segments <= 1 or not can_fork():
             self.parareal = {}
-            return Drive.run(self, sink, state, progress, checkpoint_every_blocks)       # serially
+            return self.fine.run(sink, state, progress, checkpoint_every_blocks)       # serially
         wall0 = time.perf_counter()
         t, tw = self.layout()
         P = self.segments
-        from vehicle.studies.sweep import worker_init
-
-        _PARENT = self
-        try:
-            with ProcessPoolExecutor(max_workers=P, mp_context=mp.get_context("fork"), initializer=worker_init,
-                                     initargs=(os.getpid(),)) as pool:
-                # the restart's overlap: the warm-up's length after each segment start
-                marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
-                tails = marks[1:] + [None]
-                futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0])]
-                c0 = time.perf_counter()
-                cpu0 = time.process_time()
-                self._slaving(self.initial_state().x)       # once, shared by the coarse run and the join
-                pred = self.coarse_states(list(tw[1:])) if P > 1 else []
-                coarse_s = time.perf_counter() - c0
-                coarse_cpu = time.process_time() - cpu0
-                futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k], tails[k])
-                         for k in range(1, P)]
-                try:
-                    parts = [f.result() for f in futs]
-                    # the join, with the pool's processes (free now) running its error checks
-                    j0, jw0 = time.process_time(), time.perf_counter()
-                    res = self._join(parts, sink, progress, pool)
-                    join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
-                except BaseException:          # Ctrl-C or a failed segment: stop the others now
-                    for proc in list(getattr(pool, "_processes", {}).values()):
-                        proc.terminate()
-                    raise
-        finally:
-            _PARENT = None
+        with fork_pool(P, self) as pool:
+            # the restart's overlap: the warm-up's length after each segment start
+            marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
+            tails = marks[1:] + [None]
+            futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0])]
+            c0 = time.perf_counter()
+            cpu0 = time.process_time()
+            self.coarse._slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
+            pred = self.coarse_states(list(tw[1:])) if P > 1 else []
+            coarse_s = time.perf_counter() - c0
+            coarse_cpu = time.process_time() - cpu0
+            futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k], tails[k])
+                     for k in range(1, P)]
+            parts = [f.result() for f in futs]
+            # the join, with the pool's processes (free now) running its error checks
+            j0, jw0 = time.process_time(), time.perf_counter()
+            res = self._join(parts, sink, progress, pool)
+            join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
         w = [p["cpu_s"] for p in parts]
         # what the run takes with P free cores: segment 0, or the coarse run then the slowest other segment; then
         # the join (CPU times: on a shared machine the wall times say more about the other load)
@@ -372,8 +370,8 @@ class TimeParallelDrive(MultiscaleDrive):
     # --- joining the segments with the correction --------------------------------------------------
     def _A(self, X, M, U, Sl) -> np.ndarray:
         N = X.shape[1]
-        ns = len(self.slow_index)
-        Jd = self.J_slow.map(N)(X, M, U, np.repeat(self.p[:, None], N, axis=1))
+        ns = len(self.coarse.slow_index)
+        Jd = self.coarse.J_slow.map(N)(X, M, U, np.repeat(self.fine.p[:, None], N, axis=1))
         sp = Jd.sparsity()             # sparse -> dense through the nonzeros (a dense DM converts slowly)
         J = np.zeros((ns, N * self.model.nx))
         J[np.asarray(sp.row(), int), np.repeat(np.arange(sp.size2()), np.diff(np.asarray(sp.colind(), int)))] = \
@@ -386,43 +384,58 @@ class TimeParallelDrive(MultiscaleDrive):
         h = 1e-3
         X = np.column_stack([x] + [x + h * Sl[:, j] for j in range(ns)])
         m = self.model
-        Y, _, heights = self.outputs.map(ns + 1)(X, np.repeat(mem[:, None], ns + 1, axis=1),
+        Y, _, heights = self.fine.outputs.map(ns + 1)(X, np.repeat(mem[:, None], ns + 1, axis=1),
                                                  np.repeat(u[:, None], ns + 1, axis=1),
-                                                 np.repeat(self.p[:, None], ns + 1, axis=1))
+                                                 np.repeat(self.fine.p[:, None], ns + 1, axis=1))
         outs = m.split_outputs(np.asarray(Y))
         outs["axle_height_change_m"] = np.asarray(heights)
-        return {key: (np.asarray(outs[key])[:, 1:] - np.asarray(outs[key])[:, :1]) / h for key in _OUTPUT_SERIES
+        return {key: (np.asarray(outs[key])[:, 1:] - np.asarray(outs[key])[:, :1]) / h for key in joined("output")
                 if key in outs}
 
     def _join(self, parts, sink, progress, pool=None) -> DriveResult:
-        m = self.model
-        S = self.settings
-        sample_dt = self.K * S.dt_s
-        slow, ext = self.slow_index, self.ext_index
-        ns = len(slow)
-        Sl = self._slaving(parts[0]["x_end"])
-        state_rows = {"strut_temperature_K": self.T_index, "wall_temperature_K": self.T_wall_index,
-                      "oil_temperature_K": self.T_oil_index, "heave_m": np.array([m.idx("z")]),
-                      "pitch_rad": np.array([m.idx("theta")]), "roll_rad": np.array([m.idx("phi")]),
-                      "oil_added_m3": self.oil_index}
-        quad_pos = {int(j): i for i, j in enumerate(ext)}
-        qsel = np.array([quad_pos[int(j)] for j in self.quad_index])
-        x_true = None                 # corrected end of the previous segment
-        x_raw_prev = None             # uncorrected end of the previous segment (the no-correction join)
-        Q = np.zeros(len(ext))        # quadratures at the previous segment's end (absolute)
-        carry = None                  # (duration, dq, gas_sum, gas_n) of the statistics interval left open
-        err_end = np.zeros(ns)        # the correction's estimated error, carried to the end
-        mismatch, seg_err, all_rows, n_samples = [], [], [], 0
-        prev_tail = prev_end_raw = None
-        coarse_check_s = 0.0
-        t_total = self._t_total()
+        """The segments joined in order: each corrected for its start's mismatch (the corrected end of the one
+        before), its series and statistics rows handed to the sink, the correction's error estimated."""
+        Sl = self.coarse._slaving(parts[0]["x_end"])
         # the corrections first (each segment's delta needs the corrected end of the one before), so that the error
         # checks' coarse propagations can start in the pool while the series are corrected and written here
+        pre = self._corrections(parts, Sl, pool)
+        j = _JoinState(Q=np.zeros(len(self.coarse.ext_index)))
+        errors = []                   # per segment: (e without the check, check, Phi_T, delta, e_restart)
+        for p, (A, flow, Phi_T, delta, check) in zip(parts, pre):
+            errors.append(self._segment_error(p, j, Sl, Phi_T, delta, check))
+            dX = self._write_series(p, j, flow, delta, Sl, sink)
+            self._join_rows(p, j, flow, delta, Sl, dX)
+            # the corrected end state: slow states (and the fast ones slaved to them) moved, quadratures offset
+            ext = self.coarse.ext_index
+            x_raw = p["x_end"].copy()
+            j.x_raw_prev = x_raw
+            j.x_true = x_raw + Sl @ (Phi_T @ delta)
+            j.x_true[ext] = x_raw[ext] - p["x_start"][ext] + j.Q
+            j.Q = j.x_true[ext].copy()
+            if progress is not None:
+                s1 = float(self.fine.distance_at(p["t1"]))
+                progress(s1, float(self.settings.speed.speed(s1)), p["t1"])
+        if sink is not None and j.rows:
+            sink.stats(j.rows)
+        c0 = time.perf_counter()
+        seg_err, err_end = [], np.zeros(len(self.coarse.slow_index))   # the correction's error, carried to the end
+        for e, check, Phi_T, delta, e_restart in errors:
+            if check is not None:
+                e = np.maximum(e, np.abs(self._coarse_difference_result(check) - Phi_T @ delta))
+            seg_err.append(e + np.abs(Phi_T) @ e_restart)
+            err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
+        coarse_check_s = time.perf_counter() - c0          # the wait for the checks (their own cost if run here)
+        return self._joined_result(parts, j, sink, seg_err, err_end, coarse_check_s)
+
+    def _corrections(self, parts, Sl, pool) -> list[tuple]:
+        """Per segment (A, its flow, e^{A T}, the start's correction delta, the error check's runs or None)."""
+        slow = self.coarse.slow_index
+        ns = len(slow)
         pre, x_slow_prev = [], None
         for p in parts:
             k, T = p["k"], p["t1"] - p["t0"]
             A = self._A(p["X_sub"], p["M_sub"], p["U_sub"], Sl)
-            flow = _LinearFlow(A)           # e^{A t} for the many t of the series and statistics rows
+            flow = LinearFlow(A)           # e^{A t} for the many t of the series and statistics rows
             Phi_T = flow.phi(T)
             delta = np.zeros(ns) if (k == 0 or not self.correct) else x_slow_prev - p["x_start"][slow]
             x_slow_prev = p["x_end"][slow] + (Sl @ (Phi_T @ delta))[slow]
@@ -434,120 +447,124 @@ class TimeParallelDrive(MultiscaleDrive):
                 check = self._coarse_difference_submit(p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta,
                                                        pool=pool)
             pre.append((A, flow, Phi_T, delta, check))
-        errors = []                   # per segment: (e without the check, check, Phi_T, delta, e_restart)
-        for p, (A, flow, Phi_T, delta, check) in zip(parts, pre):
-            k, t0, t1 = p["k"], p["t0"], p["t1"]
-            T = t1 - t0
-            X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
-            if k > 0:
-                mismatch.append(x_raw_prev[slow] - p["x_start"][slow])
-            # the error the linear correction leaves: A's change with the slow states and along the segment
-            e = np.zeros(ns)
-            if check is not None:
-                A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
-                half = X.shape[1] // 2
-                A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
-                A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
-                e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
-            # the restart: segment k's fast states at its start are not the serial run's (it started from rest
-            # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first
-            # warm-up length: the difference of their slow-state changes there is what the different fast states
-            # do after the join (they synchronise with the road within it); an error at the segment start,
-            # carried through the segment like the errors before it
-            e_restart = np.zeros(ns)
-            if k > 0 and prev_tail is not None and p["mark"] is not None:
-                e_restart = np.abs((prev_tail - prev_end_raw[slow]) - (p["mark"] - p["x_start"][slow]))
-            prev_tail, prev_end_raw = p["tail"], p["x_end"]
-            errors.append((e, check, Phi_T, delta, e_restart))
-            # series: slow-state correction e^{A tau} delta at every sample, quadratures offset
-            B = p["blocks"]
-            ts = np.asarray(B["t_s"], float)
-            E1 = flow.phi(sample_dt)
-            D = np.empty((ns, len(ts)))
-            d = flow.phi(ts[0] - t0) @ delta
-            for j in range(len(ts)):
-                D[:, j] = d
-                d = E1 @ d
-            dX = Sl @ D                                         # (nx, samples)
-            if np.any(delta):
-                for key, idx in state_rows.items():
-                    if key in B:
-                        B[key] = B[key] + (dX[idx] if B[key].ndim > 1 else dX[idx[0]])
-                G = self._output_sensitivity(X[:, X.shape[1] // 2], M[:, M.shape[1] // 2], U[:, U.shape[1] // 2], Sl)
-                for key, g in G.items():
-                    if key in B:
-                        B[key] = B[key] + (g @ D).reshape(B[key].shape)
-            for e_name, idx in m.energy_index.items():
-                key = f"energy_{e_name}_J"
+        return pre
+
+    def _segment_error(self, p, j: "_JoinState", Sl, Phi_T, delta, check) -> tuple:
+        """(the error the linear correction leaves, the check's runs, e^{A T}, delta, the restart's error)."""
+        slow = self.coarse.slow_index
+        k, T = p["k"], p["t1"] - p["t0"]
+        X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
+        if k > 0:
+            j.mismatch.append(j.x_raw_prev[slow] - p["x_start"][slow])
+        # the error the linear correction leaves: A's change with the slow states and along the segment
+        e = np.zeros(len(slow))
+        if check is not None:
+            A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
+            half = X.shape[1] // 2
+            A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
+            A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
+            e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
+        # the restart: segment k's fast states at its start are not the serial run's (it started from rest
+        # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first
+        # warm-up length: the difference of their slow-state changes there is what the different fast states
+        # do after the join (they synchronise with the road within it); an error at the segment start,
+        # carried through the segment like the errors before it
+        e_restart = np.zeros(len(slow))
+        if k > 0 and j.prev_tail is not None and p["mark"] is not None:
+            e_restart = np.abs((j.prev_tail - j.prev_end_raw[slow]) - (p["mark"] - p["x_start"][slow]))
+        j.prev_tail, j.prev_end_raw = p["tail"], p["x_end"]
+        return e, check, Phi_T, delta, e_restart
+
+    def _write_series(self, p, j: "_JoinState", flow, delta, Sl, sink) -> np.ndarray:
+        """Segment p's series corrected (the output table's join: slow-state correction e^{A tau} delta at every
+        sample on the states and outputs, quadratures offset by the segments before) and handed to the sink.
+        Returns the states' correction at the samples (nx, samples)."""
+        sample_dt = self.fine.K * self.settings.dt_s
+        quad_pos = {int(q): i for i, q in enumerate(self.coarse.ext_index)}
+        B = p["blocks"]
+        ts = np.asarray(B["t_s"], float)
+        E1 = flow.phi(sample_dt)
+        D = np.empty((len(self.coarse.slow_index), len(ts)))
+        d = flow.phi(ts[0] - p["t0"]) @ delta
+        for i in range(len(ts)):
+            D[:, i] = d
+            d = E1 @ d
+        dX = Sl @ D                                         # (nx, samples)
+        X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
+        if np.any(delta):
+            for key in joined("state"):
                 if key in B:
-                    B[key] = B[key] + Q[[quad_pos[int(i)] for i in np.atleast_1d(idx)]].reshape(-1, 1)
-            if sink is not None:
-                for a in range(0, len(ts), PIECE_SAMPLES):
-                    sink.samples({key: v[..., a:a + PIECE_SAMPLES] for key, v in B.items()})
-            n_samples += len(ts)
-            # statistics rows: temperatures corrected, an interval cut by the boundary joined from both sides
-            t_prev = t0
-            for j, (s_end, dur, dq, x_end, gas) in enumerate(p["rows"]):
-                t_b = t_prev + dur
-                t_prev = t_b
-                dxb = Sl @ (flow.phi(t_b - t0) @ delta)
-                x_end = x_end + dxb
-                gas = None if gas is None else gas + dxb[self.T_gas_index]
-                if j == 0 and carry is not None:
-                    c_dur, c_dq, c_gs, c_gn = carry
-                    nb = max(int(round(dur / sample_dt)), 1)
-                    if gas is not None and c_gn:
-                        gas = (c_gs + gas * nb) / (c_gn + nb)
-                    dur, dq = dur + c_dur, dq + c_dq
-                    carry = None
-                all_rows.append(self._stats_row(s_end, dur, dq, x_end, gas))
-            # what stays open at the segment's end (nothing for the last)
-            fs = p["state"]
-            open_dq = p["x_end"][self.quad_index] - np.asarray(fs.last_stats["q"], float)
-            open_dur = t1 - float(fs.last_stats["t_s"])
-            gsum = np.asarray(fs.last_stats.get("gas_sum", 0.0), float) * 1.0
-            gn = int(fs.last_stats.get("gas_n", 0))
-            if gn:
-                gsum = gsum + gn * dX[self.T_gas_index, -1]
-            if not p["rows"] and carry is not None:
-                c_dur, c_dq, c_gs, c_gn = carry
-                carry = (c_dur + open_dur, c_dq + open_dq, c_gs + gsum, c_gn + gn)
-            else:
-                carry = (open_dur, open_dq, gsum, gn)
-            # the corrected end state: slow states (and the fast ones slaved to them) moved, quadratures offset
-            x_raw = p["x_end"].copy()
-            x_raw_prev = x_raw
-            x_true = x_raw + Sl @ (Phi_T @ delta)
-            x_true[ext] = x_raw[ext] - p["x_start"][ext] + Q
-            Q = x_true[ext].copy()
-            if progress is not None:
-                s1 = float(self.distance_at(t1))
-                progress(s1, float(S.speed.speed(s1)), t1)
-        if sink is not None and all_rows:
-            sink.stats(all_rows)
-        c0 = time.perf_counter()
-        for e, check, Phi_T, delta, e_restart in errors:
-            if check is not None:
-                e = np.maximum(e, np.abs(self._coarse_difference_result(check) - Phi_T @ delta))
-            seg_err.append(e + np.abs(Phi_T) @ e_restart)
-            err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
-        coarse_check_s += time.perf_counter() - c0          # the wait for the checks (their own cost if run here)
+                    idx = np.atleast_1d(self.fine.series_rows[key])
+                    B[key] = B[key] + (dX[idx] if B[key].ndim > 1 else dX[idx[0]])
+            G = self._output_sensitivity(X[:, X.shape[1] // 2], M[:, M.shape[1] // 2], U[:, U.shape[1] // 2], Sl)
+            for key, g in G.items():
+                if key in B:
+                    B[key] = B[key] + (g @ D).reshape(B[key].shape)
+        for key in joined("quadrature"):
+            if key in B:
+                idx = self.fine.series_rows[key]
+                B[key] = B[key] + j.Q[[quad_pos[int(i)] for i in np.atleast_1d(idx)]].reshape(-1, 1)
+        if sink is not None:
+            for a in range(0, len(ts), PIECE_SAMPLES):
+                sink.samples({key: v[..., a:a + PIECE_SAMPLES] for key, v in B.items()})
+        j.n_samples += len(ts)
+        return dX
+
+    def _join_rows(self, p, j: "_JoinState", flow, delta, Sl, dX) -> None:
+        """Segment p's statistics rows with the temperatures corrected; an interval cut by a boundary is joined
+        from both sides (what stays open at the segment's end is carried to the next)."""
+        sample_dt = self.fine.K * self.settings.dt_s
+        T_gas = self.fine.T_gas_index
+        t0, t1 = p["t0"], p["t1"]
+        t_prev = t0
+        for i, (s_end, dur, dq, x_end, gas) in enumerate(p["rows"]):
+            t_b = t_prev + dur
+            t_prev = t_b
+            dxb = Sl @ (flow.phi(t_b - t0) @ delta)
+            x_end = x_end + dxb
+            gas = None if gas is None else gas + dxb[T_gas]
+            if i == 0 and j.carry is not None:
+                c_dur, c_dq, c_gs, c_gn = j.carry
+                nb = max(int(round(dur / sample_dt)), 1)
+                if gas is not None and c_gn:
+                    gas = (c_gs + gas * nb) / (c_gn + nb)
+                dur, dq = dur + c_dur, dq + c_dq
+                j.carry = None
+            j.rows.append(self.fine._stats_row(s_end, dur, dq, x_end, gas))
+        # what stays open at the segment's end (nothing for the last)
+        fs = p["state"]
+        open_dq = p["x_end"][self.fine.quad_index] - np.asarray(fs.last_stats["q"], float)
+        open_dur = t1 - float(fs.last_stats["t_s"])
+        gsum = np.asarray(fs.last_stats.get("gas_sum", 0.0), float) * 1.0
+        gn = int(fs.last_stats.get("gas_n", 0))
+        if gn:
+            gsum = gsum + gn * dX[T_gas, -1]
+        if not p["rows"] and j.carry is not None:
+            c_dur, c_dq, c_gs, c_gn = j.carry
+            j.carry = (c_dur + open_dur, c_dq + open_dq, c_gs + gsum, c_gn + gn)
+        else:
+            j.carry = (open_dur, open_dq, gsum, gn)
+
+    def _joined_result(self, parts, j: "_JoinState", sink, seg_err, err_end, coarse_check_s) -> DriveResult:
+        """The corrected final state (checkpointed), the after-drive equilibrium and the correction's error."""
         last = parts[-1]
         fs = last["state"]
-        q_last = np.asarray(fs.last_stats["q"], float) + (x_true[self.quad_index] - last["x_end"][self.quad_index])
-        final = DriveState(t_s=float(fs.t_s), s_m=float(fs.s_m), x=x_true, next_stats_m=fs.next_stats_m,
+        qi = self.fine.quad_index
+        q_last = np.asarray(fs.last_stats["q"], float) + (j.x_true[qi] - last["x_end"][qi])
+        final = DriveState(t_s=float(fs.t_s), s_m=float(fs.s_m), x=j.x_true, next_stats_m=fs.next_stats_m,
                            last_stats={"t_s": float(fs.last_stats["t_s"]), "q": q_last,
                                        "gas_sum": np.asarray(fs.last_stats.get("gas_sum", 0.0), float),
                                        "gas_n": int(fs.last_stats.get("gas_n", 0))},
-                           sample_index=n_samples, solver_memory=np.asarray(fs.solver_memory, float))
+                           sample_index=j.n_samples, solver_memory=np.asarray(fs.solver_memory, float))
         if sink is not None:
             sink.checkpoint(final.as_dict())
-        after = self.equilibrium_solver.solve(x_true[self.T_oil_index], self.gas_masses, x_true[self.oil_index])
-        T_err, dN_err = self._error_bounds(x_true, after, err_end)
-        self.parareal = {"segments": len(parts), "uncorrected_final_x": x_raw_prev, "final_x": x_true,
-                         "mismatch": mismatch, "segment_error": seg_err, "error_end": err_end,
+        after = self.coarse.equilibrium_solver.solve(j.x_true[self.fine.T_oil_index], self.gas_masses,
+                                                     j.x_true[self.coarse.oil_index])
+        T_err, dN_err = self._error_bounds(j.x_true, after, err_end)
+        self.parareal = {"segments": len(parts), "uncorrected_final_x": j.x_raw_prev, "final_x": j.x_true,
+                         "mismatch": j.mismatch, "segment_error": seg_err, "error_end": err_end,
                          "strut_temperature_K": T_err, "axle_temperature_K": self._axle_matrix() @ T_err,
-                         "load_change_pct": dN_err, "t_total_s": t_total, "coarse_check_s": coarse_check_s}
+                         "load_change_pct": dN_err, "t_total_s": self._t_total(), "coarse_check_s": coarse_check_s}
         est = merge_estimates([p["estimate"] for p in parts])
         integ = float(sum(p["integration_s"] for p in parts))
         return DriveResult(state=final, after=after, wall_s=0.0, integration_s=integ,
@@ -566,17 +583,17 @@ class TimeParallelDrive(MultiscaleDrive):
         """Per station the reported temperature's estimated error [K] and per axle the wheel-load change's [pp]:
         the slow states' error magnitudes added with the magnitudes of the after-drive equilibrium's
         sensitivities (as if all had the same sign: a bound, not an interval)."""
-        pos = {int(j): k for k, j in enumerate(self.slow_index)}
+        pos = {int(j): k for k, j in enumerate(self.coarse.slow_index)}
         T_err = err_end[[pos[int(j)] for j in self.T_index]]
-        G = self._load_sensitivity(x_end, after, self._axle_matrix())
-        e = np.concatenate([err_end[[pos[int(j)] for j in self.T_oil_index]],
-                            err_end[[pos[int(j)] for j in self.oil_index]]])
+        G = self.coarse._load_sensitivity(x_end, after, self._axle_matrix())
+        e = np.concatenate([err_end[[pos[int(j)] for j in self.fine.T_oil_index]],
+                            err_end[[pos[int(j)] for j in self.coarse.oil_index]]])
         return T_err, np.abs(G) @ e
 
     # --- what the results add ------------------------------------------------------------------
     def mismatch_axle_K(self) -> np.ndarray:
         """Largest |coarse prediction - fine| of the reported strut temperature at a segment start, per axle [K]."""
-        pos = {int(j): i for i, j in enumerate(self.slow_index)}
+        pos = {int(j): i for i, j in enumerate(self.coarse.slow_index)}
         iT = [pos[int(j)] for j in self.T_index]
         mm = self.parareal.get("mismatch") or []
         if not mm:

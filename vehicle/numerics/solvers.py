@@ -39,6 +39,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from vehicle.numerics.contract import SolverCapabilities
 from vehicle.numerics.codegen import compile_function
 
 GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
@@ -194,9 +195,11 @@ class Ros2:
         self.build_s = 0.0
 
     @property
-    def legacy_outputs(self) -> bool:
-        """The drive evaluates the block outputs the way the baseline engine did (CasADi's virtual machine)."""
-        return self.engine == "baseline"
+    def capabilities(self) -> SolverCapabilities:
+        """Compiled block functions and step doubling; the block outputs compiled too, except for the baseline
+        engine (CasADi's virtual machine, as it did)."""
+        return SolverCapabilities(compiled=self.compile, step_doubling=True,
+                                  compiled_outputs=self.compile and self.engine != "baseline")
 
     def describe(self) -> dict:
         d = {"solver": self.name, "dt_s": self.dt, "compiled": self.compile}
@@ -415,6 +418,7 @@ class Idas:
     """
 
     name = "idas"
+    capabilities = SolverCapabilities()        # uncompiled, no step doubling
 
     def __init__(self, dt: float = 0.004, *, rtol: float = 1e-8, atol: float = 1e-9):
         self.dt, self.rtol, self.atol = float(dt), rtol, atol

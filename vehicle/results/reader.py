@@ -7,7 +7,7 @@
                               state(), series(name), stats_series(name), equilibrium(which),
                               summary_values(), dataset(group), to_xarray()
 
-Names are the file's variable names (vehicle.engines.outputs): `series("strut_temperature")` is
+Names are the file's variable names (vehicle.physics.outputs): `series("strut_temperature")` is
 (n, 8) time-major, `series("time")`, `stats_series("km")`, `equilibrium("after")["wheel_load"]`.
 
 Files of format version 1 (hpsim before the netCDF/CF layout: drive keys as dataset names, no
@@ -33,8 +33,8 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
-from vehicle.engines.outputs import (VARIABLES, DATA_GROUPS, FileVariable, Split, file_variables, group_dataset,
-                                    require_xarray)
+from vehicle.physics.outputs import VARIABLES, Split
+from vehicle.results.variables import DATA_GROUPS, FileVariable, file_variables, group_dataset, require_xarray
 
 FORMAT = "hpsim-drive"
 FORMAT_VERSION = 2

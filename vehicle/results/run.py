@@ -48,14 +48,13 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
-from vehicle.results.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
-                                 open_results)
+from vehicle.results.reader import FORMAT, FORMAT_VERSION, open_read, open_results
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
-from vehicle.results.sinks import (LIBVER, Checkpoint, H5Sink, MemorySink, clone_group, create_file, create_h5,  # noqa: F401
-                                finish_file, is_disk_full, remove_stale, sync_replace)
+from vehicle.engines.build import build_engine
+from vehicle.results.sinks import (LIBVER, Checkpoint, H5Sink, MemorySink, clone_group, create_file, create_h5, finish_file,
+                                   is_disk_full, remove_stale, sync_replace)
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
-H5Results = H5Sink            # the name before the sinks became objects
 
 
 @functools.lru_cache(maxsize=1)
@@ -78,28 +77,6 @@ def _now() -> str:
     return _dt.datetime.now().astimezone().isoformat(timespec="seconds")
 
 
-# --- the drive adapter ---------------------------------------------------------------------------
-def drive_class():
-    """The drive class run_scenario uses: `Drive`, which has `describe()` (the keys and shapes of what it
-    will hand to the sink, so the file's datasets can all be created before the drive starts: SWMR mode
-    cannot create objects); a subclass adds it to a Drive without one."""
-    from vehicle.engines.full import Drive
-
-    if hasattr(Drive, "describe"):
-        return Drive
-
-    class RunDrive(Drive):
-        def describe(self):
-            """(one block of samples, one statistics row, one state dict) with the right keys and shapes."""
-            st = self.initial_state()
-            t = np.array([0.0])
-            block = self._block_outputs(st.x[:, None], self.inputs(t), t, t)
-            row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
-            return block, row, st.as_dict()
-
-    return RunDrive
-
-
 # --- what the runner hands a sink ------------------------------------------------------------------
 def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
     """`start(info)`: root and scenario attributes, names, the charged and before-drive equilibria."""
@@ -108,7 +85,7 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
     resolved["vehicle_derived"]["charged_wheel_loads_N"] = model.charged_wheel_loads.tolist()
     stations = [str(s) for s in model.station_names]
     axles = [f"axle{k + 1}" for k in range(model.params.n_axles)]
-    description = str(getattr(prep.scenario, "description", "") or "")
+    description = prep.scenario.description
     return {
         "attrs": {"format": FORMAT, "format_version": FORMAT_VERSION, "Conventions": "CF-1.8",
                   "title": description or f"hpsim drive: {src.name}",
@@ -118,7 +95,7 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
                      "resolved_json": json.dumps(resolved, indent=1, default=float),
                      "hpsim_version": code_version(), "created": _now(), "stations": stations, "axles": axles,
                      "distance_m": float(prep.scenario.distance), "total_time_s": float(drive.total_time_s),
-                     **({"seats": list(model.seat_names)} if getattr(model, "seat_names", None) else {})},
+                     **({"seats": list(model.seat_names)} if model.seat_names else {})},
         "stations": stations, "axles": axles,
         "equilibrium": {"charged": {"wheel_loads_N": np.asarray(model.charged_wheel_loads, float),
                                     "axle_height_change_m": np.zeros(len(axles)),
@@ -128,8 +105,8 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
                         "before_band": weighing_band_datasets(drive, before.temperatures_K)},
         "summary": {"status": "running", "complete": False, "build_s": float(drive.build_s)},
         # ride metrics (vehicle.analysis.ride_metrics): the seat labels and the strut-travel bin edges
-        "seats": list(getattr(model, "seat_names", [])),
-        "stats_attrs": {"strut_travel_histogram": {"bin_edges_m": drive.travel_bin_edges_m}},
+        "seats": list(model.seat_names),
+        "stats_attrs": {"strut_travel_histogram": {"bin_edges_m": model.travel_bin_edges()}},
     }
 
 
@@ -137,22 +114,15 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
     """`finish(info)`: the after-drive equilibrium, the final energies and temperatures, the summary."""
     m = drive.model
     x = res.state.x
-    values = {f"energy_{e}_J": np.asarray(x[idx], float) for e, idx in m.energy_index.items()}
-    values["strut_temperature_K"] = np.asarray(x[drive.T_index], float)          # the surface (pyrometer)
-    values["wall_temperature_K"] = np.asarray(x[drive.T_wall_index], float)
-    values["oil_temperature_K"] = np.asarray(x[drive.T_oil_index], float)
-    if getattr(m, "ride_metrics", False):
-        # the whole drive's ride metrics: the quadratures since the start (zero in the state at rest)
-        values.update(drive._ride_row(float(res.state.t_s), x[drive.quad_index], x[m.energy_index["end_stop"]]))
-        values["strut_travel_bin_edges_m"] = np.asarray(drive.travel_bin_edges_m, float)
+    values = drive.final_values(res.state)
     summary = {"distance_km": float(res.state.s_m / 1e3), "simulated_s": float(res.state.t_s),
                "wall_s": float(wall_s), "build_s": float(drive.build_s),
                "integration_s": float(res.integration_s), "n_samples": int(n_samples), "n_stats": int(n_stats),
                "finished_at": _now(), "status": "complete", "complete": True,
-               "solver_mode": str(getattr(drive, "mode", "full"))}
-    if getattr(res, "solver_error", None):
+               "solver_mode": str(drive.mode)}
+    if res.solver_error:
         summary.update(res.solver_error)          # the step-doubling estimate (vehicle.numerics.error_estimate)
-    extra = drive.summary_extra() if hasattr(drive, "summary_extra") else None   # multiscale: error estimate
+    extra = drive.summary_extra()           # multiscale, time-parallel: their error estimates
     if extra:
         summary.update(extra["attrs"])
         values.update(extra["values"])
@@ -174,7 +144,7 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     """Run a scenario into memory: a MemorySink holding what the HDF5 file would (same variables)."""
     src = scenario if isinstance(scenario, ScenarioSource) else read_scenario(scenario)
     prep = prepare(src)
-    model, drive = prep.drive(drive_class())
+    model, drive = build_engine(prep)
     sink = MemorySink(src.name)
     sink.start(run_info(src, prep, model, drive, drive.initial_equilibrium()))
     t0 = time.perf_counter()
@@ -337,7 +307,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         if resume:
             log(f"{out}: nothing to resume, starting")
         prep = prepare(src)                            # every check before any work
-        model, drive = prep.drive(drive_class())
+        model, drive = build_engine(prep)
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
         tmp = out.with_name(out.name + ".partial")
@@ -415,7 +385,7 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
         state = DriveState.from_dict(d)
         counts = (meta["n_samples"], meta["n_stats"], meta["wall_s"])
     _copy_truncated(out, counts[0], counts[1])      # first: a full disk is found before the model is built
-    model, drive = prep.drive(drive_class())
+    model, drive = build_engine(prep)
     if state is not None and state.x.size != model.nx:
         raise UserInputError(f"{out}: its checkpoint holds {state.x.size} states, this hpsim's model has {model.nx} "
                              f"(the model changed since the run started with hpsim {stored_version or '?'}, e.g. the "

@@ -6,7 +6,7 @@
 Both take the drive's protocol (`samples(block)`, `stats(rows)`, `checkpoint(state)`, and the
 runner's `start(info)` / `finish(info)`), and both are read through the same interface
 (vehicle.results.reader.ResultsView: series, stats_series, equilibrium, ..., to_xarray), with the
-same variable names, dimensions, coordinates and attributes (vehicle.engines.outputs).
+same variable names, dimensions, coordinates and attributes (vehicle.physics.outputs, vehicle.results.variables).
 
 This module also holds the low-level pieces of writing a results file safely: netCDF dimension
 scales, never following a symbolic link at a temporary path, the copy-and-rename of the final
@@ -24,8 +24,7 @@ import h5py
 import numpy as np
 
 from vehicle.results.reader import ResultsView, drive_key_for
-from vehicle.engines.outputs import (LABEL_DIMS, FileVariable, file_variables, group_dataset,
-                                    label_attrs)
+from vehicle.results.variables import LABEL_DIMS, FileVariable, file_variables, group_dataset, label_attrs, require_xarray
 
 LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
 STATS_CHUNK_ROWS = 64
@@ -498,7 +497,7 @@ class MemorySink(ResultsView):
 
     def dataset(self, group: str):
         if group == "scenario":
-            return require_xr().Dataset(attrs=self.scenario_attrs)
+            return require_xarray().Dataset(attrs=self.scenario_attrs)
         arrays = self._group_arrays(group) or {}
         attrs = self.summary_attrs() if group == "summary" else {}
         ds = group_dataset(group, arrays, self.stations, self.axles, attrs, self.info.get("seats"))
@@ -517,11 +516,6 @@ class MemorySink(ResultsView):
     def close(self) -> None:
         pass
 
-
-def require_xr():
-    from vehicle.engines.outputs import require_xarray
-
-    return require_xarray()
 
 
 # --- a fresh copy of a file (resume) -------------------------------------------------------------------

@@ -21,8 +21,13 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+
+from vehicle.physics.outputs import variable_name
+from vehicle.results.reader import open_results
+from vehicle.results.sinks import finish_file
 
 CODES = ("end_stop_time", "end_stop_energy", "equilibrium_on_stop", "seal_temperature", "oil_temperature",
          "oil_data_range", "tyre_lift_off", "solver_error")
@@ -63,11 +68,6 @@ def check(view, thresholds: Thresholds | None = None) -> list[dict]:
 def record(path) -> list[dict]:
     """Check a finished results file and write the warnings into it: /summary attributes
     `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list)."""
-    from pathlib import Path
-
-    from vehicle.results.reader import open_results
-    from vehicle.results.sinks import finish_file
-
     with open_results(path, check=False) as r:
         found = check(r)
     finish_file(Path(path), {"summary": {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}})
@@ -84,16 +84,6 @@ def summary_cell(warnings: list[dict]) -> str:
 
 
 # --- reading ----------------------------------------------------------------------------------------
-def _name(drive_key: str) -> str:
-    """The results variable name of a drive key (vehicle.engines.outputs), or the key itself."""
-    try:
-        from vehicle.engines.outputs import VARIABLES
-    except ImportError:        # pragma: no cover - older layout
-        return drive_key
-    entry = VARIABLES.get(drive_key)
-    return getattr(entry, "name", drive_key)
-
-
 class _Data:
     """What the checks need from a view, read once."""
 
@@ -106,21 +96,21 @@ class _Data:
         self.duration = self._stats("duration_s")
 
     def _stats(self, key):
-        a = self.view.stats_series(_name(key))
+        a = self.view.stats_series(variable_name(key))
         return None if a is None or len(a) == 0 else np.asarray(a, float)
 
     def stats(self, key):
         return self._stats(key) if self.km is not None else None
 
     def series(self, key):
-        a = self.view.series(_name(key))
+        a = self.view.series(variable_name(key))
         return None if a is None or len(a) == 0 else np.asarray(a, float)
 
     def summary_value(self, key):
         attrs = self.view.summary_attrs()
         if key in attrs:
             return attrs[key]
-        return self.view.summary_values().get(_name(key))
+        return self.view.summary_values().get(variable_name(key))
 
 
 class ValidityWarning(dict):
@@ -219,9 +209,9 @@ def _equilibria(data, th):
     out = []
     for which, when in (("before", "before the drive"), ("after", "after the drive")):
         eq = data.view.equilibrium(which)
-        if not eq or _name("strut_deflections_m") not in eq:
+        if not eq or variable_name("strut_deflections_m") not in eq:
             continue
-        x = np.asarray(eq[_name("strut_deflections_m")], float)
+        x = np.asarray(eq[variable_name("strut_deflections_m")], float)
         rebound, bump = [], []
         for s, xs, st in zip(data.stations, x, data.struts):
             margin = th.stop_margin_m if th.stop_margin_m is not None else st["end_stops"]["smoothing"]

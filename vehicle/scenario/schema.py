@@ -7,8 +7,8 @@ A scenario is a YAML mapping validated in two steps *before any work starts*:
 2. `prepare()`: the parts that need other packages — the vehicle file with its overrides
    (`vehicle.physics.params.VehicleParams`), the strut files with their overrides, the road
    (`terrain.RoadSpec`) and the count of initial temperatures (1, one per axle or one per
-   station) — are validated the same way, then `Prepared.drive()` builds the
-   `vehicle.engines.full.Drive`.
+   station) — are validated the same way; `vehicle.engines.build.build_engine(prepared)` then builds
+   the engine the scenario asks for.
 
 Key paths in overrides may be dotted and may index lists: `axles.0.unsprung_mass` or
 `{axles: {0: {unsprung_mass: ...}}}` (see `apply_overrides`).
@@ -27,8 +27,12 @@ from pydantic import Field, StrictBool, StrictInt, ValidationInfo, field_validat
 from hpsim.config import Model, Quantity, format_validation_error, load_yaml, parse_yaml, read_text_file
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
+from hpsim.validators import in_range, quantity
 
+from vehicle.physics.outputs import ALWAYS_STORED, SERIES
 from vehicle.physics.params import COMPENSATION_RANGES
+from vehicle.scenario.settings import DT_RANGE_S, SEGMENTS_RANGE, DriveSettings, MultiscaleSettings
+from vehicle.scenario.speed import build_speed_profile, parse_speed_spec
 
 K_ = Quantity("K")
 
@@ -39,7 +43,6 @@ DISTANCE_RANGE_M = (1.0, 1000e3)
 SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
 AMBIENT_RANGE_K = (273.15 - 60, 273.15 + 60)  # -60 .. 60 degC
 STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
-DT_RANGE_S = (1e-4, 0.02)                     # as vehicle.engines.full.DriveSettings.validate
 # multiscale window layout (solver.window, .spacing, .warm_up): a window must hold some seconds of ride
 # (50 m: 9 s at 20 km/h); at most the longest drive
 MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
@@ -47,28 +50,6 @@ MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control
 MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
 TOLERANCE_RANGE = (1e-4, 1.0)                 # solver.tolerance: 0.01 .. 100 % relative error of the strut heat
 
-# time series a drive produces (vehicle.engines.full.Drive._block_outputs); `output.store` picks from these
-SERIES = ("speed_m_per_s", "longitudinal_acceleration_m_per_s2", "strut_temperature_K", "wall_temperature_K",
-          "oil_temperature_K", "axle_height_change_m",
-          "hull_acceleration", "heave_m", "pitch_rad", "roll_rad", "oil_added_m3", "strut_force", "strut_deflection",
-          "gas_pressure", "gas_temperature", "wheel_load", "energy_valve_J", "energy_friction_J", "energy_gas_J",
-          "energy_end_stop_J", "energy_strut_work_J", "energy_tyre_work_J", "energy_road_work_J",
-          "energy_longitudinal_work_J")
-ALWAYS_STORED = ("t_s", "distance_m")
-
-
-def _in_range(value: float, lo: float, hi: float, unit: str, scale: float = 1.0, offset: float = 0.0) -> float:
-    # the ends as printed are allowed: "150 km/h" converts to 41.66666666666667 m/s, one ulp above 150/3.6
-    slack = 1e-9 * max(abs(lo), abs(hi))
-    if not lo - slack <= value <= hi + slack:
-        raise ValueError(f"must be in [{lo * scale + offset:.6g}, {hi * scale + offset:.6g}] {unit}, "
-                         f"got {value * scale + offset:.6g} {unit}")
-    return value
-
-
-def _quantity(unit: str, value: Any) -> float:
-    # parse_quantity raises UserInputError (a ValueError): pydantic reports it at the key's path
-    return parse_quantity(value, unit, where=f"expected a quantity in {unit}")
 
 
 # --- the schema ------------------------------------------------------------------------------------
@@ -146,17 +127,17 @@ class CompensationSpec(Model):
     @field_validator("time_constant", "filter_time_constant", mode="before")
     @classmethod
     def _seconds(cls, v, info: ValidationInfo):
-        return None if v is None else _in_range(_quantity("s", v), *COMPENSATION_RANGES[info.field_name], "s")
+        return None if v is None else in_range(quantity("s", v), *COMPENSATION_RANGES[info.field_name], "s")
 
     @field_validator("dead_band", "smoothing", mode="before")
     @classmethod
     def _metres(cls, v, info: ValidationInfo):
-        return None if v is None else _in_range(_quantity("m", v), *COMPENSATION_RANGES[info.field_name], "mm", 1e3)
+        return None if v is None else in_range(quantity("m", v), *COMPENSATION_RANGES[info.field_name], "mm", 1e3)
 
     @field_validator("flow_limit", mode="before")
     @classmethod
     def _flow(cls, v):
-        return None if v is None else _in_range(_quantity("m**3/s", v), *COMPENSATION_RANGES["flow_limit"], "m^3/s")
+        return None if v is None else in_range(quantity("m**3/s", v), *COMPENSATION_RANGES["flow_limit"], "m^3/s")
 
 
 class SolverSpec(Model):
@@ -190,18 +171,16 @@ class SolverSpec(Model):
     @field_validator("dt", mode="before")
     @classmethod
     def _dt(cls, v):
-        return _in_range(_quantity("s", v), *DT_RANGE_S, "ms", 1e3)
+        return in_range(quantity("s", v), *DT_RANGE_S, "ms", 1e3)
 
     @field_validator("window", "spacing", "warm_up", mode="before")
     @classmethod
     def _window_lengths(cls, v, info: ValidationInfo):
-        return None if v is None else _in_range(_quantity("m", v), *MULTISCALE_RANGES_M[info.field_name], "m")
+        return None if v is None else in_range(quantity("m", v), *MULTISCALE_RANGES_M[info.field_name], "m")
 
     @field_validator("time_parallel", mode="after")
     @classmethod
     def _time_parallel(cls, v):
-        from vehicle.engines.time_parallel import SEGMENTS_RANGE
-
         if isinstance(v, int) and not SEGMENTS_RANGE[0] <= v <= SEGMENTS_RANGE[1]:
             raise ValueError(f"must be in [{SEGMENTS_RANGE[0]}, {SEGMENTS_RANGE[1]}] (segments, one process each) "
                              f"or auto, got {v}")
@@ -221,31 +200,29 @@ class SolverSpec(Model):
                              f"({self.window_m:g} m + {self.warm_up_m:g} m): the windows would overlap")
         return self
 
-    # the multiscale layout with its defaults (vehicle.engines.multiscale.MultiscaleSettings)
+    # the multiscale layout: the keys given, the others at MultiscaleSettings' defaults (written there only)
     @property
     def window_m(self) -> float:
-        return 500.0 if self.window is None else self.window
+        return self.multiscale_settings().window_m
 
     @property
     def spacing_m(self) -> float:
-        return 5000.0 if self.spacing is None else self.spacing
+        return self.multiscale_settings().spacing_m
 
     @property
     def warm_up_m(self) -> float:
-        return 50.0 if self.warm_up is None else self.warm_up
+        return self.multiscale_settings().warm_up_m
 
-    def multiscale_settings(self):
-        from vehicle.engines.multiscale import MultiscaleSettings
-
-        return MultiscaleSettings(window_m=self.window_m, spacing_m=self.spacing_m, warm_up_m=self.warm_up_m,
-                                  placement=self.placement or "weighted", seed=self.seed or 0,
-                                  control_variate=True if self.control_variate is None else self.control_variate,
-                                  proxy=self.proxy or "linear_model")
+    def multiscale_settings(self) -> MultiscaleSettings:
+        given = {"window_m": self.window, "spacing_m": self.spacing, "warm_up_m": self.warm_up,
+                 "placement": self.placement, "seed": self.seed, "control_variate": self.control_variate,
+                 "proxy": self.proxy}
+        return MultiscaleSettings(**{k: v for k, v in given.items() if v is not None})
 
     @field_validator("tolerance", mode="before")
     @classmethod
     def _tolerance(cls, v):
-        return _in_range(_quantity("dimensionless", v), *TOLERANCE_RANGE, "%", 1e2)
+        return in_range(quantity("dimensionless", v), *TOLERANCE_RANGE, "%", 1e2)
 
 
 class OutputSpec(Model):
@@ -260,12 +237,12 @@ class OutputSpec(Model):
     @field_validator("interval", mode="before")
     @classmethod
     def _interval(cls, v):
-        return _in_range(_quantity("s", v), 1e-4, 3600.0, "s")
+        return in_range(quantity("s", v), 1e-4, 3600.0, "s")
 
     @field_validator("stats_interval", mode="before")
     @classmethod
     def _stats(cls, v):
-        return _in_range(_quantity("m", v), 1.0, 1e6, "m")
+        return in_range(quantity("m", v), 1.0, 1e6, "m")
 
     @field_validator("store")
     @classmethod
@@ -303,20 +280,18 @@ class Scenario(Model):
         if isinstance(v, dict):
             if "profile" in v:
                 return _speed_profile(v)
-            from vehicle.scenario.speed import parse_speed_spec
-
             return parse_speed_spec(v)
-        return _in_range(_quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
+        return in_range(quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
 
     @field_validator("distance", mode="before")
     @classmethod
     def _distance(cls, v):
-        return _in_range(_quantity("m", v), *DISTANCE_RANGE_M, "km", 1e-3)
+        return in_range(quantity("m", v), *DISTANCE_RANGE_M, "km", 1e-3)
 
     @field_validator("ambient_temperature", mode="before")
     @classmethod
     def _ambient(cls, v):
-        return _in_range(_quantity("K", v), *AMBIENT_RANGE_K, "degC", 1.0, -273.15)
+        return in_range(quantity("K", v), *AMBIENT_RANGE_K, "degC", 1.0, -273.15)
 
     @field_validator("initial_temperatures", mode="before")
     @classmethod
@@ -329,11 +304,11 @@ class Scenario(Model):
             out = []
             for k, t in enumerate(v):
                 try:
-                    out.append(_in_range(_quantity("K", t), *STRUT_T_RANGE_K, "degC", 1.0, -273.15))
+                    out.append(in_range(quantity("K", t), *STRUT_T_RANGE_K, "degC", 1.0, -273.15))
                 except ValueError as exc:
                     raise ValueError(f"item {k}: {exc}") from None
             return out
-        return _in_range(_quantity("K", v), *STRUT_T_RANGE_K, "degC", 1.0, -273.15)
+        return in_range(quantity("K", v), *STRUT_T_RANGE_K, "degC", 1.0, -273.15)
 
     @field_validator("struts")
     @classmethod
@@ -453,9 +428,6 @@ class Prepared:
     speed_profile: Any = None    # vehicle.scenario.speed.SpeedTable (built and checked in prepare())
 
     def settings(self):
-        from vehicle.engines.full import DriveSettings
-        from vehicle.scenario.speed import build_speed_profile
-
         S = self.scenario
         speed = self.speed_profile or build_speed_profile(S.speed, S.distance, self.source.base_dir)
         return DriveSettings(distance_m=S.distance, speed=speed, ambient_K=S.ambient_temperature,
@@ -487,27 +459,6 @@ class Prepared:
                                  f"{road.length_m:.6g} m long, the drive needs {needed:.6g} m (distance + the tyre's "
                                  "contact length + 1 m); give a longer profile or a shorter distance")
         return road
-
-    def drive(self, drive_class=None):
-        """(model, Drive) ready to run."""
-        from vehicle.engines.full import Drive
-
-        model = self.model()
-        road = self.road()
-        cls = drive_class or Drive
-        try:
-            if self.scenario.solver.mode == "multiscale":
-                from vehicle.engines.multiscale import MultiscaleDrive
-
-                return model, MultiscaleDrive(model, road, self.settings(), self.scenario.solver.multiscale_settings())
-            from vehicle.engines.time_parallel import TimeParallelDrive, resolve_segments
-
-            P = resolve_segments(self.scenario.solver.time_parallel)
-            if P > 1:
-                return model, TimeParallelDrive(model, road, self.settings(), P)
-            return model, cls(model, road, self.settings())
-        except UserInputError as exc:
-            raise UserInputError(f"{self.source.name}: {exc}") from None
 
     def resolved(self) -> dict:
         """Every parameter in SI after defaults and overrides: stored with the results."""
@@ -609,8 +560,6 @@ def prepare(src: ScenarioSource) -> Prepared:
     # road
     road_spec = road_spec_from(S, vehicle, src)
     # speed: every form as the drive's distance -> speed table (a recorded drive is read here)
-    from vehicle.scenario.speed import build_speed_profile
-
     try:
         speed = build_speed_profile(S.speed, S.distance, src.base_dir)
     except UserInputError as exc:

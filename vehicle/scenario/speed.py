@@ -33,6 +33,7 @@ from pydantic import StrictInt, field_validator, model_validator
 from hpsim.config import Model
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
+from hpsim.validators import in_range, quantity
 
 MIN_SPEED_M_PER_S = 0.5 / 3.6          # creeping speed standing in for a stop (documented choice)
 MAX_SPEED_M_PER_S = 150.0 / 3.6        # as the scenario's constant speed
@@ -165,21 +166,8 @@ SpeedTable = SpeedProfile     # its former name (the table of vehicle.scenario.s
 
 
 # --- scenario specifications -------------------------------------------------------------------------
-def _q(unit: str, value, where: str) -> float:
-    try:
-        return parse_quantity(value, unit, where=where)
-    except UserInputError as exc:
-        raise ValueError(str(exc)) from None
-
-
-def _range(value: float, lo: float, hi: float, name: str, unit: str, scale: float = 1.0) -> float:
-    if not lo * (1 - 1e-12) <= value <= hi * (1 + 1e-12):
-        raise ValueError(f"{name} must be in [{lo * scale:.6g}, {hi * scale:.6g}] {unit}, got {value * scale:.6g} {unit}")
-    return value
-
-
 def _speed(v, name):
-    return _range(_q("m/s", v, name), MIN_SPEED_M_PER_S, MAX_SPEED_M_PER_S, name, "km/h", 3.6)
+    return in_range(quantity("m/s", v, name), MIN_SPEED_M_PER_S, MAX_SPEED_M_PER_S, "km/h", 3.6, name=name)
 
 
 class CsvSpeedSpec(Model):
@@ -215,17 +203,17 @@ class StopGoSpec(Model):
     @field_validator("stop_duration", mode="before")
     @classmethod
     def _stop(cls, v):
-        return _range(_q("s", v, "stop_duration"), 0.0, 3600.0, "stop_duration", "s")
+        return in_range(quantity("s", v, "stop_duration"), 0.0, 3600.0, "s", name="stop_duration")
 
     @field_validator("acceleration", "deceleration", mode="before")
     @classmethod
     def _acc(cls, v, info):
-        return _range(_q("m/s**2", v, info.field_name), *ACCELERATION_RANGE_M_PER_S2, info.field_name, "m/s^2")
+        return in_range(quantity("m/s**2", v, info.field_name), *ACCELERATION_RANGE_M_PER_S2, "m/s^2", name=info.field_name)
 
     @field_validator("spacing", mode="before")
     @classmethod
     def _spacing(cls, v):
-        return _range(_q("m", v, "spacing"), 1.0, 1e6, "spacing", "m")
+        return in_range(quantity("m", v, "spacing"), 1.0, 1e6, "m", name="spacing")
 
     @model_validator(mode="after")
     def _fits(self):
@@ -264,12 +252,12 @@ class RandomSpeedSpec(Model):
     @field_validator("spread", mode="before")
     @classmethod
     def _spread(cls, v):
-        return _range(_q("m/s", v, "spread"), 0.0, MAX_SPEED_M_PER_S, "spread", "km/h", 3.6)
+        return in_range(quantity("m/s", v, "spread"), 0.0, MAX_SPEED_M_PER_S, "km/h", 3.6, name="spread")
 
     @field_validator("correlation_length", mode="before")
     @classmethod
     def _corr(cls, v):
-        return _range(_q("m", v, "correlation_length"), *CORRELATION_LENGTH_RANGE_M, "correlation_length", "m")
+        return in_range(quantity("m", v, "correlation_length"), *CORRELATION_LENGTH_RANGE_M, "m", name="correlation_length")
 
     @field_validator("seed")
     @classmethod

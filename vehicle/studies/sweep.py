@@ -21,7 +21,6 @@ import itertools
 import os
 import re
 import signal
-import sys
 import time
 import traceback
 from pathlib import Path
@@ -34,6 +33,12 @@ from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, UserInputError
 
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
+from vehicle.engines.pool import die_with_parent, signal_workers
+from vehicle.results.run import RunInterrupted, results_status, run_scenario
+from vehicle.results.sinks import add_checkpoint_hook
+from vehicle.results.validity import summary_cell
+from vehicle.analysis.ride_metrics import axle_rows
+from vehicle.analysis.summary import report
 
 
 class SweepSpec(Model):
@@ -109,8 +114,6 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
 
 def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
     """One case in a worker process: never raises, returns status and message."""
-    from vehicle.results.run import RunInterrupted, run_scenario
-
     t0 = time.perf_counter()
     try:
         src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=parse_yaml(text, name))
@@ -188,40 +191,19 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
             # files stay resumable), also when only this process got the signal
             for fut in futs:
                 fut.cancel()
-            for proc in list(getattr(pool, "_processes", {}).values()):
-                try:
-                    os.kill(proc.pid, signal.SIGINT)
-                except OSError:
-                    pass
+            signal_workers(pool, signal.SIGINT)
             raise
 
 
 def worker_init(parent_pid: int) -> None:
-    """In each local worker process: die with the parent (a sweep killed with kill -9 leaves no
-    workers running): the kernel kills the worker when its parent dies (Linux prctl
-    PR_SET_PDEATHSIG), and elsewhere the worker's results sink stops the drive at the next block
-    once the parent is gone. Ctrl-C is ignored between cases (a running case handles it itself)."""
-    import ctypes
-
-    from vehicle.results.sinks import add_checkpoint_hook
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            PR_SET_PDEATHSIG = 1
-            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() != parent_pid:          # the parent died before prctl took effect
-        os._exit(1)
+    """In each local worker process: die with the parent (vehicle.engines.pool.die_with_parent), and, where the
+    kernel cannot do that, the worker's results sink stops the drive at the next block once the parent is gone."""
+    die_with_parent(parent_pid)
     add_checkpoint_hook(lambda: os.getppid() != parent_pid)
 
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
               scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
-    from vehicle.results.run import results_status
-
     log = log or (lambda m: None)
     path = Path(path)
     spec, base, cases = load_sweep(path)
@@ -286,8 +268,6 @@ AXLE_CSV_KEYS = ("dynamic_load_coefficient", "lift_off_share", "end_stop_time_s"
 def ride_columns(ride: dict, n_axles: int) -> dict:
     """Flat CSV columns of a report's ride summary (vehicle.analysis.ride_metrics): `<key>_<seat>` per seat and
     `<key>_axle<k>` per axle; keys a run did not store are left out."""
-    from vehicle.analysis.ride_metrics import axle_rows
-
     out = {}
     for seat in ride.get("seats", []):
         out.update({f"{k}_{seat['seat']}": seat[k] for k in SEAT_CSV_KEYS if seat.get(k) is not None})
@@ -297,8 +277,6 @@ def ride_columns(ride: dict, n_axles: int) -> dict:
 
 
 def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
-    from vehicle.analysis.summary import report
-
     keys = []
     for c in cases:
         for k in c["overrides"]:
@@ -334,8 +312,6 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
                 row.update(ride_columns(rep.get("ride") or {}, len(rep["axles"])))
                 warnings = rep.get("warnings")          # the report's validity warnings (vehicle.results.validity)
                 if warnings:
-                    from vehicle.results.validity import summary_cell
-
                     row["warnings"] = warnings if isinstance(warnings, str) else summary_cell(warnings)
                 ok_files.append(c["file"])
                 ok_labels.append(c["name"])

@@ -1,36 +1,49 @@
-"""The one table of results variables: what each key a drive hands to its sink is called in a
-results file (and in `to_xarray()`), its dimensions, CF/UDUNITS units and long name.
+"""The one output table: every quantity a drive stores, declared once.
 
-A drive (vehicle.engines.full) hands its sink dicts keyed by *drive keys* (`strut_temperature_K`,
-`wheel_load`, `hull_acceleration`, ...): blocks of time series, arrays (n,) or (width, n);
-statistics rows, scalars or (width,); equilibria (vehicle.physics.equilibrium.Equilibrium
-fields). The file and the xarray datasets use *variable names* from this table: CF-style, no unit
-suffix, one quantity per variable (the hull accelerations, m s-2 and rad s-2, are split into
-heave/pitch/roll variables), the same name for the same quantity in every group.
+Each entry maps a *drive key* (what an engine hands its sink: `strut_temperature_K`, `wheel_load`, ...) to
+its stored variable: CF name, UDUNITS units, long name, extra dimension (after `time` or `km`) and, for a
+time series, how a drive computes it from a block of states and model outputs (`From`) and whether the
+time-parallel join corrects it (`From.join`). Engines (vehicle.engines) compute the series from it; the
+results layer (vehicle.results: sinks, reader, the file layout in vehicle.results.variables), the
+scenario's `output.store` and the analysis read it.
 
-Adding a drive key is one line in VARIABLES. Its extra dimension (after `time` or `km`) follows
-from its width unless given: n_stations -> `station`, n_axles -> `axle`, no width -> none.
-Keys whose width could be ambiguous (3 hull degrees of freedom on a 3-axle vehicle) are split
-explicitly. A key missing from the table raises UnknownDriveKey when the file layout is made,
-before the drive starts.
+Adding a stored time series is one entry here (docs/CONTRIBUTING.md has a worked example that a test
+runs). Its extra dimension follows from its width unless given: n_stations -> `station`, n_axles ->
+`axle`, no width -> none. A key missing from the table raises UnknownDriveKey when the file layout is
+made, before the drive starts.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-import numpy as np
-
-# the groups of a results file (docs/hdf5.md) and their record dimension
-RECORD_DIM = {"timeseries": "time", "stats": "km"}
-EQUILIBRIA = ("charged", "before", "after", "before_band", "after_band")
-STATIC_GROUPS = tuple(f"equilibrium/{e}" for e in EQUILIBRIA) + ("summary",)
-DATA_GROUPS = ("timeseries", "stats") + STATIC_GROUPS
-LABEL_DIMS = ("station", "axle")
-# dimensions whose size is the value's width (not the number of stations or axles): the seats of the
-# vehicle file (labelled with their names when known), the strut-travel bins and their edges
-FREE_DIMS = ("seat", "travel_bin", "travel_bin_edge")
+from dataclasses import dataclass
 
 AUTO = "auto"
+JOINS = ("state", "output", "quadrature")
+
+
+@dataclass(frozen=True)
+class From:
+    """How a drive computes a time series from a block (vehicle.engines.full.Drive.block_outputs):
+
+    kind "time", "distance"      the samples' time [s] and distance [m]
+         "input"                 a model input row (name: vehicle.physics.model input name: speed, acceleration)
+         "heat_node"             a node of each strut's heat network (name: surface, wall, oil; vehicle.physics.thermal)
+         "state"                 one model state (name: z, theta, phi, ...)
+         "station_state"         one state per station (name: V_oil -> V_oil[0..n-1])
+         "energy"                a station's energy quadrature (name: valve, friction, gas, ...)
+         "output"                a model output per station (name: VehicleModel.split_outputs key)
+         "axle_heights", "hull_accelerations"   the model's axle heights and hull accelerations
+    join  how the time-parallel join (vehicle.engines.time_parallel) corrects it for the slow-state correction:
+          "state" (the slow states moved, through the slaving), "output" (through d(output)/d(slow states)),
+          "quadrature" (offset by the previous segments' totals), None (not corrected: time, inputs, the
+          hull accelerations)."""
+
+    kind: str
+    name: str = ""
+    join: str | None = None
+
+    def __post_init__(self):
+        if self.join is not None and self.join not in JOINS:
+            raise ValueError(f"From.join: {self.join!r}, expected one of {JOINS} or None")
 
 
 @dataclass(frozen=True)
@@ -38,7 +51,8 @@ class Var:
     """A results variable. dim: "station", "axle", "seat", None (no extra dimension), AUTO (from the width) or
     a tuple of two of them (("station", "travel_bin"): a (n_stations, n_bins) value).
     role: "data", "record" (the group's record coordinate: time, km) or "coord" (a coordinate along
-    the record dimension: distance). scale multiplies the drive's SI value (km = m * 1e-3)."""
+    the record dimension: distance). scale multiplies the drive's SI value (km = m * 1e-3). series: for a
+    time series, how a drive computes it from a block (`From`); None for statistics, equilibria, summaries."""
 
     name: str
     units: str
@@ -47,6 +61,7 @@ class Var:
     role: str = "data"
     scale: float = 1.0
     standard_name: str | None = None
+    series: From | None = None
 
     def attrs(self) -> dict:
         out = {"units": self.units, "long_name": self.long_name}
@@ -60,6 +75,7 @@ class Split:
     """A (k, n) drive array whose rows are different quantities: one variable per row."""
 
     parts: tuple[Var, ...]
+    series: From | None = None
 
 
 _HULL = (("heave", "m s-2", "vertical acceleration of the hull at its centre of gravity"),
@@ -82,32 +98,45 @@ _POWER = {"valve": "power dissipated in the damping valves of the strut",
 # drive key -> variable. Keys of blocks, statistics rows, equilibria and the summary in one table.
 VARIABLES: dict[str, Var | Split] = {
     # time series (block keys)
-    "t_s": Var("time", "s", "time since the start of the drive", None, "record", standard_name="time"),
-    "distance_m": Var("distance", "m", "distance driven since the start", None, "coord"),
-    "speed_m_per_s": Var("speed", "m s-1", "vehicle speed", None),
+    "t_s": Var("time", "s", "time since the start of the drive", None, "record", standard_name="time",
+                series=From("time")),
+    "distance_m": Var("distance", "m", "distance driven since the start", None, "coord", series=From("distance")),
+    "speed_m_per_s": Var("speed", "m s-1", "vehicle speed", None, series=From("input", "speed")),
     "longitudinal_acceleration_m_per_s2": Var("longitudinal_acceleration", "m s-2",
-                                              "longitudinal acceleration of the speed profile (+ forward)", None),
+                                              "longitudinal acceleration of the speed profile (+ forward)", None,
+                                              series=From("input", "acceleration")),
     # the strut heat network (vehicle.physics.thermal): "strut temperature" is the outer surface (pyrometer)
     "strut_temperature_K": Var("strut_temperature", "K", "outer surface temperature of the strut (pyrometer)",
-                               "station"),
+                               "station", series=From("heat_node", "surface", join="state")),
     "wall_temperature_K": Var("wall_temperature", "K", "temperature of the oil-wetted steel of the strut (wall node)",
-                              "station"),
-    "oil_temperature_K": Var("oil_temperature", "K", "oil temperature in the strut", "station"),
+                              "station", series=From("heat_node", "wall", join="state")),
+    "oil_temperature_K": Var("oil_temperature", "K", "oil temperature in the strut", "station",
+                             series=From("heat_node", "oil", join="state")),
     "mean_gas_temperature_K": Var("mean_gas_temperature", "K", "gas temperature in the strut, mean over the "
                                   "interval's output samples (the gas swings with every bump)", "station"),
     "axle_height_change_m": Var("axle_height_change", "m",
-                                "hull height change at the axle against the charged state", "axle"),
-    "hull_acceleration": Split(tuple(Var(f"{d}_acceleration", u, t, None) for d, u, t in _HULL)),
-    "heave_m": Var("heave", "m", "hull heave (up) against the charged state", None),
-    "pitch_rad": Var("pitch", "rad", "hull pitch against the charged state", None),
-    "roll_rad": Var("roll", "rad", "hull roll against the charged state", None),
-    "oil_added_m3": Var("oil_added_volume", "m3", "oil volume added to the strut by the levelling system", "station"),
-    "strut_force": Var("strut_force", "N", "force of the strut (positive pushing its ends apart)", "station"),
-    "strut_deflection": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station"),
-    "gas_pressure": Var("gas_pressure", "Pa", "absolute gas pressure in the strut", "station"),
-    "gas_temperature": Var("gas_temperature", "K", "gas temperature in the strut", "station"),
-    "wheel_load": Var("wheel_load", "N", "vertical tyre force on the road", "station"),
-    **{f"energy_{e}_J": Var(f"energy_{e}", "J", text, "station") for e, text in _ENERGY.items()},
+                                "hull height change at the axle against the charged state", "axle",
+                                series=From("axle_heights", join="output")),
+    "hull_acceleration": Split(tuple(Var(f"{d}_acceleration", u, t, None) for d, u, t in _HULL),
+                               series=From("hull_accelerations")),
+    "heave_m": Var("heave", "m", "hull heave (up) against the charged state", None, series=From("state", "z", join="state")),
+    "pitch_rad": Var("pitch", "rad", "hull pitch against the charged state", None,
+                      series=From("state", "theta", join="state")),
+    "roll_rad": Var("roll", "rad", "hull roll against the charged state", None, series=From("state", "phi", join="state")),
+    "oil_added_m3": Var("oil_added_volume", "m3", "oil volume added to the strut by the levelling system", "station",
+                         series=From("station_state", "V_oil", join="state")),
+    "strut_force": Var("strut_force", "N", "force of the strut (positive pushing its ends apart)", "station",
+                        series=From("output", "strut_force", join="output")),
+    "strut_deflection": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station",
+                             series=From("output", "strut_deflection", join="output")),
+    "gas_pressure": Var("gas_pressure", "Pa", "absolute gas pressure in the strut", "station",
+                         series=From("output", "gas_pressure", join="output")),
+    "gas_temperature": Var("gas_temperature", "K", "gas temperature in the strut", "station",
+                            series=From("output", "gas_temperature", join="output")),
+    "wheel_load": Var("wheel_load", "N", "vertical tyre force on the road", "station",
+                       series=From("output", "wheel_load", join="output")),
+    **{f"energy_{e}_J": Var(f"energy_{e}", "J", text, "station", series=From("energy", e, join="quadrature"))
+       for e, text in _ENERGY.items()},
     # statistics rows (one per output.stats_interval of distance)
     "distance_end_m": Var("km", "km", "distance at the end of the statistics interval", None, "record", 1e-3),
     "duration_s": Var("duration", "s", "duration of the statistics interval", None),
@@ -181,6 +210,16 @@ VARIABLES: dict[str, Var | Split] = {
 }
 
 
+# time series a drive produces, in the table's order; `output.store` picks from these (t_s and distance_m always)
+ALWAYS_STORED = ("t_s", "distance_m")
+SERIES = tuple(k for k, v in VARIABLES.items() if v.series is not None and k not in ALWAYS_STORED)
+
+
+def joined(join: str) -> tuple[str, ...]:
+    """The time series the time-parallel join corrects in the given way ("state", "output", "quadrature")."""
+    return tuple(k for k, v in VARIABLES.items() if v.series is not None and v.series.join == join)
+
+
 class UnknownDriveKey(KeyError):
     """A drive key that VARIABLES does not know (a programming error: add the key to the table)."""
 
@@ -193,110 +232,11 @@ def lookup(key: str) -> Var | Split:
         return VARIABLES[key]
     except KeyError:
         raise UnknownDriveKey(
-            f"results variable table (vehicle/engines/outputs.py VARIABLES) has no entry for the drive key {key!r}: "
+            f"results variable table (vehicle/physics/outputs.py VARIABLES) has no entry for the drive key {key!r}: "
             f"add one line, e.g. {key!r}: Var(\"<cf_name>\", \"<udunits>\", \"<long name>\")") from None
 
 
-@dataclass(frozen=True)
-class FileVariable:
-    """One variable as stored: where it comes from (drive key, row of a split, scale) and how it is laid out."""
-
-    name: str
-    key: str
-    dims: tuple[str, ...]
-    attrs: dict = field(hash=False, compare=False)
-    role: str = "data"
-    row: int | None = None
-    scale: float = 1.0
-
-    def take(self, value, record: bool) -> np.ndarray:
-        """The drive's array (..., n) or (width,)/scalar -> the stored layout ((n, width) record-major)."""
-        a = np.asarray(value, float)
-        if self.row is not None:
-            a = a[self.row]
-        if record and a.ndim >= 2:
-            a = np.moveaxis(a, -1, 0)
-        return a * self.scale if self.scale != 1.0 else a
-
-
-def _width_dim(key: str, var: Var, shape: tuple, n_stations: int, n_axles: int) -> tuple[str, ...]:
-    if not shape:
-        if var.dim not in (None, AUTO):
-            raise ValueError(f"drive key {key!r}: the table gives dim {var.dim!r} but the value has no width")
-        return ()
-    sizes = {"station": n_stations, "axle": n_axles}
-    if isinstance(var.dim, tuple):
-        if len(shape) != len(var.dim):
-            raise ValueError(f"drive key {key!r}: values of shape {shape} do not match the table's dims {var.dim}")
-        for d, width in zip(var.dim, shape):
-            if d not in FREE_DIMS and sizes.get(d) != width:
-                raise ValueError(f"drive key {key!r}: width {width} does not match the table's dim {d!r}")
-        return var.dim
-    if len(shape) > 1:
-        raise ValueError(f"drive key {key!r}: values of shape {shape} are not supported (at most one width axis)")
-    width = shape[0]
-    if var.dim in FREE_DIMS:
-        return (var.dim,)
-    if var.dim == AUTO:
-        dims = [d for d, n in sizes.items() if n == width]
-        if len(dims) != 1:
-            raise ValueError(f"drive key {key!r}: width {width} is neither the {n_stations} stations nor the "
-                             f"{n_axles} axles; give its dim in vehicle/engines/outputs.py VARIABLES")
-        return (dims[0],)
-    if var.dim is None or sizes.get(var.dim) != width:
-        raise ValueError(f"drive key {key!r}: width {width} does not match the table's dim {var.dim!r}")
-    return (var.dim,)
-
-
-def file_variables(key: str, width_shape: tuple, group: str, n_stations: int, n_axles: int) -> list[FileVariable]:
-    """The stored variables of one drive key. width_shape: the value's shape without the sample axis
-    ((), (width,) or (k,) for a split)."""
-    entry = lookup(key)
-    record = RECORD_DIM.get(group)
-    lead = (record,) if record else ()
-    if isinstance(entry, Split):
-        if tuple(width_shape) != (len(entry.parts),):
-            raise ValueError(f"drive key {key!r}: expected {len(entry.parts)} rows, got shape {width_shape}")
-        return [FileVariable(v.name, key, lead, v.attrs(), v.role, j, v.scale) for j, v in enumerate(entry.parts)]
-    dims = lead if entry.role == "record" else lead + _width_dim(key, entry, tuple(width_shape), n_stations, n_axles)
-    return [FileVariable(entry.name, key, dims, entry.attrs(), entry.role, None, entry.scale)]
-
-
-def label_attrs(dim: str) -> dict:
-    return {"station": {"long_name": "wheel station (axle-major, left first)"},
-            "axle": {"long_name": "axle (front first)"},
-            "seat": {"long_name": "seat on the hull (vehicle file's seats)"}}[dim]
-
-
-def group_dataset(group: str, arrays: dict, stations, axles, attrs: dict | None = None, seats=None):
-    """An xarray.Dataset of one group from drive-keyed arrays (record groups: drive-shaped (..., n)
-    arrays; static groups: (width,) or scalars) -- the same names, dims, coordinates and attributes
-    that the HDF5 file holds (tests/test_results_xarray.py checks both)."""
-    xr = require_xarray()
-    record = RECORD_DIM.get(group)
-    n_st, n_ax = len(stations), len(axles)
-    data_vars, coords = {}, {}
-    for key, value in arrays.items():
-        a = np.asarray(value, float)
-        width_shape = a.shape[:-1] if record else a.shape
-        for v in file_variables(key, width_shape, group, n_st, n_ax):
-            arr = v.take(a, bool(record))
-            if v.role == "record":
-                coords[v.name] = ((v.name,), arr, v.attrs)
-            elif v.role == "coord":
-                coords[v.name] = (v.dims, arr, v.attrs)
-            else:
-                data_vars[v.name] = (v.dims, arr, v.attrs)
-    coords["station"] = (("station",), np.array([str(s) for s in stations]), label_attrs("station"))
-    coords["axle"] = (("axle",), np.array([str(a) for a in axles]), label_attrs("axle"))
-    if seats and any("seat" in v[0] for v in data_vars.values()):
-        coords["seat"] = (("seat",), np.array([str(s) for s in seats]), label_attrs("seat"))
-    return xr.Dataset(data_vars, coords=coords, attrs=dict(attrs or {}))
-
-
-def require_xarray():
-    try:
-        import xarray
-    except ImportError:
-        raise ImportError("to_xarray() needs xarray and h5netcdf: pip install xarray h5netcdf") from None
-    return xarray
+def variable_name(drive_key: str) -> str:
+    """The stored variable name of a drive key (the key itself for a split or unknown key)."""
+    entry = VARIABLES.get(drive_key)
+    return entry.name if isinstance(entry, Var) else drive_key

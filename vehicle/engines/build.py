@@ -1,0 +1,46 @@
+"""One way from a prepared scenario to an engine (vehicle.engines.contract.Engine): the scenario's
+`solver.mode` and `solver.time_parallel` pick the engine; each is built from the same model, road and
+settings. A new engine is one module and one line in ENGINES (docs/CONTRIBUTING.md)."""
+from __future__ import annotations
+
+from hpsim.errors import UserInputError
+
+from vehicle.scenario.settings import resolve_segments
+from vehicle.engines.contract import Engine
+from vehicle.engines.full import Drive
+from vehicle.engines.multiscale import MultiscaleDrive
+from vehicle.engines.time_parallel import TimeParallelDrive
+
+
+def _full(model, road, prepared) -> Engine:
+    return Drive(model, road, prepared.settings())
+
+
+def _multiscale(model, road, prepared) -> Engine:
+    return MultiscaleDrive(model, road, prepared.settings(), prepared.scenario.solver.multiscale_settings())
+
+
+def _time_parallel(model, road, prepared) -> Engine:
+    return TimeParallelDrive(model, road, prepared.settings(), resolve_segments(prepared.scenario.solver.time_parallel))
+
+
+# engine name -> builder(model, road, prepared)
+ENGINES = {"full": _full, "multiscale": _multiscale, "time_parallel": _time_parallel}
+
+
+def engine_name(prepared) -> str:
+    """The engine a scenario asks for: its solver.mode, "time_parallel" for a full drive in P > 1 segments."""
+    solver = prepared.scenario.solver
+    if solver.mode == "full" and resolve_segments(solver.time_parallel) > 1:
+        return "time_parallel"
+    return solver.mode
+
+
+def build_engine(prepared) -> tuple[object, Engine]:
+    """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run."""
+    model = prepared.model()
+    road = prepared.road()
+    try:
+        return model, ENGINES[engine_name(prepared)](model, road, prepared)
+    except UserInputError as exc:
+        raise UserInputError(f"{prepared.source.name}: {exc}") from None
