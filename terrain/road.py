@@ -30,6 +30,20 @@ from .envelope import envelope_profile
 from .passes import PassSpec, pass_profile, pass_spec
 from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
 
+
+MAX_ROAD_POINTS = 25_000_000
+
+
+def check_road_points(length_m: float, spacing_m: float, where: str = "") -> int:
+    """Number of grid points of a road; refuses more than MAX_ROAD_POINTS before anything is allocated."""
+    n = length_m / spacing_m + 1
+    if not n <= MAX_ROAD_POINTS:
+        raise UserInputError(f"{where}spacing {spacing_m:g} m over {length_m:g} m is {n:.3g} grid points, "
+                             f"at most {MAX_ROAD_POINTS:,} (e.g. {MAX_ROAD_POINTS * 0.05 / 1e3:g} km at 50 mm); "
+                             "use a coarser spacing or a shorter road")
+    return int(n)
+
+
 TRACKS = ("left", "right")
 
 
@@ -262,8 +276,6 @@ class Road:
         step = native if spacing_m is None else float(spacing_m)
         use = span if length_m is None else float(length_m)
         if spacing_m is not None:
-            from .spec import check_road_points   # (spec imports this module)
-
             check_road_points(use, step, f"{path}: ")
         n = int(np.floor(use / step * (1 + 1e-12))) + 1
         if n < 2:

@@ -33,22 +33,11 @@ from . import iso8608
 from .coherence import coherence_model
 from .events import LEVEL_EVENTS, EventPopulation, EventSpec, apply_events, population_rng
 from .passes import PassSpec
-from .road import Road
+from .road import MAX_ROAD_POINTS, Road, check_road_points  # noqa: F401  (MAX_ROAD_POINTS: the spec's limit)
 
 MAX_LENGTH_M = 5.0e6  # 5000 km: beyond this the arrays no longer fit comfortably in memory
 # Work size of a road: generating takes about 50 bytes per grid point at its peak (measured: 20 M
 # points, 1.1 GB), so 25 M points (1250 km at the default 50 mm) bound it to about 1.3 GB.
-MAX_ROAD_POINTS = 25_000_000
-
-
-def check_road_points(length_m: float, spacing_m: float, where: str = "") -> int:
-    """Number of grid points of a road; refuses more than MAX_ROAD_POINTS before anything is allocated."""
-    n = length_m / spacing_m + 1
-    if not n <= MAX_ROAD_POINTS:
-        raise UserInputError(f"{where}spacing {spacing_m:g} m over {length_m:g} m is {n:.3g} grid points, "
-                             f"at most {MAX_ROAD_POINTS:,} (e.g. {MAX_ROAD_POINTS * 0.05 / 1e3:g} km at 50 mm); "
-                             "use a coarser spacing or a shorter road")
-    return int(n)
 MAX_TRACK_WIDTH_M = 10.0
 WAVINESS_RANGE = (0.5, 4.0)  # generous around the ISO 8608 typical 1.5..3.5
 MAX_GD_N0_M3 = 1.0  # ~4x the ISO class H geometric mean

@@ -31,7 +31,9 @@ from hpsim.errors import UserInputError
 
 from vehicle.physics.outputs import VARIABLES, Var
 from vehicle.physics.weighing import difference_bands
+from vehicle.results import validity
 from vehicle.results.reader import ResultsView, open_results  # noqa: F401  (re-exported)
+from vehicle.analysis import ride_metrics
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 
@@ -157,8 +159,6 @@ def report_from(r: ResultsView, name: str) -> dict:
             out[k] = num(summ[k]) if k != "solver_advice" else str(summ[k])
     if "error" in summ:
         out["error"] = str(summ["error"])
-    from vehicle.analysis import ride_metrics
-    from vehicle.results import validity
 
     out["ride"] = ride_metrics.summarise(r)
     out["warnings"] = validity.check(r)

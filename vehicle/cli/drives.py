@@ -13,6 +13,8 @@ from pathlib import Path
 from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
+from vehicle.cli import response
+
 
 def register(sub):
     # hpsim vehicle equilibrium
@@ -27,8 +29,6 @@ def register(sub):
     pe.add_argument("--json", action="store_true", help="print JSON only")
     pe.set_defaults(func=cmd_equilibrium)
     pe._negative_number_matcher = re.compile(r"^-\.?\d")   # "--temperatures -20degC" is a value
-    from . import response
-
     response.register(vsub)
 
     pr = sub.add_parser("run", help="run a scenario file, writing HDF5 results as it goes")
@@ -73,20 +73,6 @@ def register(sub):
 
 
 # --- vehicle equilibrium ---------------------------------------------------------------------------
-def strut_temperatures(P, text):
-    """--temperatures: one, one per axle or one per strut (default: the charging temperature) [K]."""
-    import numpy as np
-
-    from hpsim.units import parse_quantity_list
-
-    if text is None:
-        return np.full(P.n_stations, P.charging.temperature)
-    T = P.per_station(parse_quantity_list(text, "K", where="--temperatures"), f"--temperatures ({text!r})")
-    if np.any(T <= 0) or np.any(T > 273.15 + 250):
-        raise UserInputError(f"--temperatures: {text!r} must be in (-273.15, 250] degC")
-    return T
-
-
 def cmd_equilibrium(args):
     from hpsim.tables import format_table, print_json
 
@@ -95,7 +81,7 @@ def cmd_equilibrium(args):
     from vehicle.physics.params import load_vehicle
 
     P = load_vehicle(args.vehicle)
-    T = strut_temperatures(P, args.temperatures)
+    T = response.strut_temperatures(P, args.temperatures)
     model = VehicleModel(P)
     eq = EquilibriumSolver(model).solve(T, charge_gas_masses(model))
     table = equilibrium_table(model, eq)

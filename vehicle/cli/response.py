@@ -17,6 +17,21 @@ laminar bleed; seal friction is either differentiated at rest (a very stiff damp
 its first-harmonic damping 4 F_C / (pi V) at the strut velocity amplitude V (--friction-velocity)."""
 
 
+def strut_temperatures(P, text):
+    """--temperatures: one, one per axle or one per strut (default: the charging temperature) [K]."""
+    import numpy as np
+
+    from hpsim.units import parse_quantity_list
+
+    if text is None:
+        return np.full(P.n_stations, P.charging.temperature)
+    T = P.per_station(parse_quantity_list(text, "K", where="--temperatures"), f"--temperatures ({text!r})")
+    if np.any(T <= 0) or np.any(T > 273.15 + 250):
+        raise UserInputError(f"--temperatures: {text!r} must be in (-273.15, 250] degC")
+    return T
+
+
+
 def register(vsub):
     p = vsub.add_parser("response", help="modes and road frequency responses of the linearised vehicle",
                         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -41,7 +56,6 @@ def cmd_response(args):
     from hpsim.tables import print_json
     from hpsim.units import parse_quantity
 
-    from vehicle.cli.drives import strut_temperatures
     from vehicle.physics import linear
     from vehicle.physics.params import load_vehicle
     from vehicle.presentation.response import format_response, response_plot, response_report

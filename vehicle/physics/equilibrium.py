@@ -20,6 +20,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from hpsim.errors import UserInputError
+from struts import gas as gaslaw
 
 from vehicle.physics import hull as hull_eq
 from vehicle.physics.model import VehicleModel
@@ -68,8 +69,6 @@ def charge_gas_masses(model: VehicleModel) -> np.ndarray:
         T_fill = np.full(model.n, P.charging.temperature)
     dp_fill = P.charging.fill_pressure_offset
     if dp_fill != 0.0:
-        from struts import gas as gaslaw
-
         for i in range(model.n):
             strut = model.struts[i]
             V_ext = float(strut.extended_gas_volume(T_fill[i]))

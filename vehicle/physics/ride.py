@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hpsim import symbolic as sym
+
 from vehicle.physics import hull as hull_eq
 from vehicle.physics.params import GRAVITY
 
@@ -365,23 +367,17 @@ def tyre_integrands(tyre_force_N, lift_off_force_N=0.0):
     int F dt and int F^2 dt give the dynamic load coefficient (`dynamic_load_coefficient`); the
     third integrates to the time off the ground (F <= lift_off_force_N; the smoothed tyre law of
     tyre.py is exactly 0 there)."""
-    from hpsim import symbolic as sym
-
     return tyre_force_N, tyre_force_N * tyre_force_N, sym.if_else(tyre_force_N <= lift_off_force_N, 1.0, 0.0)
 
 
 def end_stop_indicator(deflection_m, stroke_m):
     """1 while a strut is beyond full extension (x < 0) or full compression (x > stroke), else 0."""
-    from hpsim import symbolic as sym
-
     return sym.if_else(deflection_m < 0.0, 1.0, sym.if_else(deflection_m > stroke_m, 1.0, 0.0))
 
 
 def travel_bin_indicators(deflection_m, bin_edges_m):
     """One indicator per travel bin [edge_k, edge_k+1) (the first and last bins take everything
     beyond the edges), to integrate into the time spent in each bin (`travel_percentiles`)."""
-    from hpsim import symbolic as sym
-
     edges = list(bin_edges_m)
     out = []
     for k in range(len(edges) - 1):
@@ -396,8 +392,6 @@ def travel_exceedance_indicators(deflection_m, inner_edges_m):
 
     Integrated, they give the time above each edge, from which `travel_histogram` gives the time in
     every bin of `travel_bin_indicators` with one comparison per edge instead of two per bin."""
-    from hpsim import symbolic as sym
-
     return [sym.if_else(deflection_m >= e, 1.0, 0.0) for e in inner_edges_m]
 
 

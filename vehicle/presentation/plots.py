@@ -6,8 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from vehicle.presentation.report import compare, open_results, report_from
+from hpsim.errors import UserInputError
+
+from vehicle.physics.outputs import variable_name
+from vehicle.analysis.psd import response_psd
 from vehicle.analysis.summary import _equilibrium_temperature
+from vehicle.presentation.report import compare, open_results, report_from
 
 MECHANISMS = (("valve", "valve (damping)"), ("friction", "seal friction"), ("gas", "gas heat"),
               ("end_stop", "end stops"))
@@ -254,9 +258,6 @@ def dashboard(path, out: str | Path) -> Path:
 def _dense_psd(f):
     """The response PSDs of the run when its stored series are dense enough for them (vehicle.analysis.psd; the
     default 1 s output interval is not: then None and the dashboard has no spectrum panel)."""
-    from hpsim.errors import UserInputError
-    from vehicle.analysis.psd import response_psd
-
     try:
         return response_psd(f)
     except UserInputError:          # too sparse, too short or unevenly spaced: the run has no spectrum to show
@@ -267,13 +268,11 @@ def _ride_rows(f) -> dict:
     """Per-interval ride statistics of a results view, when the drive stored them."""
     import json
 
-    from vehicle.results.validity import _name
-
     out = {"km": f.stats_series("km")}
     if out["km"] is None or len(out["km"]) == 0:
         return {}
     for key in ("weighted_rms_acceleration_m_s2", "strut_travel_min_m", "strut_travel_max_m"):
-        a = f.stats_series(_name(key))
+        a = f.stats_series(variable_name(key))
         out[key] = None if a is None or len(a) == 0 else np.asarray(a, float)
     resolved = json.loads(f.scenario_attrs["resolved_json"])
     seats = [s["name"] for s in resolved.get("vehicle", {}).get("seats", [])]

@@ -4,11 +4,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from vehicle.analysis.summary import compare, open_results, report, report_from  # noqa: F401  (re-exported)
+from hpsim.tables import format_table
+from vehicle.results.validity import format_warnings as lines
+from vehicle.analysis.ride_metrics import axle_rows
 
 
 def format_report(rep: dict) -> str:
-    from hpsim.tables import format_table
-
     head = (f"{rep['file']}: {rep['status']}, {rep['distance_km']:.3f} of {rep['planned_distance_km']:.6g} km, "
             f"simulated {rep['simulated_s'] / 3600:.3f} h in {rep['wall_s']:.1f} s wall, "
             f"compensation {'on' if rep['compensation'] else 'off'}")
@@ -64,8 +65,6 @@ def format_report(rep: dict) -> str:
 
 
 def format_warnings(warnings) -> list[str]:
-    from vehicle.results.validity import format_warnings as lines
-
     return lines(warnings)
 
 
@@ -87,8 +86,6 @@ AXLE_COLUMNS = (("dynamic_load_coefficient", "DLC", 1.0, ".3f"),
 
 
 def _ride_table(rows, columns, first):
-    from hpsim.tables import format_table
-
     cols = [c for c in columns if any(r.get(c[0]) is not None for r in rows)]
     if not cols:
         return ""
@@ -104,8 +101,6 @@ def _ride_table(rows, columns, first):
 
 def format_ride(ride: dict, n_axles: int) -> str:
     """The ride (per seat) and road-holding (per axle, worst of left and right) tables of a drive."""
-    from vehicle.analysis.ride_metrics import axle_rows
-
     parts = []
     if ride.get("seats"):
         parts.append("ride comfort over the drive (ISO 2631-1 weighted RMS, VDV; absorbed power)")
@@ -126,8 +121,6 @@ def format_ride(ride: dict, n_axles: int) -> str:
 def format_psd(psd: dict) -> str:
     """Peak frequency and RMS of each response PSD (`hpsim report --psd`); strut forces: the range over the
     stations."""
-    from hpsim.tables import format_table
-
     rows = []
     for name, peaks in psd["peaks_hz"].items():
         rms = psd["rms"][name]
@@ -142,8 +135,6 @@ def format_psd(psd: dict) -> str:
 
 
 def format_compare(cmp: dict, labels=None) -> str:
-    from hpsim.tables import format_table
-
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
     blocks = []
@@ -178,8 +169,6 @@ def format_compare(cmp: dict, labels=None) -> str:
 
 
 def format_summary(result: dict) -> str:
-    from hpsim.tables import format_table
-
     rows = []
     for r in result["cases"]:
         ls = r.get("load_shift_pct")

@@ -34,6 +34,7 @@ import numpy as np
 from hpsim.errors import UserInputError
 
 from vehicle.physics.outputs import VARIABLES, Split
+from vehicle.results.checkpoint import Checkpoint
 from vehicle.results.variables import DATA_GROUPS, FileVariable, file_variables, group_dataset, require_xarray
 
 FORMAT = "hpsim-drive"
@@ -273,8 +274,6 @@ class ResultsFile(ResultsView):
         return {} if g is None else {k: _attr_value(v) for k, v in g.attrs.items()}
 
     def _checkpoint(self):
-        from vehicle.results.sinks import Checkpoint
-
         with self._reading("/checkpoint"):
             return Checkpoint(self.f["checkpoint"]).read()
 

@@ -46,13 +46,19 @@ from typing import Callable
 import h5py
 import numpy as np
 
+from hpsim import __version__
 from hpsim.errors import SimulationError, UserInputError
 
-from vehicle.results.reader import FORMAT, FORMAT_VERSION, open_read, open_results
+from vehicle.physics.weighing import band_datasets, weighing_bands
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
 from vehicle.engines.build import build_engine
-from vehicle.results.sinks import (LIBVER, Checkpoint, H5Sink, MemorySink, clone_group, create_file, create_h5, finish_file,
-                                   is_disk_full, remove_stale, sync_replace)
+from vehicle.engines.contract import DriveState
+from vehicle.results import sinks
+from vehicle.results.reader import FORMAT, FORMAT_VERSION, open_read, open_results
+from vehicle.results.checkpoint import Checkpoint
+from vehicle.results.sinks import (LIBVER, H5Sink, MemorySink, clone_group, create_file, create_h5, finish_file, is_disk_full,
+                                   remove_stale, sync_replace)
+from vehicle.results.validity import check, record, summary_cell
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 
@@ -60,8 +66,6 @@ DISSIPATION = ("valve", "friction", "gas", "end_stop")
 @functools.lru_cache(maxsize=1)
 def code_version() -> str:
     """hpsim version, plus the git commit when running from a checkout."""
-    from hpsim import __version__
-
     here = Path(__file__).resolve().parent
     try:
         out = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=here, capture_output=True,
@@ -135,8 +139,6 @@ def final_info(drive, res, n_samples: int, n_stats: int, wall_s: float) -> dict:
 def weighing_band_datasets(drive, temperatures_K, oil_volumes_m3=None) -> dict:
     """The /equilibrium/*_band datasets: wheel loads and heights over all seal-friction states of the standing
     vehicle (vehicle.physics.weighing)."""
-    from vehicle.physics.weighing import band_datasets, weighing_bands
-
     return band_datasets(weighing_bands(drive.model, temperatures_K, drive.gas_masses, oil_volumes_m3))
 
 
@@ -151,7 +153,6 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     res = drive.run(sink, progress=progress)
     n_samples, n_stats = sink.counts()
     sink.finish(final_info(drive, res, n_samples, n_stats, time.perf_counter() - t0))
-    from vehicle.results.validity import check, summary_cell
 
     found = check(sink)                 # the validity warnings, as run_scenario records them in the file
     sink.final["summary"].update(warnings=summary_cell(found), warnings_json=json.dumps(found))
@@ -360,8 +361,6 @@ def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
 
 
 def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_every_blocks) -> dict:
-    from vehicle.engines.full import DriveState
-
     with open_results(out, check=False) as r:
         sc = r.scenario_attrs
         stored = read_scenario_text(str(sc["yaml"]), str(sc.get("source", out)),
@@ -536,8 +535,6 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
     final = final_info(drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     try:
         _final_write(out, final)
-        from vehicle.results.validity import record
-
         record(out)                     # the validity warnings, in the file (/summary attrs)
     except (OSError, RuntimeError) as exc:
         if is_disk_full(exc):
@@ -549,8 +546,6 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
 
 def _final_write(out: Path, final: dict) -> None:
     if os.environ.get("HPSIM_FAULT") == "during_final_write":
-        import vehicle.results.sinks as sinks
-
         real = sinks.write_static_group
 
         def dying(parent, name, *a, **kw):          # test hook: killed with the copy half written

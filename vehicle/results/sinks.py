@@ -15,7 +15,6 @@ write, and recognising a full disk.
 from __future__ import annotations
 
 import errno
-import json
 import os
 import time
 from pathlib import Path
@@ -23,12 +22,15 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from hpsim.errors import UserInputError
+
+from vehicle.results.checkpoint import Checkpoint
+from vehicle.results.netcdf import attach, labels
 from vehicle.results.reader import ResultsView, drive_key_for
-from vehicle.results.variables import LABEL_DIMS, FileVariable, file_variables, group_dataset, label_attrs, require_xarray
+from vehicle.results.variables import FileVariable, file_variables, group_dataset, require_xarray
 
 LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
 STATS_CHUNK_ROWS = 64
-NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."   # netCDF-4's dimension-only scale
 
 
 # --- safe paths --------------------------------------------------------------------------------------
@@ -39,8 +41,6 @@ def remove_stale(path: Path) -> None:
     except FileNotFoundError:
         pass
     except IsADirectoryError:
-        from hpsim.errors import UserInputError
-
         raise UserInputError(f"{path}: is a directory, in the way of a temporary file; remove it") from None
 
 
@@ -88,55 +88,18 @@ def is_disk_full(exc: BaseException) -> bool:
     return "No space left on device" in text or "errno = 28" in text or "Disk quota exceeded" in text
 
 
-# --- netCDF-4 structure with h5py dimension scales ----------------------------------------------------
-def _labels(g: h5py.Group, stations, axles) -> dict[str, h5py.Dataset]:
-    scales = {}
-    for dim, labels in zip(LABEL_DIMS, (stations, axles)):
-        ds = g.create_dataset(dim, data=np.array([str(s) for s in labels], dtype=h5py.string_dtype()))
-        ds.make_scale(dim)
-        for k, v in label_attrs(dim).items():
-            ds.attrs[k] = v
-        scales[dim] = ds
-    return scales
-
-
-def _dimension_only(g: h5py.Group, name: str, size: int) -> h5py.Dataset:
-    """A netCDF dimension without a coordinate variable (what netCDF-4 and h5netcdf write)."""
-    ds = g.create_dataset(name, shape=(size,), dtype="f4")
-    ds.make_scale(f"{NOT_A_VARIABLE}{size:10d}")
-    return ds
-
-
-def _attach(ds: h5py.Dataset, dims, scales: dict, seats=None) -> None:
-    """Attach the dimension scales of `dims`; a free dimension (variables.FREE_DIMS: seat, travel_bin)
-    gets its scale when first used: the seat names when known (and of the right number), else a
-    netCDF dimension without a coordinate variable."""
-    for i, d in enumerate(dims):
-        if d not in scales:
-            g, size = ds.parent, ds.shape[i]
-            if d == "seat" and seats is not None and len(seats) == size:
-                sc = g.create_dataset(d, data=np.array([str(s) for s in seats], dtype=h5py.string_dtype()))
-                sc.make_scale(d)
-                for k, v in label_attrs(d).items():
-                    sc.attrs[k] = v
-            else:
-                sc = _dimension_only(g, d, size)
-            scales[d] = sc
-        ds.dims[i].attach_scale(scales[d])
-
-
 def write_static_group(parent: h5py.Group, name: str, arrays: dict, stations, axles, attrs: dict | None = None,
                        seats=None):
     """An equilibrium or the summary: drive-keyed arrays ((width,) or scalars) as labelled variables."""
     if name in parent:
         del parent[name]
     g = parent.create_group(name)
-    scales = _labels(g, stations, axles)
+    scales = labels(g, stations, axles)
     for key, value in arrays.items():
         a = np.asarray(value, float)
         for v in file_variables(key, a.shape, "static", len(stations), len(axles)):
             ds = g.create_dataset(v.name, data=v.take(a, False))
-            _attach(ds, v.dims, scales, seats)
+            attach(ds, v.dims, scales, seats)
             for k, val in v.attrs.items():
                 ds.attrs[k] = val
     for k, v in (attrs or {}).items():
@@ -148,7 +111,7 @@ def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, 
                   attrs: dict | None = None) -> dict[str, list[FileVariable]]:
     """/timeseries or /stats: every variable empty and resizable along the record dimension."""
     g = f.create_group(group)
-    scales = _labels(g, stations, axles)
+    scales = labels(g, stations, axles)
     plan = {key: file_variables(key, np.asarray(v, float).shape[:-1], group, len(stations), len(axles))
             for key, v in sample.items()}
     ordered = sorted(((key, v) for key, vs in plan.items() for v in vs), key=lambda kv: kv[1].role != "record")
@@ -163,69 +126,10 @@ def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, 
             ds.make_scale(v.name)
             scales[v.name] = ds
         else:
-            _attach(ds, v.dims, scales, seats)
+            attach(ds, v.dims, scales, seats)
             if v.role == "data" and coords:
                 ds.attrs["coordinates"] = coords
     return plan
-
-
-class Checkpoint:
-    """Double-buffered resume state in /checkpoint: slots (2, L) float64 and pointer [slot, seq].
-
-    A slot packs the DriveState dict plus n_samples, n_stats and wall_s; attrs["fields"] (JSON)
-    gives each field's [offset, length] and shape. pointer = [-1, 0] until the first checkpoint.
-    """
-
-    META = ("n_samples", "n_stats", "wall_s")
-
-    def __init__(self, group: h5py.Group):
-        self.g = group
-        self.fields = json.loads(group.attrs["fields"])
-
-    @classmethod
-    def create(cls, f: h5py.File, state: dict) -> "Checkpoint":
-        g = f.create_group("checkpoint")
-        fields, off = {}, 0
-        for k, v in list(state.items()) + [(m, 0.0) for m in cls.META]:
-            a = np.asarray(v, float)
-            fields[k] = [off, int(a.size), list(a.shape)]
-            off += int(a.size)
-        scales = {"slot": _dimension_only(g, "slot", 2), "element": _dimension_only(g, "element", off),
-                  "entry": _dimension_only(g, "entry", 2)}
-        slots = g.create_dataset("slots", shape=(2, off), dtype="f8")
-        _attach(slots, ("slot", "element"), scales)
-        pointer = g.create_dataset("pointer", data=np.array([-1, 0], dtype="i8"))
-        _attach(pointer, ("entry",), scales)
-        g.attrs["fields"] = json.dumps(fields)
-        g.attrs["description"] = ("resume state of the drive: pointer = [active slot, sequence number] (slot -1: "
-                                  "none yet); slots[slot] packs the fields listed in attrs['fields'] as "
-                                  "name: [offset, length, shape]")
-        return cls(g)
-
-    def write(self, state: dict, meta: dict) -> None:
-        slot, seq = (int(v) for v in self.g["pointer"][()])
-        new = 1 - slot if slot in (0, 1) else 0
-        vec = np.zeros(self.g["slots"].shape[1])
-        values = {**state, **meta}
-        for k, (off, size, _shape) in self.fields.items():
-            vec[off:off + size] = np.asarray(values[k], float).ravel()
-        self.g["slots"][new] = vec
-        self.g.file.flush()
-        self.g["pointer"][...] = np.array([new, seq + 1], dtype="i8")
-        self.g.file.flush()
-
-    def read(self) -> tuple[dict, dict] | None:
-        slot, seq = (int(v) for v in self.g["pointer"][()])
-        if slot not in (0, 1):
-            return None
-        vec = np.asarray(self.g["slots"][slot], float)
-        out = {}
-        for k, (off, size, shape) in self.fields.items():
-            v = vec[off:off + size]
-            out[k] = v.reshape(shape) if shape else float(v[0])
-        meta = {m: out.pop(m) for m in self.META}
-        meta["n_samples"], meta["n_stats"] = int(meta["n_samples"]), int(meta["n_stats"])
-        return out, meta
 
 
 def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, stored: set[str], compression: int,

@@ -28,16 +28,19 @@ from hpsim.config import Model, Quantity, format_validation_error, load_yaml, pa
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
 from hpsim.validators import in_range, quantity
+from struts.params import load_strut
+import terrain
 
+from vehicle.physics.model import VehicleModel
 from vehicle.physics.outputs import ALWAYS_STORED, SERIES
-from vehicle.physics.params import COMPENSATION_RANGES
+from vehicle.physics.params import COMPENSATION_RANGES, VehicleParams, vehicle_file
 from vehicle.scenario.settings import DT_RANGE_S, SEGMENTS_RANGE, DriveSettings, MultiscaleSettings
 from vehicle.scenario.speed import build_speed_profile, parse_speed_spec
 
 K_ = Quantity("K")
 
 # ranges (allowed values) of the scenario's own keys
-# 1 m .. 1000 km: the road under a drive is generated whole, at most terrain.spec.MAX_ROAD_POINTS
+# 1 m .. 1000 km: the road under a drive is generated whole, at most terrain.road.MAX_ROAD_POINTS
 # (1250 km at the default 50 mm spacing), and must reach past the last axle at the end
 DISTANCE_RANGE_M = (1.0, 1000e3)
 SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h
@@ -438,16 +441,12 @@ class Prepared:
                              error_check_every=S.solver.error_check_every)
 
     def model(self):
-        from vehicle.physics.model import VehicleModel
-
         try:
             return VehicleModel(self.vehicle)
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: vehicle/struts: {exc}") from None
 
     def road(self):
-        import terrain
-
         try:
             road = terrain.build_road(self.road_spec, self.source.base_dir)
         except UserInputError as exc:
@@ -462,8 +461,6 @@ class Prepared:
 
     def resolved(self) -> dict:
         """Every parameter in SI after defaults and overrides: stored with the results."""
-        from struts.params import load_strut
-
         struts = {}
         for k, axle in enumerate(self.vehicle.axles):
             struts[f"axle{k + 1}"] = load_strut(axle.strut, axle.strut_overrides or None).model_dump(mode="json")
@@ -492,8 +489,6 @@ def _resolve_path(p: str, base_dir: Path) -> str:
 
 def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
     """The vehicle's parameter mapping with the scenario's overrides, struts and compensation applied."""
-    from vehicle.physics.params import vehicle_file
-
     if S.vehicle.file is not None:
         path = vehicle_file(_resolve_path(S.vehicle.file, src.base_dir))
     else:
@@ -538,10 +533,6 @@ def prepare(src: ScenarioSource) -> Prepared:
     """Validate everything the scenario refers to (vehicle, struts, road, temperatures); build nothing."""
     from pydantic import ValidationError
 
-    from struts.params import load_strut
-
-    from vehicle.physics.params import VehicleParams
-
     S = validate_scenario(src)
     data, vpath = vehicle_data(S, src)
     try:
@@ -578,7 +569,6 @@ def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
     from pydantic import ValidationError
 
     try:
-        import terrain
         RoadSpec = terrain.RoadSpec
     except (ImportError, AttributeError):
         raise UserInputError("road: the terrain package (terrain.RoadSpec, terrain.build_road) is not available") from None

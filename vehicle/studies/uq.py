@@ -46,6 +46,12 @@ import yaml
 from hpsim.config import deep_update, load_yaml
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.priors import Prior, collect_priors, tie_shared
+from struts.params import strut_file
+
+from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, validate_scenario, vehicle_data
+from vehicle.results.run import results_status
+from vehicle.analysis.summary import report
+from vehicle.studies.sweep import _dask_client, execute, run_case
 
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
@@ -137,10 +143,6 @@ def _plain(v):
 def scenario_parameters(src, *, per_axle_struts: bool = False) -> tuple[list[Parameter], list[str], dict]:
     """Parameters of a scenario (a vehicle.scenario.schema.ScenarioSource), notes on what was left
     out, and the resolved parameter data (for the study's fingerprint)."""
-    from struts.params import strut_file
-
-    from vehicle.scenario.schema import validate_scenario, vehicle_data
-
     S = validate_scenario(src)
     data, vpath = vehicle_data(S, src)
     axles = data.get("axles") or []
@@ -356,10 +358,6 @@ class DriveRunner:
         return f"# case {case} of an hpsim uq study of {self.name}\n" + yaml.safe_dump(data, sort_keys=False)
 
     def __call__(self, case: str, values: dict) -> dict:
-        from vehicle.results.run import results_status
-        from vehicle.analysis.summary import report
-        from vehicle.studies.sweep import run_case
-
         out = Path(self.cases_dir) / f"{case}.h5"
         if results_status(out) != "complete":
             r = run_case(self.scenario_text(case, values), f"{self.name} case {case}", self.base_dir, str(out))
@@ -378,8 +376,6 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
     """Sample, run (resuming), analyse. `runner(case, {parameter name: SI value}) -> {output: value}`
     must be picklable for more than one worker. `model` identifies what the runner computes (a
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
-    from vehicle.studies.sweep import _dask_client, execute
-
     log = log or (lambda m: None)
     check_settings(method, samples, groups, len(params))
     out_dir = Path(out_dir)
@@ -444,8 +440,6 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
                        log: Callable[[str], None] | None = None) -> dict:
     """`hpsim uq`: the study of a scenario file's priors with the drive runner."""
-    from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario
-
     log = log or (lambda m: None)
     src = read_scenario(scenario)
     if distance is not None:
