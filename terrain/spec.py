@@ -33,7 +33,7 @@ from . import iso8608
 from .coherence import coherence_model
 from .events import LEVEL_EVENTS, EventPopulation, EventSpec, apply_events, population_rng
 from .passes import PassSpec
-X
+from .road import Road, check_road_points
 
 MAX_LENGTH_M = 5.0e6  # 5000 km: beyond this the arrays no longer fit comfortably in memory
 # Work size of a road: generating takes about 50 bytes per grid point at its peak (measured: 20 M
