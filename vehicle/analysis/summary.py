@@ -62,7 +62,7 @@ def dissipated_energy_J(r: ResultsView) -> np.ndarray | None:
     return total
 
 
-def _equilibrium_temperature(eq: dict):
+def equilibrium_temperature(eq: dict):
     """The standing strut temperature of an equilibrium group (oil_temperature; strut_temperature in files
     written before the heat network)."""
     return eq["oil_temperature"] if "oil_temperature" in eq else eq["strut_temperature"]
@@ -86,7 +86,7 @@ def report_from(r: ResultsView, name: str) -> dict:
     Nc = _axle_mean(charged["wheel_load"]) if charged is not None else np.full(len(axles), np.nan)
     # before the drive every node of a strut is at the standing temperature (files before the heat
     # network called it strut_temperature)
-    T0 = _axle_mean(_equilibrium_temperature(before)) - 273.15
+    T0 = _axle_mean(equilibrium_temperature(before)) - 273.15
     N0 = _axle_mean(before["wheel_load"])
     h0 = np.asarray(before["axle_height_change"], float)
     final = r.summary_values()

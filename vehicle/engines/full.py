@@ -12,6 +12,7 @@ run that fails or is interrupted keeps what it did and can resume.
 from __future__ import annotations
 
 import time
+from dataclasses import fields
 from functools import cached_property
 from typing import Callable
 
@@ -23,12 +24,12 @@ from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
-from vehicle.physics.outputs import VARIABLES, From
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.numerics.codegen import precompile
 from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
 from vehicle.scenario.settings import DriveSettings
 from vehicle.engines.contract import BlockObserver, DriveResult, DriveSink, DriveState
+from vehicle.engines.state_index import StateIndex
 
 
 class Drive:
@@ -82,37 +83,16 @@ class Drive:
         # continues (vehicle.engines.time_parallel) leaves it open
         self.close_last_interval = True
         self.build_s = time.perf_counter() - t0
-        n = model.n
-        self.quad_index = np.array([model.idx(f"E_{e}[{i}]") for e in ENERGY_TERMS for i in range(n)]
-                                   + [model.idx(f"I_v2[{i}]") for i in range(n)]
-                                   + [model.idx(f"I_{a}2") for a in HULL_ACCELERATIONS])
-        # the strut heat network (vehicle.physics.thermal): the surface is what a pyrometer reads and
-        # what "strut temperature" means in results; the statics after the drive see the oil (and the
-        # gas, which follows the oil within seconds at rest)
-        self.node_index = {node: np.array([model.idx(f"T_{node}[{i}]") for i in range(n)]) for node in thermal.NODES}
-        self.T_index = self.node_index["surface"]
-        self.T_oil_index = self.node_index["oil"]
-        self.T_wall_index = self.node_index["wall"]
-        # the gas node: the strut's T_gas state (energy-equation gas), else the gas is at the oil temperature
-        self.T_gas_index = np.array([model.idx(f"T_gas[{i}]") if "T_gas" in model.struts[i].state_names
-                                     else model.idx(f"T_oil[{i}]") for i in range(n)])
-        # the ride quadratures after them (vehicle.physics.model.VehicleModel.ride_index): positions in quad_index
-        self.ride_slots, k = {}, len(self.quad_index)
-        for q, idx in model.ride_index.items():
-            self.ride_slots[q] = k + np.arange(idx.size).reshape(idx.shape)
-            k += idx.size
-        if model.ride_index:
-            self.quad_index = np.concatenate([self.quad_index] + [idx.ravel() for idx in model.ride_index.values()])
+        # where each quantity sits in the state vector (vehicle.engines.state_index), as attributes of the drive
+        self.index = StateIndex.of(model)
+        for f in fields(StateIndex):
+            setattr(self, f.name, getattr(self.index, f.name))
         self.travel_bin_edges_m = model.travel_bin_edges()
-        # the output table's time series (vehicle.physics.outputs) and, for those that are states, their rows
-        self.series = {k: v.series for k, v in VARIABLES.items() if v.series is not None}
-        self.series_rows = {k: r for k, f in self.series.items() if (r := self._series_index(f)) is not None}
-        self.heat_index = [model.energy_index[e] for e in DISSIPATION_TERMS]
         self.error_estimate = None
         self._probes = {}
         if estimate:
             self.error_estimate = StepDoublingEstimate(settings.dt_s, settings.tolerance, settings.output_interval_s,
-                                                       n, names=[str(s) for s in model.station_names])
+                                                       model.n, names=[str(s) for s in model.station_names])
             t0 = time.perf_counter()
             self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
             self.build_s += time.perf_counter() - t0
@@ -320,19 +300,6 @@ class Drive:
                 f"strut {m.station_names[i]} {node} temperature {T[i, col] - 273.15:.1f} degC at {s[col] / 1e3:.3f} km "
                 f"(t = {t[col]:.1f} s) is outside any physical range ({lo - 273.15:.0f} to {hi - 273.15:.0f} degC): "
                 f"the heat balance has failed; {self._advice()}")
-
-    def _series_index(self, f: From):
-        """The state rows of a time series that is a slice of the states (vehicle.physics.outputs.From), or None."""
-        m = self.model
-        if f.kind == "heat_node":
-            return self.node_index[f.name]
-        if f.kind == "state":
-            return m.idx(f.name)
-        if f.kind == "station_state":
-            return np.array([m.idx(f"{f.name}[{i}]") for i in range(m.n)])
-        if f.kind == "energy":
-            return m.energy_index[f.name]
-        return None
 
     def _block_outputs(self, X, U, t, s, memory) -> dict:
         """Every time series of the output table (vehicle.physics.outputs) at a block's samples."""

@@ -41,6 +41,7 @@ import copy
 import dataclasses
 from dataclasses import dataclass, field
 import time
+from concurrent.futures import Future
 
 import numpy as np
 from scipy.linalg import expm
@@ -96,6 +97,13 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     out["cpu_s"] = time.process_time() - c0
     out["wall_s"] = time.perf_counter() - w0
     return out
+
+
+def _done(value) -> Future:
+    """A future that already holds its result (what the pool would hand back)."""
+    f = Future()
+    f.set_result(value)
+    return f
 
 
 class _SegmentRecorder:
@@ -238,18 +246,18 @@ class TimeParallelDrive:
                 out.append(res.state.x.copy())
         return out
 
-    def _coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None):
+    def _coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> list[Future]:
         """G(x_b) - G(x_a) of the slow states at t1 (`_coarse_propagate` from each start at t0 over the same
-        windows, whose road noise cancels in the difference), as its two propagations: started in the pool
-        (futures) or, without one, run here. `_coarse_difference_result` takes the difference."""
+        windows, whose road noise cancels in the difference), as its two propagations: futures of the pool, or,
+        without one, run here (completed futures). `_coarse_difference_result` takes the difference."""
         if pool is None:
-            return [self._coarse_propagate(t0, t1, x, n_windows) for x in (x_a, x_b)]
+            return [_done(self._coarse_propagate(t0, t1, x, n_windows)) for x in (x_a, x_b)]
         S = self.coarse._slaving(np.asarray(x_a, float))
         return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
 
     @staticmethod
-    def _coarse_difference_result(runs) -> np.ndarray:
-        a, b = (r.result() if hasattr(r, "result") else r for r in runs)
+    def _coarse_difference_result(runs: list[Future]) -> np.ndarray:
+        a, b = (r.result() for r in runs)
         return b - a
 
     def _coarse_propagate(self, t0, t1, x, n_windows: int = None) -> np.ndarray:

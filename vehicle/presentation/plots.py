@@ -10,14 +10,14 @@ from hpsim.errors import UserInputError
 
 from vehicle.physics.outputs import variable_name
 from vehicle.analysis.psd import response_psd
-from vehicle.analysis.summary import _equilibrium_temperature
+from vehicle.analysis.summary import equilibrium_temperature
 from vehicle.presentation.report import compare, open_results, report_from
 
 MECHANISMS = (("valve", "valve (damping)"), ("friction", "seal friction"), ("gas", "gas heat"),
               ("end_stop", "end stops"))
 
 
-def _plt():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -53,7 +53,7 @@ def dashboard(path, out: str | Path) -> Path:
     `vehicle.results.reader.ResultsView` (e.g. in-memory results)."""
     import contextlib
 
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     view = path if hasattr(path, "series") else None
     with (contextlib.nullcontext(view) if view is not None else open_results(path)) as f:
@@ -105,7 +105,7 @@ def dashboard(path, out: str | Path) -> Path:
             x, Ts = s_km, T
         else:                      # time series not stored: the start and the statistics rows
             x = np.concatenate([[0.0], s_stats])
-            Ts = np.vstack([np.asarray(_equilibrium_temperature(before), float)[None, :], T_stats])
+            Ts = np.vstack([np.asarray(equilibrium_temperature(before), float)[None, :], T_stats])
         Tax = 0.5 * (Ts[:, 0::2] + Ts[:, 1::2]) - 273.15
         for k, name in enumerate(axles):
             a.plot(x, Tax[:, k], color=colors[k % len(colors)], label=name, marker="o" if len(x) < 30 else None, ms=3)
@@ -289,7 +289,7 @@ def _history(path) -> dict:
     over a tenth of the drive) of one run, from its time series or, if not stored, its rows."""
     with open_results(path) as f:
         before = f.equilibrium("before")
-        T0 = np.asarray(_equilibrium_temperature(before), float)
+        T0 = np.asarray(equilibrium_temperature(before), float)
         s = f.series("distance")
         T = f.series("strut_temperature")
         h = f.series("axle_height_change")
@@ -309,7 +309,7 @@ def _history(path) -> dict:
 def compare_plot(paths, out: str | Path, labels=None) -> Path:
     """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs
     distance) over grouped bars per axle (wheel-load change, height change, temperature rise)."""
-    plt = _plt()
+    plt = pyplot()
     cmp = compare(paths)
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
@@ -362,7 +362,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
 def psd_plot(psd: dict, out: str | Path, stations=None, title: str = "") -> Path:
     """Response PSDs (vehicle.analysis.psd.response_psd): hull heave, pitch and roll acceleration and the strut
     forces (one curve per station), log-log, with the peak frequency marked."""
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     f = psd["f_hz"]
     sel = f > 0

@@ -73,9 +73,9 @@ def format_response(rep: dict) -> str:
 def response_plot(rep: dict, out: str | Path) -> Path:
     """Magnitudes vs frequency: hull heave and pitch, seats, the excited tyre's dynamic load; one curve per
     excited axle; thin lines at the hull modes."""
-    from vehicle.presentation.plots import _plt
+    from vehicle.presentation.plots import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     f = rep["f_hz"]
     seats = list(rep["axles"][0]["seat_acc_per_m"]) if rep["axles"] else []
     panels = [("heave_acc_per_m", "hull heave acceleration\n[m/s$^2$ per mm of road]", 1e-3),

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vehicle.presentation.plots import _plt
+from vehicle.presentation.plots import pyplot
 
 AXLE_PANELS = (("rise_K", "strut temperature rise [K]"), ("dh_mm", "height change dh [mm]"),
                ("dN_pct", "wheel load change dN [%]"))
@@ -19,7 +19,7 @@ TOP = 12          # parameters shown per bar chart
 def _save(fig, out: Path) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
-    _plt().close(fig)
+    pyplot().close(fig)
     return out
 
 
@@ -30,7 +30,7 @@ def _finite(v) -> bool:
 def bands_plot(summary: dict, out: str | Path) -> Path:
     """Per axle: the 5-95 % band (bar), the median (dot) and the nominal case (cross) of each quantity;
     for a study without axle outputs one panel per output."""
-    plt = _plt()
+    plt = pyplot()
     bands, nominal = summary["bands"], summary["nominal"]
     axles = sorted({int(m.group(1)) for k in bands if (m := re.fullmatch(r"axle(\d+)\..+", k))})
     if axles:
@@ -72,7 +72,7 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
     table = summary.get("sobol") or summary.get("ranking")
     if not table:
         return None
-    plt = _plt()
+    plt = pyplot()
     sobol = "sobol" in summary
     outputs = [k for k in table if not table[k]["constant"]]
     if not outputs:

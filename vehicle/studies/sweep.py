@@ -130,7 +130,7 @@ def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
                 "seconds": time.perf_counter() - t0}
 
 
-def _dask_client(address: str):
+def dask_client(address: str):
     try:
         from distributed import Client
     except ImportError:
@@ -207,7 +207,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
     log = log or (lambda m: None)
     path = Path(path)
     spec, base, cases = load_sweep(path)
-    client = _dask_client(scheduler) if scheduler else None
+    client = dask_client(scheduler) if scheduler else None
     out_dir = Path(output_dir) if output_dir else Path(path.stem)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows: dict[str, dict] = {}

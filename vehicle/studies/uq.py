@@ -51,7 +51,7 @@ from struts.params import strut_file
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, validate_scenario, vehicle_data
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
-from vehicle.studies.sweep import _dask_client, execute, run_case
+from vehicle.studies.sweep import dask_client, execute, run_case
 
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
@@ -404,7 +404,7 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
         + (" + nominal" if nominal else "") + f"; {len(rows) - len(todo)} done earlier, {len(todo)} to run")
     t0 = time.perf_counter()
     done, failed_now = 0, {}
-    client = _dask_client(scheduler) if scheduler else None
+    client = dask_client(scheduler) if scheduler else None
 
     with open(records_path, "a") as fh:
         def finished(case, r):

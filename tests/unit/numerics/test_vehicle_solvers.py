@@ -13,7 +13,7 @@ from vehicle.engines.full import Drive
 from vehicle.scenario.settings import DriveSettings
 from vehicle.scenario.speed import SpeedProfile
 
-from .vehicle_helpers import make_drive
+from tests.helpers import make_drive
 
 
 def test_structural_jacobian_equals_the_exact_one_for_the_separated_strut():

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from tests.helpers import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 VEHICLE_FILE = REPO / "vehicle" / "data" / "apc_8x8.yaml"
 STRUT_FILE = REPO / "struts" / "data" / "apc.yaml"
 RIG_CSV = REPO / "struts" / "data" / "apc_rig_energy.csv"
@@ -664,7 +664,7 @@ def test_cache_evicts_least_recently_used_beyond_its_limit(tmp_path):
 def _hpsim_process(args, cwd, env):
     import subprocess
 
-    from .test_run_helpers import hpsim_subprocess
+    from tests.helpers import hpsim_subprocess
 
     # a session of its own: os.killpg then does what Ctrl-C at a terminal does (the whole group)
     return hpsim_subprocess(args, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

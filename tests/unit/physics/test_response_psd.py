@@ -10,6 +10,7 @@ import pytest
 
 from hpsim.errors import UserInputError
 from vehicle.analysis.psd import response_psd
+from tests.helpers import REPO
 
 
 class SeriesView:
@@ -62,7 +63,7 @@ def test_dashboard_shows_the_spectrum_panel_only_for_dense_series(monkeypatch, t
     figures = []
     close = plt.close
     monkeypatch.setattr(plt, "close", lambda fig=None: (figures.append(fig), close(fig)))
-    quick = Path(__file__).resolve().parents[1] / "scenarios" / "quick_demo.yaml"
+    quick = REPO / "scenarios" / "quick_demo.yaml"
     titles = {}
     for interval in ("0.02 s", "1 s"):
         res = vehicle.Simulation(quick, overrides={"distance": "300 m", "output.interval": interval,

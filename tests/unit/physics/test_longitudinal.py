@@ -17,6 +17,7 @@ from vehicle.engines.full import Drive
 from vehicle.scenario.settings import DriveSettings
 from vehicle.results.sinks import MemorySink
 from vehicle.scenario.speed import SpeedProfile
+from tests.helpers import REPO
 
 T0 = 298.15
 BRAKING = -2.5      # m/s^2
@@ -154,7 +155,7 @@ def test_constant_speed_feeds_no_acceleration_and_variable_speed_does(tmp_path):
     from pathlib import Path
 
     # the shipped variable-speed scenario, shortened (its speed is built for the drive's distance)
-    path = Path(__file__).parents[1] / "scenarios" / "mileage_106km_variable_speed.yaml"
+    path = REPO / "scenarios" / "mileage_106km_variable_speed.yaml"
     text = path.read_text().replace("distance: 106 km", "distance: 2 km")
     assert "distance: 2 km" in text
     prep = prepare(read_scenario_text(text, "v.yaml", tmp_path))

@@ -10,8 +10,9 @@ import pytest
 
 from vehicle.studies.calibration import _run, calibrate_heat
 from vehicle.scenario.schema import read_scenario
+from tests.helpers import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 
 
 def test_calibration_recovers_a_known_air_speed_ratio(tmp_path):

@@ -21,17 +21,12 @@ from vehicle.scenario.schema import read_scenario  # noqa: E402
 from vehicle.analysis.summary import report, report_from  # noqa: E402
 from vehicle.physics.outputs import VARIABLES, UnknownDriveKey  # noqa: E402
 from vehicle.results.variables import file_variables  # noqa: E402
+from tests.helpers import REPO, scenario_yaml  # noqa: E402
 
-SCENARIO = """\
-vehicle: {name: apc_8x8}
-road: {iso_class: D, seed: 4}
-speed: 20 km/h
-distance: 0.4 km
-ambient_temperature: 25 degC
-initial_temperatures: [40 degC, 35 degC, 30 degC, 25 degC]
-output: {interval: 1 s, stats_interval: 0.1 km, chunk_samples: 30}
-"""
-V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"   # written by hpsim before format 2
+SCENARIO = scenario_yaml(road={"iso_class": "D", "seed": 4}, distance="0.4 km",
+                         initial_temperatures=["40 degC", "35 degC", "30 degC", "25 degC"],
+                         output={"interval": "1 s", "stats_interval": "0.1 km", "chunk_samples": 30})
+V1_FILE = REPO / "tests" / "data" / "results_v1.h5"   # written by hpsim before format 2
 GROUPS = ("timeseries", "stats", "equilibrium/charged", "equilibrium/before", "equilibrium/after", "summary")
 TIMING = {"wall_s", "solver_error_cost_pct", "build_s", "integration_s", "finished_at", "created", "history"}
 UDUNITS = {"s", "m", "km", "m s-1", "m s-2", "rad", "rad s-2", "K", "Pa", "N", "J", "W", "m3", "1", "m s-1.75"}

@@ -178,7 +178,7 @@ LONG_BASE = BASE.replace("distance: 1.5 km", "distance: 15 km")
 def _start_sweep(tmp_path):
     import subprocess
 
-    from .test_run_helpers import hpsim_subprocess
+    from tests.helpers import hpsim_subprocess
 
     (tmp_path / "base.yaml").write_text(LONG_BASE)
     (tmp_path / "sweep.yaml").write_text("base: base.yaml\ngrid:\n  road.seed: [3, 4]\n")

@@ -11,8 +11,9 @@ import pytest
 
 from vehicle.cli import main
 from vehicle.physics.params import load_vehicle
+from tests.helpers import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from vehicle.results.run import run_in_memory
 from vehicle.scenario.schema import read_scenario_text
 from vehicle.analysis.summary import report_from
 
-from .test_run_helpers import assert_bad_scenario_exits_2
+from tests.helpers import assert_bad_scenario_exits_2
 
 BASE = {"description": "multiscale test", "vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 3},
         "speed": "20 km/h", "distance": "3 km", "ambient_temperature": "25 degC",

@@ -20,17 +20,11 @@ import pytest
 
 from vehicle import cli
 
-from .test_run_helpers import run_hpsim
+from tests.helpers import scenario_yaml, run_hpsim
 
-SCENARIO = """\
-vehicle: {name: apc_8x8}
-road: {iso_class: D, seed: 8}
-speed: 20 km/h
-distance: 0.5 km
-ambient_temperature: 25 degC
-initial_temperatures: [40 degC, 35 degC, 30 degC, 25 degC]
-output: {interval: 1 s, stats_interval: 0.1 km, chunk_samples: 20}
-"""
+SCENARIO = scenario_yaml(road={"iso_class": "D", "seed": 8}, distance="0.5 km",
+                         initial_temperatures=["40 degC", "35 degC", "30 degC", "25 degC"],
+                         output={"interval": "1 s", "stats_interval": "0.1 km", "chunk_samples": 20})
 TIMEOUT = 60        # every command must end well within this (a hang fails the test)
 
 

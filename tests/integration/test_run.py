@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from .test_run_helpers import hpsim_subprocess, run_hpsim
+from tests.helpers import hpsim_subprocess, run_hpsim
 from vehicle import cli
 
 SCENARIO = """\

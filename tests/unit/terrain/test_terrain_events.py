@@ -8,6 +8,7 @@ from hpsim.config import validate
 from hpsim.errors import UserInputError
 from terrain import RoadSpec, build_road
 from terrain.events import BumpCosine, BumpTrapezoid, Pothole, Ramp, Step, Washboard
+from tests.helpers import REPO
 
 S = np.linspace(0.0, 30.0, 300001)  # 0.1 mm grid for areas
 DX = S[1] - S[0]
@@ -123,7 +124,7 @@ def test_example_spec_file_is_valid_and_applies_its_events():
 
     from terrain import load_road_spec
 
-    path = Path(__file__).resolve().parents[1] / "terrain" / "data" / "example_road.yaml"
+    path = REPO / "terrain" / "data" / "example_road.yaml"
     spec = load_road_spec(path)
     assert len(spec.events) == 6
     with_events = build_road(spec, base_dir=path.parent)

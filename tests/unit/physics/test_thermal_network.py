@@ -16,7 +16,7 @@ from vehicle.physics import thermal
 from vehicle.physics.params import load_vehicle
 from vehicle.results.sinks import MemorySink
 
-from .vehicle_helpers import make_drive
+from tests.helpers import make_drive
 
 SIGMA = 5.670374419e-8
 T_AMB = 298.15

@@ -10,7 +10,7 @@ import pytest
 
 from vehicle.physics import ride
 from vehicle.analysis import ride_metrics
-from vehicle.results.validity import _name
+from vehicle.physics.outputs import variable_name as _name
 
 EDGES = np.linspace(0.0, 0.24, 49)            # strut travel bins [m]
 

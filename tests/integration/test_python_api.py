@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import vehicle
+from tests.helpers import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 QUICK = ROOT / "scenarios" / "quick_demo.yaml"
 
 

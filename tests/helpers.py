@@ -1,4 +1,6 @@
-"""Shared helpers of the run/sweep/report tests (no tests here)."""
+"""Shared helpers of the tests (no tests here): the repository's paths, short scenarios written as files,
+`hpsim` as a subprocess started as at a terminal, the malformed-scenario check, and small drives built
+from the shipped parameter files. Fixtures that use them: tests/conftest.py."""
 from __future__ import annotations
 
 import os
@@ -6,8 +8,27 @@ import subprocess
 import sys
 from pathlib import Path
 
+import yaml
+
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
+
+# a short drive of the shipped 8x8 on a class D road: what most tests change a few keys of
+BASE_SCENARIO = {"vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 3}, "speed": "20 km/h",
+                 "distance": "200 m", "ambient_temperature": "25 degC"}
+
+
+def scenario_yaml(**changes) -> str:
+    """BASE_SCENARIO with top-level keys changed (None removes a key), as YAML text."""
+    data = {**BASE_SCENARIO, **changes}
+    return yaml.safe_dump({k: v for k, v in data.items() if v is not None}, sort_keys=False)
+
+
+def write_scenario(folder: Path, name: str = "scenario.yaml", text: str | None = None, **changes) -> Path:
+    """A scenario file in `folder`: the given YAML text, or BASE_SCENARIO with `changes`."""
+    path = Path(folder) / name
+    path.write_text(text if text is not None else scenario_yaml(**changes))
+    return path
 
 
 # `hpsim` as a command started at a terminal: Ctrl-C raises KeyboardInterrupt. A test run started in the
@@ -52,3 +73,20 @@ def assert_bad_scenario_exits_2(path: Path, key: str, words, capsys) -> None:
     assert code == 2
     assert key in err_text and "Traceback" not in err_text and len(err_text.strip().splitlines()) == 1, err_text
     assert not out_file.exists()
+
+
+# --- small drives built from the shipped parameter files ---------------------------------------------
+from terrain import RoadSpec, build_road  # noqa: E402
+from vehicle.engines.full import Drive  # noqa: E402
+from vehicle.physics.model import VehicleModel  # noqa: E402
+from vehicle.physics.params import load_vehicle  # noqa: E402
+from vehicle.scenario.settings import DriveSettings  # noqa: E402
+from vehicle.scenario.speed import SpeedProfile  # noqa: E402
+
+
+def make_drive(distance_m=200.0, road=None, vehicle="apc_8x8", overrides=None, speed_kmh=20.0, **settings):
+    model = VehicleModel(load_vehicle(vehicle, overrides))
+    if road is None:
+        road = build_road(RoadSpec(iso_class="D", length=distance_m + 20.0, seed=3))
+    s = DriveSettings(distance_m=distance_m, speed=SpeedProfile.constant(speed_kmh / 3.6), **settings)
+    return Drive(model, road, s)

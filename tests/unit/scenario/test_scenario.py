@@ -13,9 +13,8 @@ from hpsim.errors import UserInputError
 from vehicle import cli
 from vehicle.scenario.schema import apply_overrides, load_prepared, prepare, read_scenario
 
-from .test_run_helpers import assert_bad_scenario_exits_2
+from tests.helpers import REPO, assert_bad_scenario_exits_2
 
-REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
 
 GOOD = """\

@@ -9,7 +9,7 @@ from vehicle.physics.model import ENERGY_TERMS
 from vehicle.physics.params import GRAVITY, load_vehicle
 from vehicle.results.sinks import MemorySink
 
-from .vehicle_helpers import make_drive
+from tests.helpers import make_drive
 
 
 def _mechanical_energy(drive, x):
