@@ -210,9 +210,14 @@ VARIABLES: dict[str, Var | Split] = {
 }
 
 
-# time series a drive produces, in the table's order; `output.store` picks from these (t_s and distance_m always)
+# time series stored whatever `output.store` says
 ALWAYS_STORED = ("t_s", "distance_m")
-SERIES = tuple(k for k, v in VARIABLES.items() if v.series is not None and k not in ALWAYS_STORED)
+
+
+def series_keys() -> tuple[str, ...]:
+    """The time series a drive produces, in the table's order: what `output.store` picks from (read from the table
+    when called, so an entry added to VARIABLES is a stored series at once)."""
+    return tuple(k for k, v in VARIABLES.items() if v.series is not None and k not in ALWAYS_STORED)
 
 
 def joined(join: str) -> tuple[str, ...]:

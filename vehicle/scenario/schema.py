@@ -32,7 +32,7 @@ from struts.params import load_strut
 import terrain
 
 from vehicle.physics.model import VehicleModel
-from vehicle.physics.outputs import ALWAYS_STORED, SERIES
+from vehicle.physics.outputs import ALWAYS_STORED, series_keys
 from vehicle.physics.params import COMPENSATION_RANGES, VehicleParams, vehicle_file
 from vehicle.scenario.settings import DT_RANGE_S, SEGMENTS_RANGE, DriveSettings, MultiscaleSettings
 from vehicle.scenario.speed import build_speed_profile, parse_speed_spec
@@ -251,13 +251,13 @@ class OutputSpec(Model):
     @classmethod
     def _store(cls, v):
         if isinstance(v, list):
-            bad = [s for s in v if s not in SERIES and s not in ALWAYS_STORED]
+            bad = [s for s in v if s not in series_keys() and s not in ALWAYS_STORED]
             if bad:
-                raise ValueError(f"unknown series {bad}, allowed: 'all' or a list of {', '.join(SERIES)}")
+                raise ValueError(f"unknown series {bad}, allowed: 'all' or a list of {', '.join(series_keys())}")
         return v
 
     def stored(self) -> set[str]:
-        return set(SERIES if self.store == "all" else self.store) | set(ALWAYS_STORED)
+        return set(series_keys() if self.store == "all" else self.store) | set(ALWAYS_STORED)
 
 
 class Scenario(Model):
