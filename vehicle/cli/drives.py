@@ -27,9 +27,10 @@ def register(sub):
     pe.add_argument("--json", action="store_true", help="print JSON only")
     pe.set_defaults(func=cmd_equilibrium)
     pe._negative_number_matcher = re.compile(r"^-\.?\d")   # "--temperatures -20degC" is a value
-    from . import response
+    from . import response, vehicles
 
     response.register(vsub)
+    vehicles.register(vsub)
 
     pr = sub.add_parser("run", help="run a scenario file, writing HDF5 results as it goes")
     pr.add_argument("scenario", help="scenario YAML file (see docs/scenarios.md)")

@@ -28,7 +28,7 @@ from hpsim.config import Model, Quantity, format_validation_error, load_yaml, pa
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
 
-from vehicle.physics.params import COMPENSATION_RANGES
+from vehicle.physics.params import COMPENSATION_RANGES, strut_reference
 
 K_ = Quantity("K")
 
@@ -89,8 +89,21 @@ class VehicleChoice(Model):
 class StrutChoice(Model):
     """Strut type and fill of the struts of one axle (both wheels) or of all axles."""
 
-    type: str | None = None                  # built-in strut name ("apc") or a path to a strut file
+    type: str | None = None                  # built-in strut name ("apc"; a path is accepted too)
+    file: str | None = None                  # an own strut file (the documented spelling: docs/vehicles.md)
     overrides: dict[str, Any] = {}           # strut parameters, e.g. {"charge.pressure": "5 MPa"}
+
+    @model_validator(mode="after")
+    def _one(self):
+        if self.type is not None and self.file is not None:
+            raise ValueError("give type (a built-in strut) or file (a strut file), not both")
+        if self.file is not None:
+            strut_reference({"file": self.file})
+        return self
+
+    @property
+    def strut(self) -> str | None:
+        return self.file if self.file is not None else self.type
 
 
 class SpeedProfileSpec(Model):
@@ -473,6 +486,17 @@ class Prepared:
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: vehicle/struts: {exc}") from None
 
+    def check_vehicle(self, model=None):
+        """The quiet `hpsim vehicle check` before a drive (statics, no modes): warnings logged, errors refuse it."""
+        import logging
+
+        from vehicle.physics.vehicle_check import pre_drive_check
+
+        try:
+            return pre_drive_check(self.vehicle, model, log=logging.getLogger("hpsim").warning)
+        except UserInputError as exc:
+            raise UserInputError(f"{self.source.name}: {exc}") from None
+
     def road(self):
         import terrain
 
@@ -493,6 +517,7 @@ class Prepared:
         from vehicle.runs.drive import Drive
 
         model = self.model()
+        self.check_vehicle(model)
         road = self.road()
         cls = drive_class or Drive
         try:
@@ -566,16 +591,18 @@ def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
             if not 0 <= k < n_axles:
                 raise UserInputError(f"{src.name}: struts.{key}: the vehicle has {n_axles} axles (axle1..axle{n_axles})")
             axle = dict(data["axles"][k])
-            if choice.type is not None:
-                t = choice.type
+            if choice.strut is not None:
+                t = choice.strut
                 axle["strut"] = _resolve_path(t, src.base_dir) if t.endswith((".yaml", ".yml")) else t
             if choice.overrides:
                 axle["strut_overrides"] = apply_overrides(axle.get("strut_overrides") or {}, choice.overrides)
             data["axles"][k] = axle
     # strut files named in the vehicle file are relative to the vehicle file
     for k, axle in enumerate(data.get("axles") or []):
+        if isinstance(axle, dict) and isinstance(axle.get("strut"), dict):
+            axle = data["axles"][k] = {**axle, "strut": strut_reference(axle["strut"], f"axles.{k}.strut")}
         if isinstance(axle, dict) and str(axle.get("strut", "")).endswith((".yaml", ".yml")):
-            base = src.base_dir if any(S.struts.get(n) and S.struts[n].type for n in ("all", f"axle{k + 1}")) \
+            base = src.base_dir if any(S.struts.get(n) and S.struts[n].strut for n in ("all", f"axle{k + 1}")) \
                 else Path(path).resolve().parent
             data["axles"][k] = {**axle, "strut": _resolve_path(axle["strut"], base)}
     comp = {k: v for k, v in S.compensation.model_dump().items() if v is not None}
