@@ -48,7 +48,7 @@ def register(vsub):
     pn.add_argument("--strut", default="apc", help="strut per axle: built-in name or strut file; one for all (default apc)")
     pn.add_argument("--strut-deflection", default=None, help="static strut deflection (default 0.48 of the stroke)")
     pn.add_argument("--motion-ratio", default=None, help="strut travel / wheel travel: one or one per axle (default 0.7)")
-    pn.add_argument("--unsprung-mass", default=None, help="per wheel station: one or one per axle (default 0.136 of the wheel load)")
+    pn.add_argument("--unsprung-mass", default=None, help="per wheel station: one or one per axle (default 0.136 of the mean wheel load)")
     pn.add_argument("--tyre-radius", default=None, help="unloaded tyre radius (default 0.55 m)")
     pn.add_argument("--cg-height", default=None, help="sprung CG above the ground (default 2 tyre radii)")
     pn.add_argument("--charging-temperature", default=None, help="strut temperature when charged (default 20 degC)")
@@ -73,50 +73,27 @@ def cmd_check(args):
     return 0 if rep["ok"] else 2
 
 
-def _loads_N(text: str) -> list[float]:
-    """Axle loads as mass (t, kg: times standard gravity) or force (N, kN, daN)."""
-    from hpsim.units import parse_quantity
-
-    from vehicle.physics.params import GRAVITY
-
-    out = []
-    for item in [t for t in text.split(",") if t.strip()]:
-        try:
-            out.append(parse_quantity(item, "kg", where="--axle-loads") * GRAVITY)
-        except UserInputError:
-            out.append(parse_quantity(item, "N", where="--axle-loads (a mass or a force)"))
-    return out
-
-
 def spec_from_args(args):
     from pathlib import Path
 
-    from hpsim.units import parse_quantity, parse_quantity_list
+    from vehicle.physics.vehicle_builder import spec_from_values
 
-    from vehicle.physics.vehicle_builder import VehicleSpec
+    return spec_from_values(
+        args.name or Path(args.output).stem, positions=args.positions, track=args.track,
+        ride_height=args.ride_height, axle_loads=args.axle_loads, mass=args.mass, cg_x=args.cg_x,
+        struts=args.strut, strut_deflection=args.strut_deflection, motion_ratio=args.motion_ratio,
+        unsprung_mass=args.unsprung_mass, tyre_radius=args.tyre_radius, cg_height=args.cg_height,
+        charging_temperature=args.charging_temperature, description=args.description)
 
-    def opt(text, unit, where):
-        return None if text is None else parse_quantity(text, unit, where=where)
 
-    def opt_list(text, unit, where):
-        return None if text is None else parse_quantity_list(text, unit, where=where)
-
-    name = args.name or Path(args.output).stem
-    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,80}", name):
-        raise UserInputError(f"--name: letters, digits, '_', '.', '-' (1-80), got {name!r}")
-    return VehicleSpec(
-        name=name, positions_m=parse_quantity_list(args.positions, "m", where="--positions"),
-        track_m=parse_quantity(args.track, "m", where="--track"),
-        ride_heights_m=parse_quantity_list(args.ride_height, "m", where="--ride-height"),
-        struts=[t.strip() for t in args.strut.split(",") if t.strip()],
-        axle_loads_N=None if args.axle_loads is None else _loads_N(args.axle_loads),
-        total_mass_kg=opt(args.mass, "kg", "--mass"), cg_x_m=opt(args.cg_x, "m", "--cg-x"),
-        strut_deflection_m=opt(args.strut_deflection, "m", "--strut-deflection"),
-        motion_ratios=opt_list(args.motion_ratio, "", "--motion-ratio"),
-        unsprung_masses_kg=opt_list(args.unsprung_mass, "kg", "--unsprung-mass"),
-        tyre_radius_m=opt(args.tyre_radius, "m", "--tyre-radius"), cg_height_m=opt(args.cg_height, "m", "--cg-height"),
-        charging_temperature_K=opt(args.charging_temperature, "K", "--charging-temperature"),
-        description=args.description)
+def _as_option(exc: UserInputError) -> UserInputError:
+    """The builder names its values as the Python API does (cg_x); on the command line they are options (--cg-x)."""
+    text = str(exc)
+    head = text.split(":", 1)[0].split(" (", 1)[0]
+    names = {"struts": "--strut", "loads": "--axle-loads/--mass"}
+    if re.fullmatch(r"[a-z_]+", head):
+        return UserInputError(names.get(head, "--" + head.replace("_", "-")) + text[len(head):])
+    return exc
 
 
 def cmd_new(args):
@@ -126,8 +103,10 @@ def cmd_new(args):
     from vehicle.physics.vehicle_check import check_file
     from vehicle.presentation.vehicle_check import format_check
 
-    spec = spec_from_args(args)
-    path = write_vehicle(spec, args.output, overwrite=args.overwrite)
+    try:
+        path = write_vehicle(spec_from_args(args), args.output, overwrite=args.overwrite)
+    except UserInputError as exc:
+        raise _as_option(exc) from None
     rep = check_file(str(path)).as_dict()
     if args.json:
         print_json(rep)

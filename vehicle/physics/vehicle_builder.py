@@ -98,7 +98,7 @@ def _check_spec(s: VehicleSpec) -> int:
         raise UserInputError(f"positions: the last axle at {s.positions_m[-1]:g} m; allowed up to 30 m")
     if not 0.5 <= s.track_m <= 5.0:
         raise UserInputError(f"track: must be in [0.5, 5] m, got {s.track_m:g} m")
-    if (s.axle_loads_N is None) == (s.total_mass_kg is None):
+    if (s.axle_loads_N is None) == (s.total_mass_kg is None) or (s.axle_loads_N is not None and s.cg_x_m is not None):
         raise UserInputError("loads: give the axle loads, or the total mass and its CG (mass, cg_x), not both")
     if s.total_mass_kg is not None and (s.cg_x_m is None or not 100.0 <= s.total_mass_kg <= 200e3):
         raise UserInputError(f"mass: must be in [100, 200000] kg with cg_x given, got {s.total_mass_kg!r} kg, "
@@ -143,7 +143,7 @@ def _resolved(s: VehicleSpec, n: int, D: dict) -> dict:
                              f"{min(strokes) * 1e3:.4g}) mm of every strut")
     wheel = [0.5 * L for L in loads]
     m_u = per_axle(s.unsprung_masses_kg, n, "unsprung_mass") if s.unsprung_masses_kg is not None else \
-        [D["unsprung_fraction"][0] * w / GRAVITY for w in wheel]
+        [D["unsprung_fraction"][0] * sum(wheel) / len(wheel) / GRAVITY] * n
     if any(m * GRAVITY >= w for m, w in zip(m_u, wheel)):
         raise UserInputError(f"unsprung_mass: {m_u} kg per wheel station must weigh less than the wheel loads "
                              f"{[round(w / GRAVITY) for w in wheel]} kg")
@@ -170,7 +170,7 @@ def _axle_lines(s: VehicleSpec, V: dict, D: dict) -> list[str]:
     for k in range(V["n"]):
         pos = _q(f"{s.positions_m[k]:.6g} m", "given (hpsim vehicle new)" if k else "axle 1: the datum of the positions")
         mu = _q(f"{V['m_u'][k]:.4g} kg", "given" if given_mu else f"default: {D['unsprung_fraction'][1]} "
-                f"({D['unsprung_fraction'][0]:g} of the static wheel load)")
+                f"({D['unsprung_fraction'][0]:g} of the mean static wheel load)")
         r = f"{{value: {V['r'][k]:.4g}, source: " + yaml.safe_dump(
             "given" if given_r else f"default: {D['motion_ratio'][1]}", default_style='"', width=100000).strip() + "}"
         strut = V["struts"][k]
@@ -244,9 +244,56 @@ def write_vehicle(s: VehicleSpec, path: str | Path, overwrite: bool = False) -> 
     p = Path(path)
     if p.suffix not in (".yaml", ".yml"):
         raise UserInputError(f"-o/--output: a vehicle file ends in .yaml, got {p}")
+    text = vehicle_text(s)
     if p.exists() and not overwrite:
         raise UserInputError(f"-o/--output: {p} exists (--overwrite replaces it)")
-    text = vehicle_text(s)
     p.parent.mkdir(parents=True, exist_ok=True)
     p.write_text(text)
     return p
+
+
+def _quantities(value, unit: str, where: str) -> list[float]:
+    """A quantity, a list of them or a comma-separated string ("0m,3.5m") -> SI floats."""
+    items = value.split(",") if isinstance(value, str) else (value if isinstance(value, (list, tuple)) else [value])
+    items = [v for v in items if not (isinstance(v, str) and not v.strip())]
+    if not items:
+        raise UserInputError(f"{where}: expected one or more quantities in {unit or 'plain numbers'}")
+    return [parse_quantity(v, unit, where=where) for v in items]
+
+
+def _loads(value, where: str = "axle_loads") -> list[float]:
+    """Axle loads as masses (t, kg: times standard gravity) or forces (N, kN, daN) -> N."""
+    out = []
+    for v in (value.split(",") if isinstance(value, str) else (value if isinstance(value, (list, tuple)) else [value])):
+        try:
+            out.append(parse_quantity(v, "kg", where=where) * GRAVITY)
+        except UserInputError:
+            out.append(parse_quantity(v, "N", where=f"{where} (a mass or a force)"))
+    return out
+
+
+def spec_from_values(name: str, *, positions, track, ride_height, axle_loads=None, mass=None, cg_x=None,
+                     struts="apc", strut_deflection=None, motion_ratio=None, unsprung_mass=None, tyre_radius=None,
+                     cg_height=None, charging_temperature=None, description: str = "") -> VehicleSpec:
+    """A VehicleSpec from quantities with units (strings), SI numbers or lists/comma-separated strings of them
+    (the command line's and the Python API's values; the option names of `hpsim vehicle new`)."""
+    import re
+
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,80}", str(name)):
+        raise UserInputError(f"name: letters, digits, '_', '.', '-' (1-80), got {name!r}")
+
+    def one(value, unit, where):
+        return None if value is None else parse_quantity(value, unit, where=where)
+
+    def many(value, unit, where):
+        return None if value is None else _quantities(value, unit, where)
+
+    strut_list = [t.strip() for t in struts.split(",")] if isinstance(struts, str) else [str(t) for t in struts]
+    return VehicleSpec(
+        name=str(name), positions_m=_quantities(positions, "m", "positions"), track_m=one(track, "m", "track"),
+        ride_heights_m=_quantities(ride_height, "m", "ride_height"), struts=[t for t in strut_list if t],
+        axle_loads_N=None if axle_loads is None else _loads(axle_loads), total_mass_kg=one(mass, "kg", "mass"),
+        cg_x_m=one(cg_x, "m", "cg_x"), strut_deflection_m=one(strut_deflection, "m", "strut_deflection"),
+        motion_ratios=many(motion_ratio, "", "motion_ratio"), unsprung_masses_kg=many(unsprung_mass, "kg", "unsprung_mass"),
+        tyre_radius_m=one(tyre_radius, "m", "tyre_radius"), cg_height_m=one(cg_height, "m", "cg_height"),
+        charging_temperature_K=one(charging_temperature, "K", "charging_temperature"), description=description)
