@@ -41,7 +41,9 @@ THRESHOLDS = {
     # body modes below 0.7 Hz make people seasick (ISO 2631-1 motion sickness band 0.1-0.5 Hz reaches up)
     # and need a very long travel; road vehicles sit at 0.8-1.5 Hz (Gillespie 1992 §6)
     "min_mode_hz": 0.7,
-    # bounce and pitch closer than 10 % couple into a pitching ride (Olley's flat-ride rules, Gillespie §6)
+    # bounce and pitch closer than 10 %: any coupling (CG off the elastic centre) mixes them into one motion;
+    # on purpose in a flat-ride design (Olley's dynamic index k^2/(a b) near 1, Gillespie 1992 §6), else a
+    # sign of a guessed pitch inertia
     "bounce_pitch_separation": 0.10,
     # wheel hop above 15 Hz: a tyre far stiffer than a pneumatic tyre (usual 8-12 Hz), check the tyre data
     "max_wheel_hop_hz": 15.0,
@@ -385,9 +387,10 @@ def check_modes(P: VehicleParams, rep: CheckReport) -> None:
     if b is not None and p is not None:
         gap = abs(b.frequency_hz - p.frequency_hz) / max(b.frequency_hz, p.frequency_hz)
         if gap < sep:
-            rep.add("warning", "axles", f"bounce ({b.frequency_hz:.3g} Hz) and pitch ({p.frequency_hz:.3g} Hz) are "
-                    f"{100 * gap:.1f} % apart (less than {100 * sep:.0f} %): they couple into a pitching ride; move "
-                    "the axles, the CG (charging.wheel_loads) or hull.pitch_inertia, or change the struts of one end")
+            rep.add("warning", "hull.pitch_inertia", f"bounce ({b.frequency_hz:.3g} Hz) and pitch "
+                    f"({p.frequency_hz:.3g} Hz) are {100 * gap:.1f} % apart (less than {100 * sep:.0f} %): any coupling "
+                    "mixes them into one motion that one damper setting cannot suit (intended for a flat ride with a "
+                    "dynamic index near 1; otherwise look at hull.pitch_inertia, the axle positions and the CG)")
     f_hop = THRESHOLDS["max_wheel_hop_hz"]
     if wheel and max(md.frequency_hz for md in wheel) > f_hop:
         top = max(wheel, key=lambda md: md.frequency_hz)
