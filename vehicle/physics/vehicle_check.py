@@ -311,10 +311,10 @@ def check_standing(P: VehicleParams, rep: CheckReport, model: VehicleModel | Non
                 low = min(row["margin_extension_mm"], row["margin_bump_mm"])
                 if low < margin * row["stroke_mm"]:
                     stop = "full extension" if row["margin_extension_mm"] < row["margin_bump_mm"] else "the bump stop"
+                    where = f"stands {low:.3g} mm from {stop}" if low > 0 else f"sits on {stop} ({-low:.3g} mm into it)"
                     rep.add("warning", "charging.strut_deflection" if name == "charging" else "charging.temperature",
-                            f"{row['station']} ({row['strut']}) stands {low:.3g} mm from {stop} at "
-                            f"{T - 273.15:.1f} degC ({name}): less than {100 * margin:.0f} % of its "
-                            f"{row['stroke_mm']:.4g} mm stroke")
+                            f"{row['station']} ({row['strut']}) {where} at {T - 273.15:.1f} degC ({name}): less than "
+                            f"{100 * margin:.0f} % of its {row['stroke_mm']:.4g} mm stroke")
                     break
     _check_pressures(P, model, rep)
     return model
