@@ -219,14 +219,32 @@ def test_the_docs_worked_example_stands_checks_and_drives(tmp_path):
 
 
 def test_the_shipped_truck_drives_the_quick_demo(tmp_path):
-    """truck_6x6 on the quick demo's road, 200 m (a short distance: a test), through the scenario path (the
-    quiet check included); its tyres carry its weight (momentum bound as in tests/test_vehicle_builder.py)."""
-    text = (ROOT / "scenarios" / "quick_demo.yaml").read_text()
-    text = text.replace("name: apc_8x8", "name: truck_6x6").replace("distance: 5 km", "distance: 200 m")
-    text = re.sub(r"initial_temperatures: \[[^\]]*\]", "initial_temperatures: [45 degC, 40 degC, 35 degC]", text)
+    """scenarios/quick_demo_truck.yaml (truck_6x6 on the quick demo's road), 200 m (a short distance: a test),
+    through the scenario path (the quiet check included); its tyres carry its weight (momentum bound as in
+    tests/test_vehicle_builder.py)."""
+    text = (ROOT / "scenarios" / "quick_demo_truck.yaml").read_text().replace("distance: 5 km", "distance: 200 m")
     prep = prepare(read_scenario_text(text, "quick_demo_truck.yaml", ROOT / "scenarios"))
     assert prep.vehicle.name == "truck_6x6"
     model, drive = prep.drive(_vm_drive)
     result = drive.run()
     assert result.state.s_m == pytest.approx(200.0, abs=1.0)
     assert abs(_momentum_error(model, result, prep.vehicle.total_weight())) < 0.5 / GRAVITY / result.state.t_s
+
+
+def test_python_api_vehicle_objects(tmp_path):
+    import vehicle
+
+    truck = vehicle.Vehicle.from_file("truck_6x6")
+    assert truck.name == "truck_6x6" and truck.check(modes=False).ok
+    car = vehicle.Vehicle.new(tmp_path / "car.yaml", positions=["0 m", "2.9 m"], mass="3.2 t", cg_x="1.3 m",
+                              track="1.7 m", ride_height="0.9 m", motion_ratio=0.5)
+    assert car.params.total_weight() == pytest.approx(3200.0 * GRAVITY, rel=1e-5) and car.check(modes=False).ok
+    # a Vehicle in place of a name: as a keyword (the scenario's vehicle overrides kept) or in a mapping
+    sim = vehicle.Simulation(ROOT / "scenarios" / "quick_demo.yaml", vehicle=truck,
+                             overrides={"initial_temperatures": "30 degC"})
+    assert sim.prepared.vehicle.name == "truck_6x6" and len(sim.prepared.initial_temperatures_K) == 6
+    sim = vehicle.Simulation({"vehicle": car, "road": {"iso_class": "C", "seed": 1}, "speed": "20 km/h",
+                              "distance": "100 m", "ambient_temperature": "25 degC"})
+    assert sim.prepared.vehicle.name == "car"
+    with pytest.raises(UserInputError, match="track"):
+        vehicle.Vehicle.new(tmp_path / "bad.yaml", positions="0m,3m", axle_loads="5t", track="9 m", ride_height="1 m")

@@ -16,7 +16,7 @@ from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 def register(sub):
     # hpsim vehicle equilibrium
-    pv = sub.add_parser("vehicle", help="vehicle tools (static equilibrium)")
+    pv = sub.add_parser("vehicle", help="vehicle tools (new, check, equilibrium, response)")
     vsub = pv.add_subparsers(dest="vehicle_command", required=True, parser_class=type(pv))
     pe = vsub.add_parser("equilibrium", help="static equilibrium of the charged vehicle at given strut temperatures")
     pe.add_argument("--vehicle", default="apc_8x8", help="built-in vehicle name or path to a vehicle file (default apc_8x8)")
