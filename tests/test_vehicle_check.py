@@ -157,6 +157,14 @@ def test_one_spelling_for_an_own_strut_file(tmp_path):
         assert [a.strut for a in prep.vehicle.axles] == [str(own)] * 4
     with pytest.raises(UserInputError, match="not both"):
         prepare(read_scenario_text(base + "struts: {all: {file: my_strut.yaml, type: apc}}\n", "s.yaml", tmp_path))
+    # in a vehicle file, relative to the vehicle file (also when read from elsewhere)
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    (sub / "own.yaml").write_text(own.read_text())
+    (sub / "v.yaml").write_text(vehicle_file("apc_8x8").read_text().replace("strut: apc,", "strut: {file: own.yaml},", 1))
+    assert load_vehicle(sub / "v.yaml").axles[0].strut == str(sub / "own.yaml")
+    prep = prepare(read_scenario_text(base.replace("{name: apc_8x8}", "{file: sub/v.yaml}"), "s.yaml", tmp_path))
+    assert prep.vehicle.axles[0].strut == str(sub / "own.yaml") and prep.vehicle.axles[1].strut == "apc"
 
 
 def test_a_drive_is_refused_before_it_starts_when_the_check_finds_an_error(tmp_path):

@@ -518,4 +518,23 @@ def load_vehicle(name_or_path: str | Path, overrides: dict | None = None, source
         raise UserInputError(f"{path}: expected a mapping of vehicle parameters")
     if overrides:
         data = deep_update(data, overrides)
-    return validate(VehicleParams, data, source or str(path))
+    return validate(VehicleParams, with_strut_paths(data, path.resolve().parent), source or str(path))
+
+
+def with_strut_paths(data: dict, base_dir: Path) -> dict:
+    """The vehicle mapping with every own strut file (`strut: {file: my_strut.yaml}` or a path) made absolute
+    from `base_dir`, the vehicle file's folder (docs/vehicles.md "Strut files")."""
+    axles = data.get("axles")
+    if not isinstance(axles, list):
+        return data
+    out = []
+    for k, axle in enumerate(axles):
+        if isinstance(axle, dict) and "strut" in axle:
+            try:
+                ref = strut_reference(axle["strut"], f"axles.{k}.strut")
+            except ValueError:
+                ref = None          # the schema reports it, naming the file
+            if ref is not None and ref.endswith((".yaml", ".yml")) and not Path(ref).expanduser().is_absolute():
+                axle = {**axle, "strut": str(base_dir / Path(ref).expanduser())}
+        out.append(axle)
+    return {**data, "axles": out}
