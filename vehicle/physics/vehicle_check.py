@@ -18,7 +18,8 @@ are the loader's, exit code 2) the way a suspension engineer would before a driv
 
 Errors mean the vehicle cannot be driven as written (the drive is refused); warnings mean a drive runs
 but an engineer would look twice. `pre_drive_check` is the quiet version run before every drive (no
-modes: the linearisation costs 1-2 s per drive, the statics a tenth of that).
+modes: the statics take 0.03 s of CPU for the apc_8x8, the linearisation 0.3 s more, and the modes'
+findings are design remarks, not reasons to stop a drive or to repeat at every drive of a sweep).
 """
 from __future__ import annotations
 
