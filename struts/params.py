@@ -165,7 +165,8 @@ class EndStops(Model):
 
 
 class Limits(Model):
-    """Temperature limits of the strut's materials, for validity warnings (vehicle.results.validity).
+    """Temperature limits of the strut's materials, for validity warnings (vehicle.results.validity), and its
+    pressure ratings, for `hpsim vehicle check` (vehicle.physics.vehicle_check).
 
     None: not known (no warning). The oil data's own range is that of the viscosity datasheet
     points (oil.viscosity_T1 .. viscosity_T2): beyond it the viscosity law extrapolates.
@@ -174,6 +175,21 @@ class Limits(Model):
     seal_max_temperature: K | None = None    # maximum continuous service temperature of the seals
     seal_min_temperature: K | None = None    # below it the seals stiffen and may leak
     oil_max_temperature: K | None = None     # maximum service temperature of the oil
+    # pressure ratings of the strut (docs/vehicles.md "Strut files"; `hpsim vehicle check`): the gas pressure
+    # it may carry standing (the static load over the gas area) and the highest it may reach at full bump
+    rated_static_pressure: Pa | None = None
+    rated_peak_pressure: Pa | None = None
+
+    @model_validator(mode="after")
+    def _ratings(self):
+        lo, hi = self.rated_static_pressure, self.rated_peak_pressure
+        for name, v in (("rated_static_pressure", lo), ("rated_peak_pressure", hi)):
+            if v is not None and not 0.1e6 <= v <= 200e6:
+                raise ValueError(f"{name} must be in [0.1, 200] MPa, got {v / 1e6:.6g} MPa")
+        if lo is not None and hi is not None and hi < lo:
+            raise ValueError(f"rated_peak_pressure ({hi / 1e6:.6g} MPa) must be >= rated_static_pressure "
+                             f"({lo / 1e6:.6g} MPa)")
+        return self
 
 
 class Emulsion(Model):
@@ -221,7 +237,7 @@ def strut_file(name_or_path: str | Path) -> Path:
         return Path(str(resources.files("struts") / "data" / f"{name_or_path}.yaml"))
     raise UserInputError(
         f"--strut: unknown strut {str(name_or_path)!r}; built-in: {', '.join(builtin_struts())} "
-        "(or a path to a .yaml file)")
+        "(or an own strut file: a path ending in .yaml; in vehicle and scenario files file: my_strut.yaml)")
 
 
 def load_strut(name_or_path: str | Path, overrides: dict | None = None) -> StrutParams:

@@ -6,12 +6,13 @@ Python API (`vehicle.api`, docs/python.md):
     res = vehicle.Simulation("scenarios/quick_demo.yaml").run()
     res.report(); ds = res.to_xarray(); res.plot("dashboard.png")
     vehicle.open_results("x.h5")
+    truck = vehicle.Vehicle.from_file("truck_6x6"); truck.check()   # docs/vehicles.md
 
 Subpackages (one-way imports, tests/test_layers.py): physics <- numerics | runs <- presentation, cli.
 """
 from __future__ import annotations
 
-__all__ = ["Simulation", "Results", "open_results"]
+__all__ = ["Simulation", "Results", "open_results", "Vehicle"]
 
 
 def __getattr__(name):

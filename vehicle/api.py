@@ -17,9 +17,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from vehicle.physics.params import load_vehicle, vehicle_file
+from vehicle.physics.vehicle_builder import spec_from_values, write_vehicle
+from vehicle.physics.vehicle_check import check_vehicle
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
+from vehicle.results.reader import open_results as _open
+from vehicle.results.run import run_in_memory, run_scenario
+from vehicle.analysis.ride_metrics import summarise
+from vehicle.analysis.summary import report_from
 
-__all__ = ["Simulation", "Results", "open_results"]
+__all__ = ["Simulation", "Results", "open_results", "Vehicle"]
 
 
 class Results:
@@ -31,8 +38,6 @@ class Results:
 
     def summary(self) -> dict:
         """The per-axle numbers `hpsim report --json` prints (temperatures, dh, dN, bands, warnings, ...)."""
-        from vehicle.analysis.summary import report_from
-
         return report_from(self.view, str(self.path or self.view.name))
 
     def report(self, print_it: bool = True) -> str:
@@ -49,8 +54,6 @@ class Results:
         the ISO 2631-1 weighted RMS accelerations (Wk vertical, Wd lateral), comfort band, VDV and absorbed
         power; per station the dynamic load coefficient, lift-off share, end-stop time and energy, strut
         travel min/max/percentiles and histogram (vehicle.analysis.ride_metrics)."""
-        from vehicle.analysis.ride_metrics import summarise
-
         return summarise(self.view)
 
     def stats(self, name: str):
@@ -87,11 +90,58 @@ class Results:
         return f"<vehicle.Results {self.view.name!r} ({where}), status {self.view.status()}>"
 
 
+class Vehicle:
+    """A vehicle file (docs/vehicles.md) as an object: check it, hand it to `Simulation` in place of a name.
+
+        truck = vehicle.Vehicle.from_file("truck_6x6")          # a built-in name or a path
+        car = vehicle.Vehicle.new("car.yaml", positions=["0 m", "2.9 m"], mass="3.2 t", cg_x="1.3 m",
+                                  track="1.7 m", ride_height="0.9 m", motion_ratio=0.5)
+        car.check().ok; car.check().as_dict()["mode_summary"]
+        vehicle.Simulation("scenarios/quick_demo.yaml", vehicle=car, overrides={"initial_temperatures": "30 degC"})
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = vehicle_file(path).resolve()
+        self.params = load_vehicle(self.path)      # schema errors here (UserInputError naming file and key)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "Vehicle":
+        return cls(path)
+
+    @classmethod
+    def new(cls, path: str | Path, *, positions, track, ride_height, axle_loads=None, mass=None, cg_x=None,
+            struts="apc", name: str | None = None, overwrite: bool = False, **options) -> "Vehicle":
+        """Write a vehicle file as `hpsim vehicle new` does (quantities with units or SI numbers; lists per axle
+        or one value) and load it. options: strut_deflection, motion_ratio, unsprung_mass, tyre_radius,
+        cg_height, charging_temperature, description."""
+        spec = spec_from_values(name or Path(path).stem, positions=positions, track=track, ride_height=ride_height,
+                                axle_loads=axle_loads, mass=mass, cg_x=cg_x, struts=struts, **options)
+        return cls(write_vehicle(spec, path, overwrite=overwrite))
+
+    @property
+    def name(self) -> str:
+        return self.params.name
+
+    def check(self, modes: bool = True):
+        """`hpsim vehicle check` (vehicle.physics.vehicle_check.CheckReport: .ok, .errors, .warnings, .as_dict())."""
+        return check_vehicle(self.params, str(self.path), modes=modes)
+
+    def __repr__(self) -> str:
+        return f"<vehicle.Vehicle {self.name!r} ({self.path}), {self.params.n_axles} axles>"
+
+
 class Simulation:
-    """A scenario (file, mapping or YAML text) with overrides, validated at construction."""
+    """A scenario (file, mapping or YAML text) with overrides, validated at construction. `vehicle` (a Vehicle,
+    a built-in name or a vehicle file) replaces the scenario's vehicle, keeping its vehicle overrides; a mapping
+    may also hold a Vehicle as its `vehicle`."""
 
     def __init__(self, scenario: str | Path | dict, overrides: dict[str, Any] | None = None, *,
-                 base_dir: str | Path | None = None):
+                 base_dir: str | Path | None = None, vehicle: "Vehicle | str | Path | None" = None):
+        if isinstance(scenario, dict) and isinstance(scenario.get("vehicle"), Vehicle):
+            scenario = {**scenario, "vehicle": {"file": str(scenario["vehicle"].path)}}
+        if vehicle is not None:
+            path = vehicle.path if isinstance(vehicle, Vehicle) else Vehicle(vehicle).path
+            overrides = {**(overrides or {}), "vehicle.file": str(path), "vehicle.name": None}
         if isinstance(scenario, dict):
             import yaml
 
@@ -116,8 +166,6 @@ class Simulation:
     def run(self, out: str | Path | None = None, *, overwrite: bool = False, resume: bool = False,
             progress: bool = False) -> Results:
         """Drive the scenario: in memory (default) or into an HDF5 file exactly as `hpsim run` writes it."""
-        from vehicle.results.run import run_in_memory, run_scenario
-
         if out is None:
             return Results(run_in_memory(self.source))
         run_scenario(self.source, out, overwrite=overwrite, resume=resume, progress=progress)
@@ -126,6 +174,4 @@ class Simulation:
 
 def open_results(path: str | Path) -> Results:
     """Any hpsim results file (also one written by an older hpsim, or a run that stopped) -> Results."""
-    from vehicle.results.reader import open_results as _open
-
     return Results(_open(path), Path(path))

@@ -13,12 +13,12 @@ from pathlib import Path
 from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
-from vehicle.cli import response
+from vehicle.cli import response, vehicles
 
 
 def register(sub):
     # hpsim vehicle equilibrium
-    pv = sub.add_parser("vehicle", help="vehicle tools (static equilibrium)")
+    pv = sub.add_parser("vehicle", help="vehicle tools (new, check, equilibrium, response)")
     vsub = pv.add_subparsers(dest="vehicle_command", required=True, parser_class=type(pv))
     pe = vsub.add_parser("equilibrium", help="static equilibrium of the charged vehicle at given strut temperatures")
     pe.add_argument("--vehicle", default="apc_8x8", help="built-in vehicle name or path to a vehicle file (default apc_8x8)")
@@ -30,6 +30,7 @@ def register(sub):
     pe.set_defaults(func=cmd_equilibrium)
     pe._negative_number_matcher = re.compile(r"^-\.?\d")   # "--temperatures -20degC" is a value
     response.register(vsub)
+    vehicles.register(vsub)
 
     pr = sub.add_parser("run", help="run a scenario file, writing HDF5 results as it goes")
     pr.add_argument("scenario", help="scenario YAML file (see docs/scenarios.md)")

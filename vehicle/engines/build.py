@@ -39,6 +39,7 @@ def engine_name(prepared) -> str:
 def build_engine(prepared) -> tuple[object, Engine]:
     """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run."""
     model = prepared.model()
+    prepared.check_vehicle(model)          # the quiet `hpsim vehicle check`: warnings logged, errors refuse the drive
     road = prepared.road()
     try:
         return model, ENGINES[engine_name(prepared)](model, road, prepared)

@@ -100,14 +100,39 @@ class AxleHeat(Model):
         return self
 
 
+def strut_reference(value, where: str = "strut") -> str:
+    """A strut reference as the one string the loaders take: a built-in name ("apc") or a path.
+
+    Accepted spellings (docs/vehicles.md "Strut files"): `apc`, `my_strut.yaml`, `{type: apc}` (a built-in
+    strut) and `{file: my_strut.yaml}` (an own strut file: the documented spelling); `{type: my_strut.yaml}`
+    is accepted too (a path given as a type)."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, dict) and len(value) == 1 and set(value) <= {"type", "file"}:
+        (key, ref), = value.items()
+        if not isinstance(ref, str) or not ref:
+            raise ValueError(f"{where}.{key}: expected a strut name or a path, got {ref!r}")
+        if key == "file" and not ref.endswith((".yaml", ".yml")):
+            raise ValueError(f"{where}.file: expected a path to a .yaml strut file, got {ref!r} (a built-in strut "
+                             f"is given as {where}: {ref} or {where}: {{type: {ref}}})")
+        return ref
+    raise ValueError(f"{where}: expected a built-in strut name (apc), {{type: apc}} or {{file: my_strut.yaml}}, "
+                     f"got {value!r}")
+
+
 class Axle(Model):
     position: m                     # behind axle 1 [m]
-    strut: str = "apc"              # built-in strut name or path
+    strut: str = "apc"              # built-in strut name or path (strut_reference: also {type: ...}, {file: ...})
     unsprung_mass: kg               # per wheel station
     motion_ratio: Number            # strut travel / wheel travel
     strut_overrides: dict = {}      # e.g. {"valve.bleed_area": "1.2e-5 m^2"} (charge.pressure: charging.method gas_pressure)
     tyre: AxleTyre | None = None    # overrides of the vehicle's tyre on this axle (None: the vehicle's tyre)
     heat: AxleHeat | None = None  # this axle's heat environment where it differs from the vehicle's `heat`
+
+    @field_validator("strut", mode="before")
+    @classmethod
+    def _strut(cls, v):
+        return strut_reference(v)
 
     @model_validator(mode="after")
     def _check(self):
@@ -125,6 +150,14 @@ class Hull(Model):
     cg_height: m                    # sprung-mass CG above the ground (longitudinal load transfer)
     pitch_inertia: Quantity("kg*m**2")
     roll_inertia: Quantity("kg*m**2")
+    # the hull's outline, for `hpsim vehicle check` (seats inside it); None: the defaults of docs/vehicles.md
+    # (vehicle.physics.vehicle_check.hull_outline)
+    front_overhang: m | None = None     # hull ahead of axle 1
+    rear_overhang: m | None = None      # hull behind the last axle
+    width: m | None = None              # overall hull width
+    height: m | None = None             # roof above the ground
+
+    _must_be_positive = ("front_overhang", "rear_overhang", "width", "height")
 
     @model_validator(mode="after")
     def _check(self):
@@ -485,4 +518,23 @@ def load_vehicle(name_or_path: str | Path, overrides: dict | None = None, source
         raise UserInputError(f"{path}: expected a mapping of vehicle parameters")
     if overrides:
         data = deep_update(data, overrides)
-    return validate(VehicleParams, data, source or str(path))
+    return validate(VehicleParams, with_strut_paths(data, path.resolve().parent), source or str(path))
+
+
+def with_strut_paths(data: dict, base_dir: Path) -> dict:
+    """The vehicle mapping with every own strut file (`strut: {file: my_strut.yaml}` or a path) made absolute
+    from `base_dir`, the vehicle file's folder (docs/vehicles.md "Strut files")."""
+    axles = data.get("axles")
+    if not isinstance(axles, list):
+        return data
+    out = []
+    for k, axle in enumerate(axles):
+        if isinstance(axle, dict) and "strut" in axle:
+            try:
+                ref = strut_reference(axle["strut"], f"axles.{k}.strut")
+            except ValueError:
+                ref = None          # the schema reports it, naming the file
+            if ref is not None and ref.endswith((".yaml", ".yml")) and not Path(ref).expanduser().is_absolute():
+                axle = {**axle, "strut": str(base_dir / Path(ref).expanduser())}
+        out.append(axle)
+    return {**data, "axles": out}

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import json
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -33,7 +34,8 @@ import terrain
 
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.outputs import ALWAYS_STORED, series_keys
-from vehicle.physics.params import COMPENSATION_RANGES, VehicleParams, vehicle_file
+from vehicle.physics.params import COMPENSATION_RANGES, VehicleParams, strut_reference, vehicle_file
+from vehicle.physics.vehicle_check import pre_drive_check
 from vehicle.scenario.settings import DT_RANGE_S, SEGMENTS_RANGE, DriveSettings, MultiscaleSettings
 from vehicle.scenario.speed import build_speed_profile, parse_speed_spec
 
@@ -73,8 +75,21 @@ class VehicleChoice(Model):
 class StrutChoice(Model):
     """Strut type and fill of the struts of one axle (both wheels) or of all axles."""
 
-    type: str | None = None                  # built-in strut name ("apc") or a path to a strut file
+    type: str | None = None                  # built-in strut name ("apc"; a path is accepted too)
+    file: str | None = None                  # an own strut file (the documented spelling: docs/vehicles.md)
     overrides: dict[str, Any] = {}           # strut parameters, e.g. {"charge.pressure": "5 MPa"}
+
+    @model_validator(mode="after")
+    def _one(self):
+        if self.type is not None and self.file is not None:
+            raise ValueError("give type (a built-in strut) or file (a strut file), not both")
+        if self.file is not None:
+            strut_reference({"file": self.file})
+        return self
+
+    @property
+    def strut(self) -> str | None:
+        return self.file if self.file is not None else self.type
 
 
 class SpeedProfileSpec(Model):
@@ -446,6 +461,13 @@ class Prepared:
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: vehicle/struts: {exc}") from None
 
+    def check_vehicle(self, model=None):
+        """The quiet `hpsim vehicle check` before a drive (statics, no modes): warnings logged, errors refuse it."""
+        try:
+            return pre_drive_check(self.vehicle, model, log=logging.getLogger("hpsim").warning)
+        except UserInputError as exc:
+            raise UserInputError(f"{self.source.name}: {exc}") from None
+
     def road(self):
         try:
             road = terrain.build_road(self.road_spec, self.source.base_dir)
@@ -512,16 +534,18 @@ def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
             if not 0 <= k < n_axles:
                 raise UserInputError(f"{src.name}: struts.{key}: the vehicle has {n_axles} axles (axle1..axle{n_axles})")
             axle = dict(data["axles"][k])
-            if choice.type is not None:
-                t = choice.type
+            if choice.strut is not None:
+                t = choice.strut
                 axle["strut"] = _resolve_path(t, src.base_dir) if t.endswith((".yaml", ".yml")) else t
             if choice.overrides:
                 axle["strut_overrides"] = apply_overrides(axle.get("strut_overrides") or {}, choice.overrides)
             data["axles"][k] = axle
     # strut files named in the vehicle file are relative to the vehicle file
     for k, axle in enumerate(data.get("axles") or []):
+        if isinstance(axle, dict) and isinstance(axle.get("strut"), dict):
+            axle = data["axles"][k] = {**axle, "strut": strut_reference(axle["strut"], f"axles.{k}.strut")}
         if isinstance(axle, dict) and str(axle.get("strut", "")).endswith((".yaml", ".yml")):
-            base = src.base_dir if any(S.struts.get(n) and S.struts[n].type for n in ("all", f"axle{k + 1}")) \
+            base = src.base_dir if any(S.struts.get(n) and S.struts[n].strut for n in ("all", f"axle{k + 1}")) \
                 else Path(path).resolve().parent
             data["axles"][k] = {**axle, "strut": _resolve_path(axle["strut"], base)}
     comp = {k: v for k, v in S.compensation.model_dump().items() if v is not None}
