@@ -225,6 +225,12 @@ class Ros2:
             _GRAPHS[key] = self._graph(model)
         return _GRAPHS[key]
 
+    def step_graph(self, model) -> ca.Function:
+        """The uncompiled function of one step, (z (nx + n_memory), U (nu, 2), p) -> z: what an FMU wraps and
+        calls once per internal step (vehicle.fmu)."""
+        self.K, self.M = 1, 1
+        return self._graph(model)
+
     def _graph(self, model) -> ca.Function:
         """The uncompiled block function of this engine for (self.K, self.M)."""
         return self._build_baseline(model) if self.engine == "baseline" else self._build(model)
