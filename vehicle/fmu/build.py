@@ -5,7 +5,8 @@ the outputs, the start state, the calculated parameters), the internal step and 
 descriptions and start values. `build_fmu(spec, path)` generates their C with CasADi, compiles it with the FMI
 wrapper (fmi2_wrapper.c) into binaries/<platform>/<id>.so, writes modelDescription.xml and zips everything with
 the sources (the generated C, the wrapper and the three FMI 2.0 headers, BSD-2, from FMPy's package), so an
-importer can rebuild the binary for another platform.
+importer can rebuild the binary for another platform. The C is one file (sources/<id>.c: model.h, the wrapper and
+the generated functions), compiled once and kept in hpsim's compile cache (vehicle.numerics.codegen).
 """
 from __future__ import annotations
 
@@ -14,7 +15,6 @@ import importlib.util
 import os
 import platform
 import shutil
-import subprocess
 import tempfile
 import time
 import uuid
@@ -26,7 +26,7 @@ import casadi as ca
 
 from hpsim.errors import UserInputError
 from vehicle.fmu.description import model_description
-from vehicle.numerics.codegen import COMPILER_FLAGS
+from vehicle.numerics.codegen import compile_source
 
 WRAPPER = Path(__file__).with_name("fmi2_wrapper.c")
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
@@ -128,16 +128,20 @@ def model_header(spec: FmuSpec, guid: str) -> str:
     return text
 
 
-def compile_binary(sources: Path, headers: Path, out: Path) -> None:
-    cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
-    if cc is None:
-        raise UserInputError("hpsim export fmu: no C compiler found (gcc, cc or clang; or set CC)")
+def amalgamation(spec: FmuSpec, code: bytes, guid: str) -> bytes:
+    """One C file: model.h, the FMI wrapper and the generated functions (includes only the FMI headers)."""
+    wrapper = WRAPPER.read_text().replace('#include "model.h"\n', model_header(spec, guid))
+    return wrapper.encode() + b"\n/* ---- the model: CasADi-generated ---- */\n" + code
+
+
+def compile_binary(source: bytes, name: str, headers: Path) -> Path:
+    """The shared library of an FMU's C (cached in hpsim's compile cache, vehicle.numerics.codegen)."""
     # the generated functions stay private to the binary (two FMUs in one process must not clash)
-    cmd = [cc, *COMPILER_FLAGS, "-fPIC", "-shared", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=",
-           f"-I{headers}", "-I.", "fmi2_wrapper.c", "model_functions.c", "-o", str(out), "-lm"]
-    proc = subprocess.run(cmd, cwd=sources, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"compiling the FMU failed: {proc.stderr.strip()[:2000]}")
+    flags = ("-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=", f"-I{headers}")
+    try:
+        return compile_source(source, name, flags)
+    except RuntimeError as exc:
+        raise UserInputError(f"hpsim export fmu: {exc}") from None
 
 
 def build_fmu(spec: FmuSpec, path: str | Path, *, verbose: bool = False) -> dict:
@@ -149,19 +153,20 @@ def build_fmu(spec: FmuSpec, path: str | Path, *, verbose: bool = False) -> dict
         root = Path(tmp)
         src = root / "sources"
         src.mkdir()
-        code = generate_c(spec, src).read_bytes()
+        code = generate_c(spec, root).read_bytes()
         guid = "{" + str(uuid.UUID(hashlib.sha256(code + repr(spec.p_start).encode()).hexdigest()[:32])) + "}"
-        (src / "model.h").write_text(model_header(spec, guid))
-        shutil.copy(WRAPPER, src / WRAPPER.name)
+        source = amalgamation(spec, code, guid)
+        c_file = f"{spec.identifier}.c"
+        (src / c_file).write_bytes(source)
         for h in FMI_HEADERS:
             shutil.copy(headers / h, src / h)
         binaries = root / "binaries" / platform_folder()
         binaries.mkdir(parents=True)
         t1 = time.perf_counter()
-        compile_binary(src, headers, binaries / f"{spec.identifier}.so")
+        shutil.copy(compile_binary(source, spec.identifier, headers), binaries / f"{spec.identifier}.so")
         compile_s = time.perf_counter() - t1
-        (root / "modelDescription.xml").write_bytes(model_description(spec, guid, ["fmi2_wrapper.c",
-                                                                                   "model_functions.c"]))
+        (root / "model_functions.c").unlink()
+        (root / "modelDescription.xml").write_bytes(model_description(spec, guid, [c_file]))
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp_zip = path.with_name(path.name + ".tmp")
         with zipfile.ZipFile(tmp_zip, "w", zipfile.ZIP_DEFLATED) as z:

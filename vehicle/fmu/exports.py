@@ -24,6 +24,7 @@ from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.physics.params import load_vehicle, vehicle_file
+from vehicle.runs.scenario import vehicle_data
 
 
 # --- parameter metadata ------------------------------------------------------------------------
@@ -109,3 +110,138 @@ def strut_spec(strut: str, overrides: dict | None = None, *, heat_from: str = "a
 
 def _c_name(text: str) -> str:
     return "".join(c if c.isalnum() else "_" for c in text)
+
+
+# --- the vehicle -------------------------------------------------------------------------------
+# theta entries a vehicle FMU exposes: those that do not shape the standing equilibrium its start state was solved
+# for at export (heat, damping, friction, levelling); everything else is fixed by the export (docs/fmu.md)
+VEHICLE_PARAMETER_PATTERNS = ("vehicle.heat.", "vehicle.compensation.", "vehicle.axles.*.heat.",
+                              "strut*.valve.", "strut*.friction.", "strut*.end_stops.",
+                              "strut*.gas.thermal_time_constant", "strut*.oil.viscosity_")
+HULL_OUTPUTS = (("heave", "z", "m", "hull heave at the centre of gravity, + up, from the charged pose"),
+                ("pitch", "theta", "rad", "hull pitch angle"), ("roll", "phi", "rad", "hull roll angle"),
+                ("heave_rate", "dz", "m/s", "hull heave rate"), ("pitch_rate", "dtheta", "rad/s", "hull pitch rate"),
+                ("roll_rate", "dphi", "rad/s", "hull roll rate"))
+STATION_OUTPUTS = {"wheel_load": ("N", "tyre vertical load"), "strut_force": ("N", "strut force"),
+                   "strut_deflection": ("m", "strut deflection, 0 at full extension"),
+                   "strut_velocity": ("m/s", "strut deflection rate, > 0 in compression"),
+                   "gas_pressure": ("Pa", "strut gas pressure"), "gas_temperature": ("K", "strut gas temperature"),
+                   "power_valve": ("W", "power dissipated in the strut's valves"),
+                   "power_friction": ("W", "power dissipated by the strut's seal friction")}
+RIDE_OUTPUTS = {"aw2": ("m**2/s**3", "int a_w^2 dt (ISO 2631-1 Wk, vertical) since the start; weighted r.m.s. "
+                                     "acceleration sqrt(dI/T)"),
+                "aw4": ("m**4/s**7", "int a_w^4 dt (Wk) since the start; vibration dose value dI^(1/4)"),
+                "awl2": ("m**2/s**3", "int a_wl^2 dt (ISO 2631-1 Wd, lateral) since the start"),
+                "pabs": ("J", "int absorbed power dt since the start; absorbed power dI/T")}
+
+
+def _matches(name: str, pattern: str) -> bool:
+    import fnmatch
+
+    return fnmatch.fnmatchcase(name, pattern + ("*" if pattern.endswith(".") or pattern.endswith("_") else ""))
+
+
+def _vehicle_outputs(model: VehicleModel):
+    """((name, unit, description) list, the output function (x, memory, u, p) -> y)."""
+    x, _, u, p = model.symbols
+    mem = model.memory_symbol
+    y, hull_acc, axle_height = model.output_function_ode()(x, mem, u, p)
+    entries, values = [], []
+    for name, state, unit_, text in HULL_OUTPUTS:
+        entries.append((name, unit_, text))
+        values.append(x[model.idx(state)])
+    for k, (name, unit_) in enumerate((("heave_acc", "m/s**2"), ("pitch_acc", "rad/s**2"), ("roll_acc", "rad/s**2"))):
+        entries.append((name, unit_, f"hull {name.split('_')[0]} acceleration about the equilibrium"))
+        values.append(hull_acc[k])
+    rows = {k: j for j, k in enumerate(model.OUTPUT_NAMES)}
+    for key, (unit_, text) in STATION_OUTPUTS.items():
+        for i, st in enumerate(model.station_names):
+            entries.append((f"{key}_{st}", unit_, f"{text}, station {st}"))
+            values.append(y[rows[key] * model.n + i])
+    for node in thermal.NODES:
+        for i, st in enumerate(model.station_names):
+            entries.append((f"T_{node}_{st}", "K", f"strut {node} temperature (heat network), station {st}"))
+            values.append(x[model.idx(f"T_{node}[{i}]")])
+    for term in ("valve", "friction", "gas", "end_stop"):
+        for i, st in enumerate(model.station_names):
+            entries.append((f"E_{term}_{st}", "J", f"strut heat from {term} since the start, station {st}"))
+            values.append(x[model.idx(f"E_{term}[{i}]")])
+    for k in range(model.params.n_axles):
+        entries.append((f"axle_height_{k + 1}", "m", f"hull height change above axle {k + 1}"))
+        values.append(axle_height[k])
+    for q, (unit_, text) in RIDE_OUTPUTS.items():
+        for seat in model.seat_names:
+            entries.append((f"ride_{q}_{seat}", unit_, f"{text}, seat {seat}"))
+            values.append(x[model.idx(f"I_{q}_{seat}")])
+    return entries, ca.Function("y", [x, mem, u, p], [ca.vertcat(*values)])
+
+
+def _vehicle_inputs(model: VehicleModel, ambient_K: float, speed_m_s: float):
+    """(input variables in the order of u, rate_of) from the model's INPUTS."""
+    names = [""] * model.nu
+    variables = [None] * model.nu
+    ix = model.input_index
+    for i, st in enumerate(model.station_names):
+        variables[ix["road"].start + i] = (f"road_{st}", "m", f"road height under the tyre of station {st} "
+                                           "(enveloped road), + up", 0.0)
+        variables[ix["road_rate"].start + i] = (f"road_rate_{st}", "m/s", f"rate of road_{st}; within a "
+                                                "communication step the road height is extrapolated with it", 0.0)
+    variables[ix["speed"]] = ("speed", "m/s", "forward speed (forced convection at the struts)", speed_m_s)
+    variables[ix["ambient"]] = ("ambient_temperature", "K", "air temperature", ambient_K)
+    variables[ix["acceleration"]] = ("acceleration", "m/s**2", "longitudinal acceleration, + forward (load "
+                                     "transfer, drive and brake forces)", 0.0)
+    names = [v[0] for v in variables]
+    rate_of = [-1] * model.nu
+    for i, st in enumerate(model.station_names):
+        rate_of[ix["road"].start + i] = names.index(f"road_rate_{st}")
+    return [Variable(n, u_, d, k, s) for k, (n, u_, d, s) in enumerate(variables)], rate_of
+
+
+def _distinct_strut(model: VehicleModel, k: int):
+    """(numeric StrutParams, strut file name) of the model's k-th distinct strut (`strut{k}` in theta)."""
+    seen = []
+    for i, strut in enumerate(model.struts):
+        if all(strut is not s for s, _ in seen):
+            seen.append((strut, model.params.axles[model.params.station_axle(i)].strut))
+    strut, name = seen[k]
+    return strut.p, name
+
+
+def vehicle_spec(prepared, *, dt_s: float | None = None, label: str = "") -> FmuSpec:
+    """The vehicle FMU of a prepared scenario (vehicle.runs.scenario.prepare): its vehicle, struts, overrides,
+    initial temperatures, ambient, compensation switch and solver step; the start state is the standing
+    equilibrium at the initial temperatures, solved here."""
+    S = prepared.scenario
+    model = prepared.model()
+    dt_s = S.solver.dt if dt_s is None else dt_s
+    gas = charge_gas_masses(model)
+    eq = EquilibriumSolver(model).solve(np.asarray(prepared.initial_temperatures_K, float), gas)
+    z0 = np.concatenate([model.state_at_rest(eq, gas), model.initial_memory()])
+    p_start = [float(v) for v in model.run_parameters(gas, S.compensation.enabled)]
+    *_, p = model.symbols
+    initial = ca.Function("init", [p, ca.SX.sym("u", model.nu)], [ca.DM(z0)])
+    entries, outputs = _vehicle_outputs(model)
+    parameters = [Variable("compensation_enabled", "1", "pressure compensation (levelling) on: 1, off: 0",
+                           2 * model.n, p_start[2 * model.n])]
+    V = prepared.vehicle
+    raw_vehicle, _ = vehicle_data(S, prepared.source)
+    for k, name in enumerate(model.parameters.names):
+        if not any(_matches(name, pat) for pat in VEHICLE_PARAMETER_PATTERNS):
+            continue
+        head, *path = name.split(".")
+        if head == "vehicle":
+            unit_, raw = field_unit(V, path), raw_vehicle
+        else:
+            strut_params, strut_name = _distinct_strut(model, int(head[len("strut"):]))
+            unit_, raw = field_unit(strut_params, path), load_yaml(strut_file(strut_name))
+        j = model.n_run + k
+        parameters.append(Variable(name, unit_, _described(name, unit_, source_text(raw, path), ""), j, p_start[j]))
+    inputs, rate_of = _vehicle_inputs(model, S.ambient_temperature, float(prepared.settings().speed.speed(0.0)))
+    name = label or S.vehicle.name or "vehicle"
+    return FmuSpec(
+        identifier=f"hpsim_vehicle_{_c_name(str(name))}", model_name=f"hpsim vehicle {name}",
+        description=f"hpsim: the vehicle {name} ({model.n} stations, struts with heat networks) from "
+                    f"{prepared.source.name}; co-simulation, internal step {dt_s * 1e3:g} ms",
+        dt_s=dt_s, step=_step_function(model, dt_s), outputs=outputs, initial=initial, nx=model.nx,
+        p_start=p_start, parameters=parameters, inputs=inputs, output_variables=_outputs_as_variables(entries),
+        rate_of=rate_of, stop_time_s=60.0)

@@ -8,8 +8,9 @@
  * Value references: 0 .. NP-1 the parameter vector p, NP .. NP+NU-1 the inputs u, then the outputs y.
  * fmi2DoStep takes a communication step that is a whole number of internal steps. Inside it the inputs are
  * extrapolated from when they were set: one with a rate partner (HP_RATE_OF, e.g. the deflection and its
- * rate) with that rate (and the rate's derivative, when the importer gives it), any other with its own
- * derivative (fmi2SetRealInputDerivatives, canInterpolateInputs) or held. The outputs read after a step use
+ * rate) with that rate (and the rate's derivative, when the importer gives it), unless the importer gives the
+ * input's own derivative (fmi2SetRealInputDerivatives, canInterpolateInputs), which then takes precedence;
+ * an input with neither is held. The outputs read after a step use
  * the inputs extrapolated to that time.
  * The FMU state (fmi2GetFMUstate / serialization) is the time, z, u and p: a restored state reproduces the
  * following steps bit for bit.
@@ -46,6 +47,7 @@ typedef struct {           /* what fmi2GetFMUstate saves */
     double p[HP_NP];
     double u_time[HP_NU];  /* when each input was set: it is extrapolated from then */
     double du[HP_NU];      /* the input derivatives set by fmi2SetRealInputDerivatives (0 unless set) */
+    int has_du[HP_NU];     /* a derivative was set since the input was last set */
     int started;           /* z holds a state (initialisation done) */
 } HpState;
 
@@ -98,13 +100,14 @@ static int all_finite(const double *v, int n) {
     return 1;
 }
 
-/* input j `tau` seconds after the FMU's time: an input with a rate partner follows its rate (and the rate's
-   derivative, when given), any other its own derivative (when given), from when it was set */
+/* input j `tau` seconds after the FMU's time, from when it was set: with its own derivative when the importer
+   gave one, else along its rate partner (and the rate's derivative, when given), else held */
 static double input_at(const Instance *c, int j, double tau) {
     double since = c->s.t - c->s.u_time[j] + tau;
     int r = HP_RATE_OF[j];
+    if (c->s.has_du[j]) return c->s.u[j] + since * c->s.du[j];
     if (r >= 0) return c->s.u[j] + since * (c->s.u[r] + 0.5 * since * c->s.du[r]);
-    return c->s.u[j] + since * c->s.du[j];
+    return c->s.u[j];
 }
 
 /* the calculated parameters and the state at the start, from p and u */
@@ -301,6 +304,7 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
             c->s.u[r - HP_NP] = value[k];
             c->s.u_time[r - HP_NP] = c->s.t;
             c->s.du[r - HP_NP] = 0.0;
+            c->s.has_du[r - HP_NP] = 0;
             if (c->mode != MODE_STEP) c->s.started = 0;
         } else {
             logmsg(c, fmi2Error, "logStatusError", "fmi2SetReal: value reference %u cannot be set", (unsigned)r);
@@ -414,6 +418,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueRefere
             return fmi2Error;
         }
         c->s.du[vr[k] - HP_NP] = value[k];
+        c->s.has_du[vr[k] - HP_NP] = 1;
     }
     c->y_valid = 0;
     return fmi2OK;
