@@ -61,7 +61,8 @@ def _vehicle_prepared(args, overrides: dict):
         src = read_scenario(args.scenario)
     else:
         # the vehicle as a scenario with its defaults (start at the ambient temperature, no compensation)
-        text = f"vehicle: {{name: {args.vehicle!r}}}\nroad: {{iso_class: A}}\nspeed: 20 km/h\ndistance: 1 km\n"
+        text = (f"vehicle: {{name: {args.vehicle!r}}}\nroad: {{iso_class: A}}\nspeed: 20 km/h\ndistance: 1 km\n"
+                "ambient_temperature: 25 degC\n")
         src = read_scenario_text(text, f"--vehicle {args.vehicle}", ".")
     if overrides:
         src.data = apply_overrides(src.data, overrides, "--set")
