@@ -217,9 +217,9 @@ class _Collect:
 def run_drive(prepared) -> dict:
     model, drive = prepared.drive()
     sink = _Collect()
-    drive.run(sink)
+    result = drive.run(sink)
     cat = {k: np.hstack([b[k] for b in sink.blocks]) for k in ("t_s", "wheel_load", "strut_temperature_K")}
-    return {"model": model, "drive": drive, **cat}
+    return {"model": model, "drive": drive, "integration_s": result.integration_s, **cat}
 
 
 def run_vehicle_fmu(path, run, start=None) -> dict:

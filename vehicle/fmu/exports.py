@@ -68,9 +68,10 @@ def _outputs_as_variables(entries) -> list[Variable]:
     return [Variable(name, unit, text, k) for k, (name, unit, text) in enumerate(entries)]
 
 
-def _step_function(model, dt_s: float) -> ca.Function:
-    """One internal step of the drive's compiled ROS2 solver for `model`: (z, U (nu, 2), p) -> z."""
-    return Ros2(dt_s).step_graph(model)
+def _step_functions(model, dt_s: float) -> dict:
+    """One internal step of the drive's compiled ROS2 solver for `model` ((z, u0, u1, pw) -> z) and p -> pw."""
+    step, parametric = Ros2(dt_s).step_functions(model)
+    return {"step": step, "parametric": parametric}
 
 
 # --- the strut ---------------------------------------------------------------------------------
@@ -101,7 +102,7 @@ def strut_spec(strut: str, overrides: dict | None = None, *, heat_from: str = "a
         identifier=f"hpsim_strut_{_c_name(params.name)}", model_name=f"hpsim strut {params.name}",
         description=f"hpsim: {params.description} with its heat network (vehicle file {heat_from}); "
                     f"co-simulation, internal step {dt_s * 1e3:g} ms",
-        dt_s=dt_s, step=_step_function(unit, dt_s), outputs=unit.output_function(), initial=unit.initial_function(),
+        dt_s=dt_s, **_step_functions(unit, dt_s), outputs=unit.output_function(), initial=unit.initial_function(),
         nx=unit.nx, p_start=p_start, parameters=parameters, inputs=inputs,
         output_variables=_outputs_as_variables(unit.outputs()), rate_of=rate_of,
         run=unit.run_parameters_function(),
@@ -242,6 +243,6 @@ def vehicle_spec(prepared, *, dt_s: float | None = None, label: str = "") -> Fmu
         identifier=f"hpsim_vehicle_{_c_name(str(name))}", model_name=f"hpsim vehicle {name}",
         description=f"hpsim: the vehicle {name} ({model.n} stations, struts with heat networks) from "
                     f"{prepared.source.name}; co-simulation, internal step {dt_s * 1e3:g} ms",
-        dt_s=dt_s, step=_step_function(model, dt_s), outputs=outputs, initial=initial, nx=model.nx,
+        dt_s=dt_s, **_step_functions(model, dt_s), outputs=outputs, initial=initial, nx=model.nx,
         p_start=p_start, parameters=parameters, inputs=inputs, output_variables=_outputs_as_variables(entries),
         rate_of=rate_of, stop_time_s=60.0)

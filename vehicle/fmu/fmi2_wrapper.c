@@ -1,8 +1,9 @@
 /* FMI 2.0 co-simulation interface of an hpsim model (docs/fmu.md).
  *
- * The model comes as CasADi-generated C (model_functions.c): hp_step (one internal step of hpsim's compiled
- * ROS2 solver: z, U = the inputs at the step's start and end, p -> z), hp_outputs (z, u, p -> y), hp_init
- * (p, u -> z at the start) and, with HP_NRUN > 0, hp_run (p -> the calculated parameters). model.h gives the
+ * The model comes as CasADi-generated C: hp_step (one internal step of hpsim's compiled ROS2 solver: z, the
+ * inputs at the step's start and end, pw -> z), hp_param (p -> pw: p and what depends on it alone, computed
+ * once), hp_outputs (x, memory, u, p -> y), hp_init (p, u -> z at the start) and, with HP_NRUN > 0, hp_run
+ * (p -> the calculated parameters). model.h gives the
  * sizes, the internal step HP_DT, the start values and which input is extrapolated with which rate input.
  *
  * Value references: 0 .. NP-1 the parameter vector p, NP .. NP+NU-1 the inputs u, then the outputs y.
@@ -29,6 +30,8 @@ typedef int (*hp_work_fn)(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz
 
 int hp_step(const double **arg, double **res, casadi_int *iw, double *w, int mem);
 int hp_step_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int hp_param(const double **arg, double **res, casadi_int *iw, double *w, int mem);
+int hp_param_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int hp_outputs(const double **arg, double **res, casadi_int *iw, double *w, int mem);
 int hp_outputs_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int hp_init(const double **arg, double **res, casadi_int *iw, double *w, int mem);
@@ -59,7 +62,9 @@ typedef struct {
     HpState s;
     double y[HP_NY];
     int y_valid;
-    double U[2 * HP_NU];
+    double U[HP_NU];
+    double U1[HP_NU];
+    double pw[HP_NPW];     /* hp_param(p), recomputed whenever p may have changed */
     double z_next[HP_NZ];
     const double **arg;
     double **res;
@@ -129,6 +134,13 @@ static fmi2Status start_state(Instance *c) {
         in[1] = c->s.u;
         out[0] = c->s.z;
         if (call(c, hp_init, in, 2, out, 1)) return fmi2Error;
+    }
+    {
+        const double *in[1];
+        double *out[1];
+        in[0] = c->s.p;
+        out[0] = c->pw;
+        if (call(c, hp_param, in, 1, out, 1)) return fmi2Error;
     }
     if (!all_finite(c->s.z, HP_NZ)) {
         logmsg(c, fmi2Error, "logStatusError", "the start state is not finite: check the parameters");
@@ -201,6 +213,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     c->logging = loggingOn;
     grow(&sa, &sr, &si, &sw, hp_step_work);
     grow(&sa, &sr, &si, &sw, hp_outputs_work);
+    grow(&sa, &sr, &si, &sw, hp_param_work);
     grow(&sa, &sr, &si, &sw, hp_init_work);
 #if HP_NRUN > 0
     grow(&sa, &sr, &si, &sw, hp_run_work);
@@ -358,6 +371,13 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
     if (!state) return fmi2Error;
     c->s = *(HpState *)state;
     c->y_valid = 0;
+    if (c->s.started) {     /* the parameters' derived values for the restored p */
+        const double *in[1];
+        double *out[1];
+        in[0] = c->s.p;
+        out[0] = c->pw;
+        if (call(c, hp_param, in, 1, out, 1)) return fmi2Error;
+    }
     return fmi2OK;
 }
 
@@ -435,7 +455,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     double n_real = h / HP_DT;
     long n = (long)floor(n_real + 0.5), k;
     int j;
-    const double *in[3];
+    const double *in[4];
     double *out[1];
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c->mode != MODE_STEP) {
@@ -454,14 +474,15 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     }
     in[0] = c->s.z;
     in[1] = c->U;
-    in[2] = c->s.p;
+    in[2] = c->U1;
+    in[3] = c->pw;
     out[0] = c->z_next;
     for (k = 0; k < n; k++) {
         for (j = 0; j < HP_NU; j++) {
             c->U[j] = input_at(c, j, (double)k * HP_DT);
-            c->U[HP_NU + j] = input_at(c, j, (double)(k + 1) * HP_DT);
+            c->U1[j] = input_at(c, j, (double)(k + 1) * HP_DT);
         }
-        if (call(c, hp_step, in, 3, out, 1) || !all_finite(c->z_next, HP_NZ)) {
+        if (call(c, hp_step, in, 4, out, 1) || !all_finite(c->z_next, HP_NZ)) {
             logmsg(c, fmi2Error, "logStatusError", "fmi2DoStep: the state is no longer finite at t = %g s",
                    c->s.t + (double)k * HP_DT);
             c->mode = MODE_ERROR;
