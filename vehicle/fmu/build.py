@@ -96,8 +96,10 @@ def _renamed(fn: ca.Function, name: str) -> ca.Function:
 
 
 def generate_c(spec: FmuSpec, folder: Path) -> Path:
-    """model_functions.c in `folder`: hp_step, hp_param, hp_outputs, hp_init (and hp_run) as CasADi C."""
-    cg = ca.CodeGenerator("model_functions.c", {"with_header": False})
+    """<id>_model.c in `folder`: hp_step, hp_param, hp_outputs, hp_init (and hp_run) as CasADi C (its helper
+    functions are named after the file: <id>_model_sq, ...)."""
+    name = f"{spec.identifier}_model.c"
+    cg = ca.CodeGenerator(name, {"with_header": False})
     for fn, name in ((spec.step, "hp_step"), (spec.parametric, "hp_param"), (spec.outputs, "hp_outputs"),
                      (spec.initial, "hp_init"), (spec.run, "hp_run")):
         if fn is not None:
@@ -108,7 +110,7 @@ def generate_c(spec: FmuSpec, folder: Path) -> Path:
         cg.generate()
     finally:
         os.chdir(cwd)
-    return folder / "model_functions.c"
+    return folder / name
 
 
 def _c_array(ctype: str, name: str, values) -> str:
@@ -130,16 +132,29 @@ def model_header(spec: FmuSpec, guid: str) -> str:
     return text
 
 
+# the generated functions stay private to the binary (two FMUs in one process must not clash), also when an
+# importer rebuilds it from sources/ with its own flags
+HIDDEN = b"""
+/* ---- the model: CasADi-generated ---- */
+#ifndef CASADI_SYMBOL_EXPORT
+#if defined(__GNUC__) && !defined(_WIN32)
+#define CASADI_SYMBOL_EXPORT __attribute__((visibility("hidden")))
+#else
+#define CASADI_SYMBOL_EXPORT
+#endif
+#endif
+"""
+
+
 def amalgamation(spec: FmuSpec, code: bytes, guid: str) -> bytes:
     """One C file: model.h, the FMI wrapper and the generated functions (includes only the FMI headers)."""
     wrapper = WRAPPER.read_text().replace('#include "model.h"\n', model_header(spec, guid))
-    return wrapper.encode() + b"\n/* ---- the model: CasADi-generated ---- */\n" + code
+    return wrapper.encode() + HIDDEN + code
 
 
 def compile_binary(source: bytes, name: str, headers: Path) -> Path:
     """The shared library of an FMU's C (cached in hpsim's compile cache, vehicle.numerics.codegen)."""
-    # the generated functions stay private to the binary (two FMUs in one process must not clash)
-    flags = ("-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=", f"-I{headers}")
+    flags = (f"-I{headers}",)
     try:
         return compile_source(source, name, flags)
     except RuntimeError as exc:
@@ -155,7 +170,8 @@ def build_fmu(spec: FmuSpec, path: str | Path, *, verbose: bool = False) -> dict
         root = Path(tmp)
         src = root / "sources"
         src.mkdir()
-        code = generate_c(spec, root).read_bytes()
+        generated = generate_c(spec, root)
+        code = generated.read_bytes()
         guid = "{" + str(uuid.UUID(hashlib.sha256(code + repr(spec.p_start).encode()).hexdigest()[:32])) + "}"
         source = amalgamation(spec, code, guid)
         c_file = f"{spec.identifier}.c"
@@ -167,7 +183,7 @@ def build_fmu(spec: FmuSpec, path: str | Path, *, verbose: bool = False) -> dict
         t1 = time.perf_counter()
         shutil.copy(compile_binary(source, spec.identifier, headers), binaries / f"{spec.identifier}.so")
         compile_s = time.perf_counter() - t1
-        (root / "model_functions.c").unlink()
+        generated.unlink()
         (root / "modelDescription.xml").write_bytes(model_description(spec, guid, [c_file]))
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp_zip = path.with_name(path.name + ".tmp")
