@@ -98,8 +98,8 @@ def _renamed(fn: ca.Function, name: str) -> ca.Function:
 def generate_c(spec: FmuSpec, folder: Path) -> Path:
     """<id>_model.c in `folder`: hp_step, hp_param, hp_outputs, hp_init (and hp_run) as CasADi C (its helper
     functions are named after the file: <id>_model_sq, ...)."""
-    name = f"{spec.identifier}_model.c"
-    cg = ca.CodeGenerator(name, {"with_header": False})
+    file_name = f"{spec.identifier}_model.c"
+    cg = ca.CodeGenerator(file_name, {"with_header": False})
     for fn, name in ((spec.step, "hp_step"), (spec.parametric, "hp_param"), (spec.outputs, "hp_outputs"),
                      (spec.initial, "hp_init"), (spec.run, "hp_run")):
         if fn is not None:
@@ -110,7 +110,7 @@ def generate_c(spec: FmuSpec, folder: Path) -> Path:
         cg.generate()
     finally:
         os.chdir(cwd)
-    return folder / name
+    return folder / file_name
 
 
 def _c_array(ctype: str, name: str, values) -> str:
