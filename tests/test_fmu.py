@@ -311,3 +311,19 @@ def test_fmus_run_in_a_process_without_hpsim(strut_fmu, vehicle_case, tmp_path):
     loads = [v for k, v in vehicle.items() if k.startswith("wheel_load_")]
     # standing on a flat road: the wheel loads sum to the weight
     assert sum(loads) == pytest.approx(static * len(loads), rel=0.01)
+
+
+def test_export_command_line_errors(monkeypatch, capsys):
+    from vehicle.cli import main
+
+    assert main(["export", "fmu", "--strut", "apc", "--dt", "50ms", "-o", "x.fmu"]) == 2
+    assert "--dt" in capsys.readouterr().err
+    assert main(["export", "fmu", "--strut", "apc", "--set", "friction.F0_compression", "-o", "x.fmu"]) == 2
+    assert "KEY=VALUE" in capsys.readouterr().err
+    # without FMPy (the FMI headers): one line naming the extra
+    import vehicle.fmu.build as build
+
+    monkeypatch.setattr(build.importlib.util, "find_spec", lambda name: None)
+    assert main(["export", "fmu", "--strut", "apc", "-o", "x.fmu"]) == 2
+    err = capsys.readouterr().err
+    assert 'pip install "hpsim[fmu]"' in err and len(err.strip().splitlines()) == 1

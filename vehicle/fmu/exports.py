@@ -8,8 +8,8 @@ from the parameter files' `source` entries.
 """
 from __future__ import annotations
 
+import fnmatch
 import inspect
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -22,7 +22,7 @@ from vehicle.fmu.strut_unit import INPUTS, RATE_OF, RUN_PARAMETERS, StrutUnit
 from vehicle.numerics.solvers import Ros2
 from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
-from vehicle.physics.model import ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
+from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle, vehicle_file
 from vehicle.runs.scenario import vehicle_data
 
@@ -59,9 +59,8 @@ def source_text(raw, path: list[str]) -> str:
     return str(node.get("source", "")) if isinstance(node, dict) else ""
 
 
-def _described(path: str, unit: str, source: str, default: str) -> str:
-    text = source or default
-    return f"{path} [{unit}]: {text}" if text else f"{path} [{unit}]"
+def _described(path: str, unit: str, source: str) -> str:
+    return f"{path} [{unit}]: {source}" if source else f"{path} [{unit}]"
 
 
 def _outputs_as_variables(entries) -> list[Variable]:
@@ -92,7 +91,7 @@ def strut_spec(strut: str, overrides: dict | None = None, *, heat_from: str = "a
         model, raw = (params, raw_strut) if head == "strut" else (vehicle.heat, raw_vehicle.get("heat", {}))
         u = field_unit(model, path)
         overridden = " (overridden at export)" if overrides and ".".join(path) in overrides else ""
-        parameters.append(Variable(name, u, _described(name, u, source_text(raw, path), "") + overridden,
+        parameters.append(Variable(name, u, _described(name, u, source_text(raw, path)) + overridden,
                                    unit.n_run + k, p_start[unit.n_run + k]))
     inputs = [Variable(n, u, d, k, s) for k, ((n, u, d), s) in
               enumerate(zip(INPUTS, (centre, 0.0, T0, 0.0)))]
@@ -137,8 +136,6 @@ RIDE_OUTPUTS = {"aw2": ("m**2/s**3", "int a_w^2 dt (ISO 2631-1 Wk, vertical) sin
 
 
 def _matches(name: str, pattern: str) -> bool:
-    import fnmatch
-
     return fnmatch.fnmatchcase(name, pattern + ("*" if pattern.endswith(".") or pattern.endswith("_") else ""))
 
 
@@ -236,7 +233,7 @@ def vehicle_spec(prepared, *, dt_s: float | None = None, label: str = "") -> Fmu
             strut_params, strut_name = _distinct_strut(model, int(head[len("strut"):]))
             unit_, raw = field_unit(strut_params, path), load_yaml(strut_file(strut_name))
         j = model.n_run + k
-        parameters.append(Variable(name, unit_, _described(name, unit_, source_text(raw, path), ""), j, p_start[j]))
+        parameters.append(Variable(name, unit_, _described(name, unit_, source_text(raw, path)), j, p_start[j]))
     inputs, rate_of = _vehicle_inputs(model, S.ambient_temperature, float(prepared.settings().speed.speed(0.0)))
     name = label or S.vehicle.name or "vehicle"
     return FmuSpec(
