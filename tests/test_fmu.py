@@ -159,6 +159,25 @@ def test_strut_fmu_heat_output_over_a_long_test(strut_fmu):
     assert heat == pytest.approx(rig.heat_out_J, rel=0.01)
 
 
+def test_strut_fmu_heat_network_conserves_energy(strut_fmu):
+    """With the heat network on (35 kJ/K, 1 min at 1 Hz / 20 mm, air at 2 m/s): the heat stored in the oil, wall
+    and surface nodes is the heat the strut made (valve, gas, friction, end stops) less what it lost, to rounding
+    (the nodes and the quadratures take the same explicit trapezoid: a linear invariant it keeps exactly)."""
+    A, f, comm = 0.02, 1.0, 0.01
+    names = ("E_valve", "E_friction", "E_gas", "E_end_stop", "E_lost", "T_oil", "T_wall", "T_surface")
+    res = drive_strut(strut_fmu, A, f, 60, comm, start={"heat.capacity": 35e3, "air_speed": 2.0}, names=names)
+    md = read_model_description(str(strut_fmu))
+    start = {v.name: float(v.start) for v in md.modelVariables if v.start is not None}
+    C = 35e3
+    C_oil = C * start["heat.oil_capacity_fraction"]
+    C_surface = (C - C_oil) * start["heat.surface_capacity_fraction"]
+    stored = sum(c * (res[f"T_{node}"][-1] - T_RIG_K)
+                 for c, node in ((C_oil, "oil"), (C - C_oil - C_surface, "wall"), (C_surface, "surface")))
+    made = sum(res[k][-1] for k in ("E_valve", "E_friction", "E_gas", "E_end_stop"))
+    assert made > 1e3 and res["T_oil"][-1] > T_RIG_K + 0.1
+    assert stored == pytest.approx(made - res["E_lost"][-1], rel=1e-9)
+
+
 def test_strut_fmu_parameter_through_fmi_acts_as_the_override(strut_fmu):
     """charge.pressure set through FMI: the FMU recalculates the gas mass (calculatedParameter) and the cycle
     energy is the rig's with the same override, and not the default's."""
