@@ -46,6 +46,13 @@ def field_unit(model: BaseModel, path: list[str]) -> str:
     return "1"
 
 
+def _value_at(model: BaseModel, path: list[str]):
+    obj = model
+    for part in path:
+        obj = obj[int(part)] if part.isdigit() else getattr(obj, part)
+    return obj
+
+
 def source_text(raw, path: list[str]) -> str:
     """The `source` of the value at `path` in a parameter file's mapping ("" when it gives none)."""
     node = raw
@@ -59,8 +66,11 @@ def source_text(raw, path: list[str]) -> str:
     return str(node.get("source", "")) if isinstance(node, dict) else ""
 
 
-def _described(path: str, unit: str, source: str) -> str:
-    return f"{path} [{unit}]: {source}" if source else f"{path} [{unit}]"
+def _parameter(name: str, unit: str, raw, path: list[str], changed: bool, index: int, p_start) -> Variable:
+    """An exposed parameter: its unit, and the file's source as description (unless the export changed the value:
+    then the source no longer applies)."""
+    source = "set at export" if changed else source_text(raw, path)
+    return Variable(name, unit, f"{name} [{unit}]: {source}" if source else f"{name} [{unit}]", index, p_start[index])
 
 
 def _outputs_as_variables(entries) -> list[Variable]:
@@ -77,7 +87,7 @@ def _step_functions(model, dt_s: float) -> dict:
 def strut_spec(strut: str, overrides: dict | None = None, *, heat_from: str = "apc_8x8", dt_s: float = 1e-3,
                motion_centre_m: float | None = None, T_start_K: float | None = None) -> FmuSpec:
     """The strut FMU of strut file `strut` (with `overrides`), its heat network from vehicle file `heat_from`."""
-    params = load_strut(strut, overrides or None)
+    params, base = load_strut(strut, overrides or None), load_strut(strut)
     vehicle = load_vehicle(heat_from)
     unit = StrutUnit(params, vehicle.heat, name=params.name)
     centre = params.geometry.stroke / 2 if motion_centre_m is None else motion_centre_m
@@ -89,10 +99,8 @@ def strut_spec(strut: str, overrides: dict | None = None, *, heat_from: str = "a
     for k, name in enumerate(unit.parameters.names):
         head, *path = name.split(".")
         model, raw = (params, raw_strut) if head == "strut" else (vehicle.heat, raw_vehicle.get("heat", {}))
-        u = field_unit(model, path)
-        overridden = " (overridden at export)" if overrides and ".".join(path) in overrides else ""
-        parameters.append(Variable(name, u, _described(name, u, source_text(raw, path)) + overridden,
-                                   unit.n_run + k, p_start[unit.n_run + k]))
+        changed = head == "strut" and _value_at(base, path) != _value_at(params, path)
+        parameters.append(_parameter(name, field_unit(model, path), raw, path, changed, unit.n_run + k, p_start))
     inputs = [Variable(n, u, d, k, s) for k, ((n, u, d), s) in
               enumerate(zip(INPUTS, (centre, 0.0, T0, 0.0)))]
     names = [n for n, _, _ in INPUTS]
@@ -227,13 +235,13 @@ def vehicle_spec(prepared, *, dt_s: float | None = None, label: str = "") -> Fmu
         if not any(_matches(name, pat) for pat in VEHICLE_PARAMETER_PATTERNS):
             continue
         head, *path = name.split(".")
-        if head == "vehicle":
-            unit_, raw = field_unit(V, path), raw_vehicle
+        if head == "vehicle":      # raw_vehicle holds the scenario's overrides: an overridden value has no source
+            unit_, raw, changed = field_unit(V, path), raw_vehicle, False
         else:
             strut_params, strut_name = _distinct_strut(model, int(head[len("strut"):]))
             unit_, raw = field_unit(strut_params, path), load_yaml(strut_file(strut_name))
-        j = model.n_run + k
-        parameters.append(Variable(name, unit_, _described(name, unit_, source_text(raw, path)), j, p_start[j]))
+            changed = _value_at(load_strut(strut_name), path) != _value_at(strut_params, path)
+        parameters.append(_parameter(name, unit_, raw, path, changed, model.n_run + k, p_start))
     inputs, rate_of = _vehicle_inputs(model, S.ambient_temperature, float(prepared.settings().speed.speed(0.0)))
     name = label or S.vehicle.name or "vehicle"
     return FmuSpec(
