@@ -313,12 +313,21 @@ def test_vehicle_fmu_parameter_through_fmi_acts_as_the_override(vehicle_case):
 
 def test_fmus_run_in_a_process_without_hpsim(strut_fmu, vehicle_case, tmp_path):
     """FMPy's simulate_fmu on both FMUs in `python -I`, outside the repository, with hpsim's import paths and
-    its editable-install finder removed: `import vehicle` fails there, and CasADi is never loaded."""
+    its editable-install finder removed and its packages refused by an import hook: `import vehicle` fails there,
+    and CasADi is never loaded."""
     script = textwrap.dedent("""
         import json, sys
         repo = sys.argv[1]
         sys.path[:] = [p for p in sys.path if not p.startswith(repo)]
         sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
+
+        class Hidden:            # also hidden when installed into site-packages (not editable)
+            def find_spec(self, name, path=None, target=None):
+                if name.split(".")[0] in ("hpsim", "struts", "terrain", "vehicle"):
+                    raise ImportError(f"{name} hidden")
+                return None
+
+        sys.meta_path.insert(0, Hidden())
         try:
             import vehicle
             sys.exit("hpsim importable")
