@@ -38,11 +38,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     strut.register(sub)
     road.register(sub)
-    from . import calibrate, drives, uq
+    from . import calibrate, drives, export, uq
 
     drives.register(sub)
     calibrate.register(sub)
     uq.register(sub)
+    export.register(sub)
     from . import examples
 
     examples.apply(parser)

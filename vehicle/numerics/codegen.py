@@ -348,3 +348,29 @@ def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool =
         warnings.warn(f"compile cache {d}: {lib.name} does not match the model; using CasADi's virtual machine")
         return fn
     return compiled
+
+
+def compile_source(code: bytes, name: str, extra_flags: tuple[str, ...] = ()) -> Path:
+    """Compile a self-contained C translation unit into a shared library in the cache (built once, verified like
+    the model libraries: see the module's trust model) and return its path. For C that is not one CasADi
+    function (the FMU binaries of vehicle.fmu); raises RuntimeError without a compiler or when it fails."""
+    cc = _compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler found (gcc, cc or clang; or set CC)")
+    flags = [*COMPILER_FLAGS, *extra_flags]
+    code_sha = hashlib.sha256(code).hexdigest()
+    key = hashlib.sha256(code + " ".join(flags).encode() + cc.encode()).hexdigest()[:20]
+    d, stem = cache_dir(), f"{name}_{key}"
+    lib, record = d / f"{stem}.so", d / f"{stem}.json"
+    if not _verified(lib, record, code_sha):
+        error = _build(cc, flags, code, code_sha, d, stem)
+        if error is not None:
+            raise RuntimeError(f"C compilation of {name} failed: {error}")
+        evict(d, cache_limit_bytes(), keep=(stem,))
+        if not _verified(lib, record, code_sha):
+            raise RuntimeError(f"compile cache {d}: {lib.name} changed while it was built")
+    try:
+        os.utime(record)
+    except OSError:
+        pass
+    return lib

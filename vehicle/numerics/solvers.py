@@ -228,6 +228,13 @@ class Ros2:
             _GRAPHS[key] = self._graph(model)
         return _GRAPHS[key]
 
+    def step_functions(self, model) -> tuple[ca.Function, ca.Function]:
+        """(step (z, u0, u1, pw) -> z, parametric p -> pw): one step of this solver (a fresh W) and what it reads of
+        the parameters (p and the subexpressions of p alone, computed once): what an FMU wraps (vehicle.fmu)."""
+        self.K, self.M = 1, 1
+        step, _, parametric, _ = self._step_functions(model)
+        return step, parametric
+
     def _graph(self, model) -> ca.Function:
         """The uncompiled block function of this engine for (self.K, self.M)."""
         return self._build_baseline(model) if self.engine == "baseline" else self._build(model)
@@ -293,10 +300,11 @@ class Ros2:
         return (ca.SX.sym("x", model.nx), ca.SX.sym("mem", model.n_memory), ca.SX.sym("u0", model.nu),
                 ca.SX.sym("u1", model.nu))
 
-    def _build(self, model) -> ca.Function:
-        nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
+    def _step_functions(self, model):
+        """(step, reuse or None, parametric, every): one step (z, u0, u1, pw) -> z (with a fresh W; with every > 1
+        also its factor values), the step reusing factors, and p -> pw (p and what depends on it alone)."""
         x, mem, u0, u1 = self._step_symbols(model)
-        p = ca.SX.sym("p", np_)
+        p = ca.SX.sym("p", model.np)
         z = ca.vertcat(x, mem)
         every = min(self.jacobian_every, self.K)
         x_next, mem1, lu = self._stages(model, x, mem, u0, u1, p)
@@ -322,15 +330,20 @@ class Ros2:
         z_ret, w_syms, w_exprs = ca.extract_parametric(ca.cse(ca.vertcat(*res)), p)
         parts = ca.vertsplit(z_ret, [int(v) for v in np.cumsum([0] + sizes)])
         w = ca.vertcat(*w_syms) if w_syms else ca.SX(0, 1)
-        nz = nx + nm
         step = ca.Function("ros2_step", [z, u0, u1, ca.vertcat(p, w)], parts[:2] if every > 1 else parts[:1])
         if every > 1:
             reuse = ca.Function("ros2_step_reuse", [z, u0, u1, ca.vertcat(p, w), args[4]], [parts[2]])
         parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(p, *w_exprs)])
+        return step, (reuse if every > 1 else None), parametric, every
+
+    def _build(self, model) -> ca.Function:
+        nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
+        step, reuse, parametric, every = self._step_functions(model)
+        nz = nx + nm
         # K steps -> one sample, unrolled by hand so that every step reads the same parameter
         # vector: neither carried through the loop's accumulator (a load and a store of every
         # parameter per step: 9.4 vs 7.8 us measured) nor copied into a (n_p, steps) matrix
-        npw = np_ + len(w_syms)
+        npw = parametric.size1_out(0)
         zs = ca.MX.sym("z", nz)
         U0k, U1k = ca.MX.sym("u0", nu, self.K), ca.MX.sym("u1", nu, self.K)
         PW = ca.MX.sym("pw", npw)
