@@ -11,7 +11,7 @@ strut's heat output over the issue's 10 min rig test.
   one fmi2DoStep of the whole span (the C alone, no Python per communication step).
 - vehicle: the quick-demo vehicle FMU (4 ms) fed the drive's inputs at every 4 ms step (the importer's work in
   Python included) and in steps of 1 s with held inputs (the C alone), against the drive's integration time
-  (vehicle.runs.drive, the compiled ROS2 in blocks of 250 steps x 10 samples) over --distance.
+  (vehicle.engines.full, the compiled ROS2 in blocks of 250 steps x 10 samples) over --distance.
 Timings on a shared 2-core machine are noisy: compare the ratios of one run.
 """
 from __future__ import annotations
@@ -24,14 +24,14 @@ import time
 from pathlib import Path
 
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from struts.params import load_strut  # noqa: E402
 from struts.rig import cycle_test  # noqa: E402
-from test_fmu import ISOTHERMAL, MEAN_M, T_RIG_K, Driven, drive_strut, last_cycle, run_drive  # noqa: E402
+from tests.integration.test_fmu import ISOTHERMAL, MEAN_M, T_RIG_K, Driven, drive_strut, last_cycle, run_drive  # noqa: E402
 from vehicle.fmu.build import build_fmu  # noqa: E402
 from vehicle.fmu.exports import strut_spec, vehicle_spec  # noqa: E402
-from vehicle.runs.scenario import apply_overrides, prepare, read_scenario  # noqa: E402
+from vehicle.scenario.schema import apply_overrides, prepare, read_scenario  # noqa: E402
 
 
 def one_step_rate(path, span_s, start, inputs) -> float:
@@ -79,7 +79,7 @@ def vehicle(folder: Path, distance: str) -> dict:
     info = build_fmu(vehicle_spec(prepared), path)
     run = run_drive(prepared)
     span = float(run["t_s"][-1])
-    from test_fmu import run_vehicle_fmu
+    from tests.integration.test_fmu import run_vehicle_fmu
 
     t0 = time.perf_counter()
     run_vehicle_fmu(path, run)

@@ -55,7 +55,7 @@ def parse_overrides(items: list[str]) -> dict:
 
 
 def _vehicle_prepared(args, overrides: dict):
-    from vehicle.runs.scenario import apply_overrides, prepare, read_scenario, read_scenario_text
+    from vehicle.scenario.schema import apply_overrides, prepare, read_scenario, read_scenario_text
 
     if args.scenario:
         src = read_scenario(args.scenario)

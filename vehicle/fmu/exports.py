@@ -24,7 +24,7 @@ from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle, vehicle_file
-from vehicle.runs.scenario import vehicle_data
+from vehicle.scenario.schema import vehicle_data
 
 
 # --- parameter metadata ------------------------------------------------------------------------
@@ -214,7 +214,7 @@ def _distinct_strut(model: VehicleModel, k: int):
 
 
 def vehicle_spec(prepared, *, dt_s: float | None = None, label: str = "") -> FmuSpec:
-    """The vehicle FMU of a prepared scenario (vehicle.runs.scenario.prepare): its vehicle, struts, overrides,
+    """The vehicle FMU of a prepared scenario (vehicle.scenario.schema.prepare): its vehicle, struts, overrides,
     initial temperatures, ambient, compensation switch and solver step; the start state is the standing
     equilibrium at the initial temperatures, solved here."""
     S = prepared.scenario

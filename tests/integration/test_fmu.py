@@ -34,9 +34,10 @@ from struts.params import load_strut
 from struts.rig import cycle_test
 from vehicle.fmu.build import build_fmu
 from vehicle.fmu.exports import strut_spec, vehicle_spec
-from vehicle.runs.scenario import apply_overrides, prepare, read_scenario
+from tests.helpers import REPO
+from vehicle.engines.build import build_engine
+from vehicle.scenario.schema import apply_overrides, prepare, read_scenario
 
-REPO = Path(__file__).resolve().parents[1]
 MEAN_M = 0.115           # seed 000 Table 1 mean deflection
 T_RIG_K = 293.15         # the rig temperature (the strut file's charge temperature)
 ISOTHERMAL = {"heat.capacity": 1e12}      # the rig holds the strut body at its temperature
@@ -249,7 +250,7 @@ class _Collect:
 
 
 def run_drive(prepared) -> dict:
-    model, drive = prepared.drive()
+    model, drive = build_engine(prepared)
     sink = _Collect()
     result = drive.run(sink)
     cat = {k: np.hstack([b[k] for b in sink.blocks]) for k in ("t_s", "wheel_load", "strut_temperature_K")}
