@@ -21,7 +21,6 @@ import shutil
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import fmpy
 import fmpy.validation
