@@ -319,10 +319,7 @@ class MultiscaleDrive(Drive):
                 # at the warm-up's end (modelled - simulated) is carried through the averaged stretch by the same
                 # model, e^{A L}: the simulated stretch started from the simulated state, and a difference in a
                 # state with a short memory (the oil against its wall, ~2 min) has partly decayed by the window's
-                # end (in a linear model exactly: x_end(x_a + d) = x_end(x_a) + e^{A L} d). Added undecayed, a
-                # start transient's heat (106 km test, seed 0, 22 x 380 m: +5 K in one strut's oil in the last
-                # window's first second) was taken off in full from an oil that had shed half of it: 2.5 K too
-                # cold at the end, 0.24 pp of wheel-load change
+                # end (in a linear model exactly: x_end(x_a + d) = x_end(x_a) + e^{A L} d; docs/engines.md, "Warm-up")
                 x_start = x
                 tw = w["t_avg0"] - t0
                 w["x_end"][self.slow_index] += warm_up_correction(w["flow"], w["b"], x_start[self.slow_index],

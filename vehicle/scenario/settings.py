@@ -61,8 +61,7 @@ class MultiscaleSettings:
     WEIGHT_FLOOR = 0.15      # weighted placement: share of the window density that stays uniform
     # the road proxy of the control variate: the mean square road rate under each tyre in the band where a strut's
     # velocity follows the road (above the body modes, 1-2 Hz, below wheel hop, ~10 Hz: `hpsim modes`). Only
-    # the variance of the estimate depends on it (a poor proxy gives beta ~ 0, the plain estimate); on the 106 km
-    # test it explains ~80 % of the windows' dissipation scatter (R^2 0.70-0.89 per strut, 500 m windows)
+    # the variance of the estimate depends on it (a poor proxy gives beta ~ 0, the plain estimate; docs/engines.md)
     PROXY_BAND_HZ = (1.0, 10.0)
     PROXIES = ("road_rate", "linear_model")
     # the linear-model proxy (`linear_strut_velocity`): the vehicle linearised at its standing equilibrium, the seal
