@@ -168,7 +168,8 @@ class Limits(Model):
     """Temperature limits of the strut's materials, for validity warnings (vehicle.runs.warnings).
 
     None: not known (no warning). The oil data's own range is that of the viscosity datasheet
-    points (oil.viscosity_T1 .. viscosity_T2): beyond it the viscosity law extrapolates.
+    points (oil.viscosity_T1 .. viscosity_T2) widened to where the Walther and Andrade extrapolations
+    through them differ by 10 % (struts.oil.viscosity_extrapolation_range, vehicle.runs.warnings).
     """
 
     seal_max_temperature: K | None = None    # maximum continuous service temperature of the seals
