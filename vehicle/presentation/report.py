@@ -79,11 +79,16 @@ AXLE_COLUMNS = (("dynamic_load_coefficient", "DLC", 1.0, ".3f"),
                 ("lift_off_share", "lift-off [%]", 100.0, ".2f"),
                 ("end_stop_time_s", "on stops [s]", 1.0, ".3g"),
                 ("end_stop_energy_J", "stop energy [kJ]", 1e-3, ".3g"),
-                ("strut_travel_min_m", "travel min [mm]", 1e3, ".1f"),
-                ("strut_travel_max_m", "travel max [mm]", 1e3, ".1f"),
+                ("strut_travel_min_m", "travel bin lo [mm]", 1e3, ".1f"),
+                ("strut_travel_max_m", "travel bin hi [mm]", 1e3, ".1f"),
                 ("strut_travel_p1_m", "p1 [mm]", 1e3, ".1f"),
                 ("strut_travel_p99_m", "p99 [mm]", 1e3, ".1f"),
                 ("rms_strut_velocity_m_per_s", "RMS v [mm/s]", 1e3, ".0f"))
+
+
+TRAVEL_NOTE = ("travel bin lo/hi: edges of the lowest and highest strut-travel bins (equal bins over the stroke) "
+               "the strut spent time in, not measured extremes: the smallest and largest deflections lie within "
+               "one bin inside them; p1/p99 interpolated within the bins")
 
 
 def _ride_table(rows, columns, first):
@@ -115,6 +120,8 @@ def format_ride(ride: dict, n_axles: int) -> str:
     if table:
         parts.append("road holding and strut travel (worst of left and right)")
         parts.append(table)
+        if "travel bin lo" in table:
+            parts.append(TRAVEL_NOTE)
     hull = ride.get("hull")
     if hull:
         parts.append(f"hull RMS acceleration: heave {hull['rms_heave_acceleration_m_s2']:.3g} m/s^2, "
