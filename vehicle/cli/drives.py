@@ -13,6 +13,8 @@ from pathlib import Path
 from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
+from .stages import command_wall_s
+
 
 def register(sub):
     # hpsim vehicle equilibrium
@@ -133,8 +135,11 @@ def cmd_run(args):
     except RunInterrupted as exc:
         sys.stderr.write(f"hpsim run: {exc}\n")
         return 130
+    if getattr(args, "verbosity", 0) < 0:          # -q: only the path written
+        print(out)
+        return 0
     print(format_report(report(out)))
-    print(f"wrote {out} ({summary.get('wall_s', 0.0):.1f} s wall)")
+    print(f"wrote {out} (the command {command_wall_s():.1f} s wall, the drive {summary.get('wall_s', 0.0):.1f} s)")
     return 0
 
 

@@ -10,7 +10,7 @@ def format_report(rep: dict) -> str:
     from hpsim.tables import format_table
 
     head = (f"{rep['file']}: {rep['status']}, {rep['distance_km']:.3f} of {rep['planned_distance_km']:.6g} km, "
-            f"simulated {rep['simulated_s'] / 3600:.3f} h in {rep['wall_s']:.1f} s wall, "
+            f"simulated {rep['simulated_s'] / 3600:.3f} h (the drive {rep['wall_s']:.1f} s wall), "
             f"compensation {'on' if rep['compensation'] else 'off'}")
     # T end: the outer surface (pyrometer); oil and gas inside (the heat network, vehicle.physics.thermal)
     cols = ["axle", "T_start_C", "T_end_C", "T_oil_end_C", "T_gas_end_C", "dh_mm", "N_before_daN", "N_after_daN",

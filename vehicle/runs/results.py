@@ -47,6 +47,7 @@ import h5py
 import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
+from hpsim.stages import timed
 
 from vehicle.runs.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
                                  open_results)
@@ -310,7 +311,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     log = log or (lambda msg: None)
     out = Path(out)
     src = scenario if isinstance(scenario, ScenarioSource) else (
-        read_scenario(scenario) if scenario is not None else None)
+        timed("reading", read_scenario, scenario) if scenario is not None else None)
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():
@@ -336,7 +337,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
             raise UserInputError(f"{out}: not found and no scenario given")
         if resume:
             log(f"{out}: nothing to resume, starting")
-        prep = prepare(src)                            # every check before any work
+        prep = timed("scenario checks", prepare, src)  # every check before any work
         model, drive = prep.drive(drive_class())
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
@@ -520,7 +521,7 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
         sink = H5Sink(f, counts[0], counts[1], counts[2])
         f.swmr_mode = True
         old_handler = _catch_sigint(sink)
-        res = drive.run(sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
+        res = timed("drive", drive.run, sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
         sink.flush()
     except SimulationError as exc:
         try:
@@ -563,12 +564,12 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
         raise
     close_bar()
     _fault("before_final_write")
-    final = final_info(drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
+    final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     try:
-        _final_write(out, final)
+        timed("summary: write", _final_write, out, final)
         from vehicle.runs.warnings import record
 
-        record(out)                     # the validity warnings, in the file (/summary attrs)
+        timed("summary: validity checks", record, out)      # the validity warnings, in the file (/summary attrs)
     except (OSError, RuntimeError) as exc:
         if is_disk_full(exc):
             raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \

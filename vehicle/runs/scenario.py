@@ -26,6 +26,7 @@ from pydantic import Field, StrictBool, StrictInt, ValidationInfo, field_validat
 
 from hpsim.config import Model, Quantity, format_validation_error, load_yaml, parse_yaml, read_text_file
 from hpsim.errors import UserInputError
+from hpsim.stages import timed
 from hpsim.units import parse_quantity
 
 from vehicle.physics.params import COMPENSATION_RANGES
@@ -492,8 +493,8 @@ class Prepared:
         """(model, Drive) ready to run."""
         from vehicle.runs.drive import Drive
 
-        model = self.model()
-        road = self.road()
+        model = timed("build: model", self.model)
+        road = timed("road", self.road)
         cls = drive_class or Drive
         try:
             if self.scenario.solver.mode == "multiscale":
@@ -505,7 +506,7 @@ class Prepared:
             P = resolve_segments(self.scenario.solver.time_parallel)
             if P > 1:
                 return model, TimeParallelDrive(model, road, self.settings(), P)
-            return model, cls(model, road, self.settings())
+            return model, timed("build: drive (the compile included)", cls, model, road, self.settings())
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: {exc}") from None
 
