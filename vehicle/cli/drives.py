@@ -66,6 +66,8 @@ def register(sub):
     ps.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="run the cases on an existing Dask distributed cluster (needs the 'dask' extra)")
     ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
+    ps.add_argument("--yes", action="store_true",
+                    help="start without asking (at a terminal a sweep estimated above 5 min asks first)")
     ps.set_defaults(func=cmd_sweep)
 
     pl = sub.add_parser("plot", help="dashboard figure of a results file")
@@ -224,6 +226,15 @@ def cmd_plot(args):
     return 0
 
 
+def _sweep_preview(args, sources) -> None:
+    """The number of drives and the estimated wall time of a sweep (vehicle.studies.cost), before it starts."""
+    from vehicle.runs.scenario import prepare
+    from vehicle.studies import cost
+
+    cost.confirm(cost.estimate([prepare(s) for s in sources], None if args.scheduler else args.workers),
+                 "hpsim sweep", args.yes)
+
+
 def cmd_sweep(args):
     from hpsim.tables import print_json
 
@@ -236,7 +247,8 @@ def cmd_sweep(args):
     check_output_dir(args.output_dir or Path(args.sweep).stem,
                      "-o/--output-dir" if args.output_dir else "output folder (the sweep file's name)")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
-                       log=(lambda m: None) if args.json else logging.getLogger("hpsim").info)
+                       log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
+                       before_start=lambda sources: _sweep_preview(args, sources))
     if result["finished_files"]:
         result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
                                                 labels=result["finished_labels"])))

@@ -49,6 +49,7 @@ import numpy as np
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.stages import timed
 
+from vehicle.numerics import drive_rate
 from vehicle.runs.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
                                  open_results)
 from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
@@ -575,6 +576,9 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
             raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \
                 from None
         raise
+    S = final["summary"]                 # this machine's drive rate, for the cost previews of studies
+    drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, S["simulated_s"], S["wall_s"],
+                      S["build_s"])
     return {k: v for k, v in final["summary"].items()}
 
 

@@ -219,7 +219,9 @@ def worker_init(parent_pid: int) -> None:
 
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
-              scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+              scheduler: str | None = None, log: Callable[[str], None] | None = None,
+              before_start: Callable[[list], None] | None = None) -> dict:
+    """before_start(sources of the cases to run): called before any runs (the cost preview may stop it)."""
     from vehicle.runs.results import results_status
 
     log = log or (lambda m: None)
@@ -240,6 +242,8 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
             todo.append(c)
     n = len(todo)
     log(f"{path}: {len(cases)} cases, {n} to run, results in {out_dir}/")
+    if before_start is not None:
+        before_start([c["source"] for c in todo])
     t0 = time.perf_counter()
     done = 0
 

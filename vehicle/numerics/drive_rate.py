@@ -1,0 +1,65 @@
+"""The measured speed of drives on this machine, kept in the compile cache (`drive_rate.json`), so that a
+study can say what it will cost before it starts (vehicle.studies.cost).
+
+Every completed `hpsim run` (and so every sweep and UQ case) records, per solver mode, the integration
+steps per second of wall time of its drive (simulated time / dt / the drive's wall, writing the results
+included) and the set-up time of a drive with the model cached (`build_s`: the smallest seen, as a
+compile inflates it once).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+RECORD = "drive_rate.json"
+
+
+def _path() -> Path:
+    from vehicle.numerics.codegen import cache_dir
+
+    return cache_dir() / RECORD
+
+
+def read(mode: str) -> dict | None:
+    """{"steps_per_s", "build_s", "dt_s", "recorded"} of the last drive in this mode, or None."""
+    try:
+        entry = json.loads(_path().read_text()).get(mode)
+        ok = isinstance(entry, dict) and all(math.isfinite(float(entry[k])) and float(entry[k]) > 0
+                                             for k in ("steps_per_s", "build_s"))
+        return entry if ok else None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
+def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float) -> None:
+    """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written)."""
+    if not (dt_s > 0 and simulated_s > 0 and wall_s > 0 and build_s >= 0):
+        return
+    path = _path()
+    try:
+        data = json.loads(path.read_text())
+        data = data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        data = {}
+    old = data.get(mode) if isinstance(data.get(mode), dict) else {}
+    build = min(build_s, float(old.get("build_s", math.inf))) if build_s > 0 else float(old.get("build_s", 0.0))
+    data[mode] = {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
+                  "recorded": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    try:
+        tmp = path.with_name(f".{RECORD}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(data))
+        tmp.replace(path)
+    except OSError:
+        pass
+
+
+def mode_of(scenario) -> str:
+    """The record's key for a scenario (vehicle.runs.scenario.Scenario): full, multiscale, time_parallel/P."""
+    solver = scenario.solver
+    if solver.mode == "multiscale":
+        return "multiscale"
+    P = solver.time_parallel
+    return f"time_parallel/{P}" if P not in (None, 1) else "full"

@@ -1,0 +1,1 @@
+"""Studies over many drives: sweeps, uncertainty quantification, calibration, and what they cost."""
