@@ -341,6 +341,7 @@ def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool =
         if error is not None:
             warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
             return fn
+        compile_time.compiled_s += time.perf_counter() - t0
         if verbose:
             print(f"compiled {fn.name()} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
         evict(d, cache_limit_bytes(), keep=(stem,))

@@ -18,6 +18,7 @@ from pathlib import Path
 LOG = logging.getLogger("hpsim")
 RECORD = "compile_rate.json"
 DEFAULT_BYTES_PER_S = 7.0e4
+compiled_s = 0.0            # compiler wall time spent in this process (a drive's set-up without it: drive_rate)
 
 
 def _rate(cache: Path) -> float:
@@ -43,6 +44,8 @@ def announce(sizes: list[int], width: int, cache: Path) -> None:
 
 def record(sizes: list[int], width: int, seconds: float, cache: Path) -> None:
     """Keep the measured rate for the next estimate (best effort: a cache that cannot be written keeps none)."""
+    global compiled_s
+    compiled_s += max(seconds, 0.0)
     lanes = max(1, min(width, len(sizes)))
     longest = estimate_s(sizes, lanes, cache) * _rate(cache)        # the bytes of the longest lane
     if seconds <= 0 or longest <= 0:

@@ -3,8 +3,9 @@ study can say what it will cost before it starts (vehicle.studies.cost).
 
 Every completed `hpsim run` (and so every sweep and UQ case) records, per solver mode, the integration
 steps per second of wall time of its drive (simulated time / dt / the drive's wall, writing the results
-included) and the set-up time of a drive with the model cached (`build_s`: the smallest seen, as a
-compile inflates it once).
+included) and the set-up time of a drive in a fresh process with the model compiled (`build_s`: taken
+from the first drive of a process only, as later ones reuse the model built in memory, and without the
+compiler's time, vehicle.numerics.compile_time).
 """
 from __future__ import annotations
 
@@ -14,12 +15,14 @@ import os
 import time
 from pathlib import Path
 
+from vehicle.numerics import compile_time
+from vehicle.numerics.codegen import cache_dir
+
 RECORD = "drive_rate.json"
+_setup_recorded = False        # this process recorded its first drive's set-up
 
 
 def _path() -> Path:
-    from vehicle.numerics.codegen import cache_dir
-
     return cache_dir() / RECORD
 
 
@@ -27,8 +30,8 @@ def read(mode: str) -> dict | None:
     """{"steps_per_s", "build_s", "dt_s", "recorded"} of the last drive in this mode, or None."""
     try:
         entry = json.loads(_path().read_text()).get(mode)
-        ok = isinstance(entry, dict) and all(math.isfinite(float(entry[k])) and float(entry[k]) > 0
-                                             for k in ("steps_per_s", "build_s"))
+        ok = (isinstance(entry, dict) and math.isfinite(float(entry["steps_per_s"])) and float(entry["steps_per_s"]) > 0
+              and math.isfinite(float(entry["build_s"])) and float(entry["build_s"]) >= 0)
         return entry if ok else None
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
@@ -36,8 +39,11 @@ def read(mode: str) -> dict | None:
 
 def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float) -> None:
     """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written)."""
+    global _setup_recorded
     if not (dt_s > 0 and simulated_s > 0 and wall_s > 0 and build_s >= 0):
         return
+    first, _setup_recorded = not _setup_recorded, True
+    build_s = max(build_s - compile_time.compiled_s, 0.0) if first else 0.0
     path = _path()
     try:
         data = json.loads(path.read_text())
@@ -45,7 +51,7 @@ def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: f
     except (OSError, ValueError):
         data = {}
     old = data.get(mode) if isinstance(data.get(mode), dict) else {}
-    build = min(build_s, float(old.get("build_s", math.inf))) if build_s > 0 else float(old.get("build_s", 0.0))
+    build = build_s if first else float(old.get("build_s", 0.0))
     data[mode] = {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
                   "recorded": time.strftime("%Y-%m-%dT%H:%M:%S")}
     try:
