@@ -41,10 +41,12 @@ def format_report(rep: dict) -> str:
         tail.append(f"solver mode multiscale: {est['windows']} windows of {est['window_m']:.0f} m, one per "
                     f"{est['spacing_m'] / 1e3:.3g} km ({est['covered_km']:.3g} km driven with the full model); "
                     f"estimated error (95 %, {est['sigmas']:.2g} sigma, road sampling"
-                    f"{', with the control variate on the ' + est.get('proxy', 'road_rate').replace('_', '-') + ' proxy' if est.get('control_variate') else ''}): T end "
+                    f"{', with the control variate on the ' + est.get('proxy', 'road_rate').replace('_', '-') + ' proxy' if est.get('control_variate') else ''}): T surface end "
                     + ", ".join("-" if x is None else f"{x:.2f}" for x in est["T_end_K"]) + " K, dN "
                     + ", ".join("-" if x is None else f"{x:.3f}" for x in est["dN_pct"])
-                    + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp)")
+                    + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp); it covers "
+                    "the surface temperature and dN only, not the oil and gas end temperatures (the gas's "
+                    "last-interval mean follows the last window's road: 1.1-1.4 K off a full run, docs/validation.md)")
     if rep.get("solver_mode") == "time_parallel" and est:
         tail.append(f"solver mode time_parallel: {est['segments']} segments in parallel processes, slow states "
                     f"corrected at the joins (coarse prediction off by up to {est['coarse_mismatch_K']:.3f} K); "
