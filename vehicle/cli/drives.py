@@ -254,6 +254,8 @@ def cmd_sweep(args):
                                                 labels=result["finished_labels"])))
     if args.json:
         print_json(result)
+    elif getattr(args, "verbosity", 0) < 0 and not result["failed"]:     # -q: only what was written
+        print(result["summary_csv"])
     else:
         print(format_summary(result))
     return 3 if result["failed"] else 0
