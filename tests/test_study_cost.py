@@ -122,3 +122,19 @@ def test_the_issue_s_ranking_of_8_cases_over_50_parameters_says_not_resolved():
                    {"parameter": n, "prcc": float("nan"), "spearman": r} for n, r in zip(names, [0.76, -0.7, 0.6] + [0.1] * 47)]}}}
     line = confidence.influence_line(summary, "mean_rise_K")
     assert "NOT RESOLVED" in line and line.count("not resolved") == 3 and "0.16 per parameter" in line
+
+
+def test_without_a_recorded_rate_a_short_probe_drive_measures_it(tmp_path, monkeypatch):
+    from vehicle.runs.scenario import prepare, read_scenario
+
+    record = tmp_path / "drive_rate.json"
+    monkeypatch.setattr(drive_rate, "_path", lambda: record)        # nothing recorded (the compiled model is cached)
+    prep = prepare(read_scenario(ROOT / "scenarios" / "quick_demo.yaml"))
+    assert drive_rate.read("full") is None
+    est = cost.estimate([prep] * 3, 1)
+    assert "rate measured now on a probe drive" in est.basis and est.drives == 3
+    rate = drive_rate.read("full")
+    assert rate is not None and rate["steps_per_s"] > 0
+    # 5 km at 20 km/h in steps of 4 ms, at the probe's rate, plus its set-up
+    assert est.per_drive_s == pytest.approx(rate["build_s"] + 225000 / rate["steps_per_s"], rel=1e-9)
+    assert est.wall_s == pytest.approx(3 * est.per_drive_s)

@@ -79,7 +79,7 @@ EXAMPLES = {
   hpsim calibrate scenarios/quick_demo.yaml --target-rise 4K --tolerance 0.2K --json""",
     "uq": """\
   hpsim uq scenarios/quick_demo.yaml --list --samples 16     # the priors; 833 drives and their estimated time
-  hpsim uq scenarios/quick_demo.yaml --method lhs --samples 8 --parameters 'tyre.*' --distance 1km -o uq_out
+  hpsim uq scenarios/quick_demo.yaml --method lhs --samples 8 --parameters 'vehicle.tyre.*' --distance 1km -o uq_out
   hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2 -o uq_out --yes   # hours: starts without asking""",
 }
 

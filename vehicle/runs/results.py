@@ -310,6 +310,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     (solver failure after writing status 'failed'; disk full) or RunInterrupted (Ctrl-C, status 'interrupted').
     """
     log = log or (lambda msg: None)
+    t_start = time.perf_counter()
     out = Path(out)
     src = scenario if isinstance(scenario, ScenarioSource) else (
         timed("reading", read_scenario, scenario) if scenario is not None else None)
@@ -352,7 +353,11 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
             if is_disk_full(exc):
                 raise _disk_full(out, exc, "before the drive started", "free some space and run again") from None
             raise
-        return _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+        summary = _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+        # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies
+        drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
+                          summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"])
+        return summary
 
 
 def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
@@ -576,9 +581,6 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
             raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \
                 from None
         raise
-    S = final["summary"]                 # this machine's drive rate, for the cost previews of studies
-    drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, S["simulated_s"], S["wall_s"],
-                      S["build_s"])
     return {k: v for k, v in final["summary"].items()}
 
 
