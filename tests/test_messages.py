@@ -49,8 +49,9 @@ def test_verbose_run_logs_its_stages_and_the_commands_wall_time(flagship_300m):
     p, outside_s = _hpsim("-v", "run", flagship_300m.name, "-o", "verbose.h5", "--no-progress",
                           cwd=flagship_300m.parent)
     assert p.returncode == 0, p.stderr
-    stages = dict(re.findall(r"^stage ([a-z :()]+?): ([0-9.]+) s$", p.stderr, re.M))
-    for name in ("reading", "road", "build: model", "build: drive (the compile included)", "drive", "summary"):
+    stages = dict(re.findall(r"^stage ([A-Za-z :()]+?): ([0-9.]+) s$", p.stderr, re.M))
+    for name in ("reading", "road", "build: model", "compile: C generated and looked up in the cache", "compile",
+                 "build: drive (the compile included)", "drive", "summary"):
         assert name in stages, (name, p.stderr)
     # the wall time printed is the command's (process start to the last line), not the drive's
     command_s, drive_s = map(float, re.search(r"wrote verbose\.h5 \(the command ([0-9.]+) s wall, the drive "

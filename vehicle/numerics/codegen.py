@@ -307,8 +307,8 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
     if cc is None:
         return 0
     todo = []
-    for fn in fns:
-        flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
+    plans = timed("compile: C generated and looked up in the cache", lambda: [_plan(fn, cc, opt_level) for fn in fns])
+    for flags, code, code_sha, d, stem in plans:
         if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
             todo.append((cc, flags, code, code_sha, d, stem))
     width = max(1, os.cpu_count() or 1)                         # no more compilers than cores
