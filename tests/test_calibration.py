@@ -83,3 +83,30 @@ def test_the_regression_root_averages_noise_instead_of_stepping_on_it():
     import math
 
     assert slope == pytest.approx(-4.0, rel=0.02) and x == pytest.approx(math.exp(0.25), rel=2e-3)
+
+
+def test_the_command_refuses_with_exit_2_and_the_floor(short_scenario, monkeypatch, capsys):
+    """`hpsim calibrate ... --tolerance 2mK` on a rise with 5 mK of noise (a synthetic one: no drives) exits 2
+    with one line naming the measured floor."""
+    import hashlib
+    from types import SimpleNamespace
+
+    import vehicle.runs.calibration as cal
+    from vehicle import cli
+
+    scenario, _ = short_scenario
+
+    def noisy_run(src, parameter, value):          # smooth in the ratio, plus reproducible noise of 5 mK
+        u = int.from_bytes(hashlib.sha256(repr(value).encode()).digest()[:8], "big") / 2 ** 64
+        drive = SimpleNamespace(settings=SimpleNamespace(speed=SimpleNamespace(speeds_m_per_s=[20 / 3.6])))
+        return 60.0 / (1.0 + 20.0 * value) + 0.005 * 3 ** 0.5 * (2 * u - 1), None, drive
+
+    monkeypatch.setattr(cal, "_run", noisy_run)
+    target = 60.0 / (1.0 + 20.0 * 0.0687)              # at the shipped ratio: the noise probe comes at once
+    code = cli.main(["calibrate", str(scenario), "--target-rise", f"{target}K", "--tolerance", "2mK"])
+    err = capsys.readouterr().err.strip().splitlines()
+    # the runs and the probe are logged (stderr, -q hides them); then one line of error
+    assert code == 2 and [line for line in err if "error" in line] == err[-1:]
+    assert err[-1].startswith("hpsim calibrate: error: --tolerance: 0.002 K is below the noise floor")
+    floor = float(re.search(r"noise floor of the mean rise, ([0-9.e-]+) K", err[-1]).group(1))
+    assert 2e-3 < floor < 0.03                         # 2 sigma of 5 mK uniform noise, from 9 runs
