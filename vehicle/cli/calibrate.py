@@ -33,6 +33,7 @@ def cmd_calibrate(args):
     if args.json:
         print_json(res)
     else:
-        print(format_table(["parameter", "calibrated value", "mean rise [K]", "target [K]", "runs", "wall [s]"],
-                           [(res["parameter"], res["value"], res["achieved_rise_K"], target, len(res["runs"]),
-                             command_wall_s())]))         # the command's wall time, imports included
+        print(format_table(["parameter", "calibrated value", "mean rise [K]", "target [K]", "noise floor [K]", "runs",
+                            "wall [s]"],
+                           [(res["parameter"], res["value"], res["achieved_rise_K"], target, res["noise_floor_K"],
+                             len(res["runs"]), command_wall_s())]))         # the command's wall time, imports included
