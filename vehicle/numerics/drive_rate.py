@@ -54,13 +54,21 @@ def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: f
     old = data.get(mode) if isinstance(data.get(mode), dict) else {}
     build = build_s if first else float(old.get("build_s", 0.0))
     data[mode] = {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
-                  "recorded": time.strftime("%Y-%m-%dT%H:%M:%S")}
+                  "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"), "load": load_average()}
     try:
         tmp = path.with_name(f".{RECORD}.{os.getpid()}.tmp")
         tmp.write_text(json.dumps(data))
         tmp.replace(path)
     except OSError:
         pass
+
+
+def load_average() -> float | None:
+    """The machine's 1-minute load average (runnable processes), or None where the system does not say."""
+    try:
+        return float(os.getloadavg()[0])
+    except (OSError, AttributeError):
+        return None
 
 
 def mode_of(scenario) -> str:

@@ -11,7 +11,8 @@ need anyway.
 
 with the parallel efficiency measured for sweeps on the 2-core development machine (README: 0.65 per
 worker on 2 workers); one worker: 1. It leaves out the compile of a cold cache (announced when it
-happens) and process start-up. At a terminal (stdin a tty) a study estimated above CONFIRM_ABOVE_S asks
+happens) and process start-up. A rate measured at another machine load than now (a shared machine) is
+said beside the estimate, with the factor the CPU shares suggest. At a terminal (stdin a tty) a study estimated above CONFIRM_ABOVE_S asks
 before it starts; `--yes` skips the question, and a study started by a script never asks.
 """
 from __future__ import annotations
@@ -91,8 +92,22 @@ def per_drive(prepared, *, probe: bool = True) -> tuple[float, str] | None:
     simulated_s = prepared.settings().speed.statistics(float(prepared.scenario.distance))["duration_s"]
     steps = simulated_s / prepared.scenario.solver.dt
     basis += (f": {steps:.3g} steps at {float(rate['steps_per_s']):.3g} steps/s measured on this machine "
-              f"+ {float(rate['build_s']):.1f} s set-up and summary")
+              f"+ {float(rate['build_s']):.1f} s set-up and summary" + _load_note(rate))
     return float(rate["build_s"]) + steps / float(rate["steps_per_s"]), basis
+
+
+def _load_note(rate: dict) -> str:
+    """A word when the machine is much busier (or idler) now than when the rate was measured."""
+    then, now = rate.get("load"), drive_rate.load_average()
+    cpus = os.cpu_count() or 1
+    if then is None or now is None:
+        return ""
+    # the share of a CPU a process gets, roughly: 1 while the load is under the CPU count, cpus / load above
+    share_then, share_now = min(1.0, cpus / max(then, 1e-9)), min(1.0, cpus / max(now, 1e-9))
+    if not 0.67 < share_now / share_then < 1.5:
+        return (f"; the machine's load is {now:.1f} on {cpus} CPUs now, {then:.1f} when the rate was measured: "
+                f"expect about {share_then / share_now:.1f}x this")
+    return ""
 
 
 def estimate(prepared: list, workers: int | None, *, probe: bool = True) -> Estimate | None:
