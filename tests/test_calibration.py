@@ -42,6 +42,7 @@ def short_scenario(tmp_path_factory):
     return scenario, target
 
 
+@pytest.mark.slow      # nine 1.5 km drives
 def test_calibration_refuses_a_tolerance_below_the_measured_noise_floor(short_scenario):
     scenario, target = short_scenario
     # started at the answer (the first run is the target itself), so the noise probe comes at once
@@ -55,6 +56,7 @@ def test_calibration_refuses_a_tolerance_below_the_measured_noise_floor(short_sc
     assert 2e-3 < floor < TOLERANCE_K
 
 
+@pytest.mark.slow      # about ten 1.5 km drives
 def test_calibration_recovers_a_known_air_speed_ratio_above_the_noise_floor(short_scenario):
     scenario, target = short_scenario
     res = calibrate_heat(scenario, target, tol_K=TOLERANCE_K, log=lambda m: None)

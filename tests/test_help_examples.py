@@ -74,6 +74,7 @@ def workdir(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow      # ~40 commands, four 300 m drives among them
 def test_the_examples_run(workdir, monkeypatch, capsys):
     monkeypatch.chdir(workdir)
     # the same command shown at two levels (hpsim --help and hpsim run --help) runs once, as a user would
