@@ -231,7 +231,8 @@ def _sweep_preview(args, sources) -> None:
     from vehicle.runs.scenario import prepare
     from vehicle.studies import cost
 
-    cost.confirm(cost.estimate([prepare(s) for s in sources], None if args.scheduler else args.workers),
+    cost.confirm(cost.estimate([prepare(s) for s in sources], args.workers,
+                               cluster=bool(args.scheduler)),
                  "hpsim sweep", args.yes)
 
 

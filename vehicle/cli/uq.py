@@ -89,7 +89,7 @@ def _preview(args, nominal_case, n: int, probe: bool = True):
     """The number of drives and the estimated wall time (vehicle.studies.cost); asks at a terminal when long."""
     from vehicle.studies import cost
 
-    est = cost.estimate([nominal_case] * n, None if args.scheduler else args.workers, probe=probe)
+    est = cost.estimate([nominal_case] * n, args.workers, cluster=bool(args.scheduler), probe=probe)
     cost.confirm(est, "hpsim uq", args.yes)
     return est
 
@@ -113,7 +113,7 @@ def _list(args, patterns) -> int:
         from vehicle.runs.scenario import prepare
         from vehicle.studies import cost
 
-        est = cost.estimate([prepare(src)] * runs, None if args.scheduler else args.workers, probe=False)
+        est = cost.estimate([prepare(src)] * runs, args.workers, cluster=bool(args.scheduler), probe=False)
     if args.json:
         print_json({"parameters": [p.describe() for p in params], "notes": notes, "drives": runs,
                     "estimated_wall_s": None if est is None else est.wall_s})

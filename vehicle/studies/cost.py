@@ -110,9 +110,10 @@ def _load_note(rate: dict) -> str:
     return ""
 
 
-def estimate(prepared: list, workers: int | None, *, probe: bool = True) -> Estimate | None:
+def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster: bool = False) -> Estimate | None:
     """The cost of one drive of each prepared scenario (a study's cases) on `workers` local processes (None:
-    one per CPU); None when there is nothing to run, or no rate is recorded and probe is False."""
+    one per CPU); None when there is nothing to run, or no rate is recorded and probe is False. cluster: the
+    drives go to a Dask cluster of unknown size: the serial time, said so."""
     if not prepared:
         return None
     known: dict[int, tuple[float, str]] = {}        # cases that share a scenario object are estimated once
@@ -126,6 +127,9 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True) -> Esti
         total += known[id(p)][0]
         basis = basis or known[id(p)][1]
     n = len(prepared)
+    if cluster:
+        workers = 1
+        basis += "; serial time on this machine: the cluster divides it by its workers"
     w = max(1, min(workers or os.cpu_count() or 1, n))
     wall = total / (w * (PARALLEL_EFFICIENCY if w > 1 else 1.0))
     if w > 1:
