@@ -226,12 +226,11 @@ def cmd_plot(args):
     return 0
 
 
-def _sweep_preview(args, sources) -> None:
+def _sweep_preview(args, prepared) -> None:
     """The number of drives and the estimated wall time of a sweep (vehicle.studies.cost), before it starts."""
-    from vehicle.runs.scenario import prepare
     from vehicle.studies import cost
 
-    cost.confirm(cost.estimate([prepare(s) for s in sources], args.workers,
+    cost.confirm(cost.estimate(prepared, args.workers,
                                cluster=bool(args.scheduler)),
                  "hpsim sweep", args.yes)
 
@@ -249,7 +248,7 @@ def cmd_sweep(args):
                      "-o/--output-dir" if args.output_dir else "output folder (the sweep file's name)")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
-                       before_start=lambda sources: _sweep_preview(args, sources))
+                       before_start=lambda prepared: _sweep_preview(args, prepared))
     if result["finished_files"]:
         result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
                                                 labels=result["finished_labels"])))

@@ -102,8 +102,8 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
             text = f"# case {name} of sweep {path.name}: base {base.name} with {ov}\n" + \
                 yaml.safe_dump(merged, sort_keys=False)
             src = ScenarioSource(text=text, name=label, base_dir=base.base_dir, data=merged)
-            prepare(src)                     # every case validated before anything runs
-            cases.append({"name": name, "overrides": ov, "source": src})
+            prepared = prepare(src)          # every case validated before anything runs
+            cases.append({"name": name, "overrides": ov, "source": src, "prepared": prepared})
     return spec, base, cases
 
 
@@ -221,7 +221,7 @@ def worker_init(parent_pid: int) -> None:
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
               scheduler: str | None = None, log: Callable[[str], None] | None = None,
               before_start: Callable[[list], None] | None = None) -> dict:
-    """before_start(sources of the cases to run): called before any runs (the cost preview may stop it)."""
+    """before_start(the cases to run, prepared): called before any runs (the cost preview may stop it)."""
     from vehicle.runs.results import results_status
 
     log = log or (lambda m: None)
@@ -243,7 +243,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
     n = len(todo)
     log(f"{path}: {len(cases)} cases, {n} to run, results in {out_dir}/")
     if before_start is not None:
-        before_start([c["source"] for c in todo])
+        before_start([c["prepared"] for c in todo])
     t0 = time.perf_counter()
     done = 0
 
