@@ -20,8 +20,18 @@ res.report()
 tree = res.to_xarray()                           # xarray.DataTree of every group
 ts = tree["timeseries"].to_dataset()
 print(ts["strut_temperature"])                   # (time, station), units K
-print("max wheel load change [%]:",
-      float(100 * (ts["wheel_load"].max() / ts["wheel_load"].isel(time=0).mean() - 1)))
+
+# Two different "wheel load" numbers, named as the report names them:
+summary = res.summary()
+# dN [%] (the report's column; summary "max_abs_dN_pct"): the change of the STANDING wheel load between the
+# weighings before and after the drive, as the struts warmed up: a fraction of a percent
+print("report dN, largest |dN| [%]:", round(summary["max_abs_dN_pct"], 3))
+# DLC (the report's road-holding column): the RMS of the DYNAMIC wheel load while driving over the static
+# load, per station; its peaks are tens of percent on a class D road, and say nothing about dN
+print("report DLC, largest over the stations:",
+      round(max(st["dynamic_load_coefficient"] for st in summary["ride"]["stations"]), 3))
+print("peak dynamic wheel load while driving, above the mean static load at the start [%] (neither dN nor DLC):",
+      round(float(100 * (ts["wheel_load"].max() / ts["wheel_load"].isel(time=0).mean() - 1)), 1))
 
 path = out_dir / "tour.h5"
 with sim.run(out=path, overwrite=True) as from_file:   # the same run, written as `hpsim run` writes it

@@ -12,6 +12,8 @@ from hpsim import symbolic as sym
 __all__ = [
     "walther_kinematic_viscosity",
     "walther_coefficients",
+    "andrade_kinematic_viscosity",
+    "viscosity_extrapolation_range",
     "oil_density",
     "oil_bulk_modulus",
     "oil_volume",
@@ -53,6 +55,40 @@ def walther_coefficients(T1_K, nu1_m2_s, T2_K, nu2_m2_s):
     B = (Z1 - Z2) / (L2 - L1)
     A = Z1 + B * L1
     return A, B
+
+
+def andrade_kinematic_viscosity(T_K, T1_K, nu1_m2_s, T2_K, nu2_m2_s):
+    """Kinematic viscosity [m^2/s] from Andrade's law ln nu = a + b / T through the same two datasheet points.
+
+    A second standard extrapolation of liquid viscosity (E. N. da C. Andrade, Nature 125, 309, 1930): between
+    the points it and Walther agree closely; how far apart they drift outside shows how uncertain an
+    extrapolation of the two points is.
+    """
+    b = sym.log(nu1_m2_s / nu2_m2_s) / (1.0 / T1_K - 1.0 / T2_K)
+    return nu1_m2_s * sym.exp(b * (1.0 / T_K - 1.0 / T1_K))
+
+
+def viscosity_extrapolation_range(T1_K, nu1_m2_s, T2_K, nu2_m2_s, rel_disagreement):
+    """(T_low, T_high) [K]: the temperatures beyond the datasheet points (T1 < T2) where the Walther and the
+    Andrade extrapolations through them first differ by `rel_disagreement` (relative to Walther).
+
+    Inside, the two laws agree better than that, so an extrapolation error of that size is the most the
+    missing data can hide; floats only (a bisection on the monotone gap, 1 mK)."""
+    A, B = walther_coefficients(T1_K, nu1_m2_s, T2_K, nu2_m2_s)
+
+    def gap(T):
+        w = float(walther_kinematic_viscosity(T, A, B))
+        return abs(w - float(andrade_kinematic_viscosity(T, T1_K, nu1_m2_s, T2_K, nu2_m2_s))) / w
+
+    def edge(inside, outside):
+        if gap(outside) < rel_disagreement:
+            return outside
+        while abs(outside - inside) > 1e-3:
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if gap(mid) < rel_disagreement else (inside, mid)
+        return inside
+
+    return edge(T1_K, max(T1_K - 200.0, 1.0)), edge(T2_K, T2_K + 300.0)
 
 
 # --- density, bulk modulus, thermal expansion ------------------------------------------------

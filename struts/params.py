@@ -169,7 +169,8 @@ class Limits(Model):
     pressure ratings, for `hpsim vehicle check` (vehicle.physics.vehicle_check).
 
     None: not known (no warning). The oil data's own range is that of the viscosity datasheet
-    points (oil.viscosity_T1 .. viscosity_T2): beyond it the viscosity law extrapolates.
+    points (oil.viscosity_T1 .. viscosity_T2) widened to where the Walther and Andrade extrapolations
+    through them differ by 10 % (struts.oil.viscosity_extrapolation_range, vehicle.results.validity).
     """
 
     seal_max_temperature: K | None = None    # maximum continuous service temperature of the seals

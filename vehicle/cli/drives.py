@@ -14,6 +14,7 @@ from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 from vehicle.cli import response, vehicles
+from .stages import command_wall_s
 
 
 def register(sub):
@@ -65,6 +66,8 @@ def register(sub):
     ps.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="run the cases on an existing Dask distributed cluster (needs the 'dask' extra)")
     ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
+    ps.add_argument("--yes", action="store_true",
+                    help="start without asking (at a terminal a sweep estimated above 5 min asks first)")
     ps.set_defaults(func=cmd_sweep)
 
     pl = sub.add_parser("plot", help="dashboard figure of a results file")
@@ -120,8 +123,11 @@ def cmd_run(args):
     except RunInterrupted as exc:
         sys.stderr.write(f"hpsim run: {exc}\n")
         return 130
+    if getattr(args, "verbosity", 0) < 0:          # -q: only the path written
+        print(out)
+        return 0
     print(format_report(report(out)))
-    print(f"wrote {out} ({summary.get('wall_s', 0.0):.1f} s wall)")
+    print(f"wrote {out} (the command {command_wall_s():.1f} s wall, the drive {summary.get('wall_s', 0.0):.1f} s)")
     return 0
 
 
@@ -206,6 +212,15 @@ def cmd_plot(args):
     return 0
 
 
+def _sweep_preview(args, prepared) -> None:
+    """The number of drives and the estimated wall time of a sweep (vehicle.studies.cost), before it starts."""
+    from vehicle.studies import cost
+
+    cost.confirm(cost.estimate(prepared, args.workers,
+                               cluster=bool(args.scheduler)),
+                 "hpsim sweep", args.yes)
+
+
 def cmd_sweep(args):
     from hpsim.tables import print_json
 
@@ -218,12 +233,15 @@ def cmd_sweep(args):
     check_output_dir(args.output_dir or Path(args.sweep).stem,
                      "-o/--output-dir" if args.output_dir else "output folder (the sweep file's name)")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
-                       log=(lambda m: None) if args.json else logging.getLogger("hpsim").info)
+                       log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
+                       before_start=lambda prepared: _sweep_preview(args, prepared))
     if result["finished_files"]:
         result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
                                                 labels=result["finished_labels"])))
     if args.json:
         print_json(result)
+    elif getattr(args, "verbosity", 0) < 0 and not result["failed"]:     # -q: only what was written
+        print(result["summary_csv"])
     else:
         print(format_summary(result))
     return 3 if result["failed"] else 0

@@ -1,13 +1,33 @@
 """Examples shown at the end of every `hpsim ... --help` (argparse epilogs), in one place.
 
-`apply(parser)` walks the sub-command tree and gives each command its examples; a command that
-sets its own epilog keeps it. tests/test_cli_help.py checks that every command has some.
+`apply(parser)` walks the sub-command tree and gives every parser its examples: the top level, the
+groups (strut, road, vehicle) and each command; a parser that sets its own epilog keeps it.
+tests/test_cli_help.py checks that every help ends with examples and runs them (the long ones only
+parsed, each with its reason there).
 """
 from __future__ import annotations
 
 import argparse
 
 EXAMPLES = {
+    "": """\
+  hpsim run scenarios/quick_demo.yaml -o demo.h5       # a 5 km drive; the report follows
+  hpsim report demo.h5
+  hpsim strut static --strut apc --load 41.8kN --p0 4.8MPa --temperature 20degC
+  hpsim road generate --class D --length 2km -o road.csv
+  hpsim vehicle equilibrium
+  hpsim run --help                                     # every command's --help ends with examples""",
+    "strut": """\
+  hpsim strut static --strut apc --load 41.8kN --p0 4.8MPa --temperature 20degC
+  hpsim strut characteristic --strut apc --plot f.png
+  hpsim strut gas --temperatures 250K,300K,400K""",
+    "road": """\
+  hpsim road generate --class D --length 2km --seed 7 -o road.csv
+  hpsim road psd road.csv
+  hpsim road plot road.csv -o road.png""",
+    "vehicle": """\
+  hpsim vehicle equilibrium --temperatures 80degC,75degC,70degC,70degC
+  hpsim vehicle response --json""",
     "strut static": """\
   hpsim strut static --strut apc --load 41.8kN --p0 4.8MPa --temperature 20degC
   hpsim strut static --strut yin2023 --load 4kN --json""",
@@ -15,9 +35,9 @@ EXAMPLES = {
   hpsim strut characteristic --strut apc --plot f.png      # marks the stroke limits and the operating point
   hpsim strut characteristic --strut apc --temperature 80degC --csv f.csv""",
     "strut cycle": """\
-  hpsim strut cycle --strut apc --amplitude 10mm,50mm,100mm --frequency 0.1Hz --mean 115mm --plot loops.png
-  hpsim strut cycle --strut apc --amplitude 10mm --frequency 0.5Hz --mean 115mm --data rig.csv --plot cmp.png
-    (rig.csv: measured loops, columns amplitude_m, frequency_Hz, mean_m, t_s, force_N)""",
+  hpsim strut cycle --strut apc --amplitude 10mm,50mm,100mm --frequency 0.1Hz --mean 115mm --plot loops.png --csv loops.csv
+  hpsim strut cycle --strut apc --amplitude 50mm --frequency 0.1Hz --mean 115mm --data loops.csv --plot cmp.png
+    (--data: measured loops, columns amplitude_m, frequency_Hz, mean_m, t_s, force_N; here the ones just written)""",
     "strut gas": """\
   hpsim strut gas --temperatures 250K,300K,400K --plot gas.png""",
     "strut fit": """\
@@ -25,7 +45,7 @@ EXAMPLES = {
   hpsim strut fit --strut apc --data struts/data/apc_rig_energy.csv --fit bleed_area --write apc_fitted.yaml""",
     "road generate": """\
   hpsim road generate --class D --length 20km --seed 7 -o road.csv
-  hpsim road generate --class E --length 5km --json""",
+  hpsim road generate --class E --length 5km -o road_e.csv --json   # the road's statistics as JSON""",
     "road psd": """\
   hpsim road psd road.csv --json
   hpsim road psd --class D --length 5km --plot psd.png      # a generated road, no file needed""",
@@ -58,9 +78,18 @@ EXAMPLES = {
   hpsim calibrate scenarios/mileage_106km.yaml --target-rise 54K
   hpsim calibrate scenarios/quick_demo.yaml --target-rise 4K --tolerance 0.2K --json""",
     "uq": """\
-  hpsim uq scenarios/quick_demo.yaml --list                 # the parameters with priors
-  hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2 -o uq_out""",
+  hpsim uq scenarios/quick_demo.yaml --list --samples 16     # the priors; 833 drives and their estimated time
+  hpsim uq scenarios/quick_demo.yaml --method lhs --samples 8 --parameters 'vehicle.tyre.*' --distance 1km -o uq_out
+  hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2 -o uq_out --yes   # hours: starts without asking""",
 }
+
+
+def parsers(parser: argparse.ArgumentParser, path=()):
+    """(path, parser) of every parser: the top level (""), the groups (strut, road, vehicle) and the commands."""
+    yield " ".join(path), parser
+    for sub in [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)][:1]:
+        for name, sp in sub.choices.items():
+            yield from parsers(sp, path + (name,))
 
 
 def commands(parser: argparse.ArgumentParser, path=()):
@@ -74,7 +103,7 @@ def commands(parser: argparse.ArgumentParser, path=()):
 
 
 def apply(parser: argparse.ArgumentParser) -> None:
-    for path, p in commands(parser):
+    for path, p in parsers(parser):
         if p.epilog is None and path in EXAMPLES:
             p.epilog = "examples:\n" + EXAMPLES[path]
             p.formatter_class = argparse.RawDescriptionHelpFormatter

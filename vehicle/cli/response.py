@@ -6,15 +6,15 @@ import re
 
 from hpsim.errors import UserInputError
 
-EPILOG = """examples:
+EPILOG = """The linearisation holds for small motions about the standing equilibrium; the valves are their
+laminar bleed; seal friction is either differentiated at rest (a very stiff damper) or replaced by
+its first-harmonic damping 4 F_C / (pi V) at the strut velocity amplitude V (--friction-velocity).
+
+examples:
   hpsim vehicle response                                  # apc_8x8, friction equivalent linear at 100 mm/s
   hpsim vehicle response --friction-velocity 50mm/s --plot response.png
   hpsim vehicle response --friction-velocity 0 --json     # friction differentiated at rest (struts stick)
-  hpsim vehicle response --temperatures 80degC --fmin 0.5Hz --fmax 20Hz
-
-The linearisation holds for small motions about the standing equilibrium; the valves are their
-laminar bleed; seal friction is either differentiated at rest (a very stiff damper) or replaced by
-its first-harmonic damping 4 F_C / (pi V) at the strut velocity amplitude V (--friction-velocity)."""
+  hpsim vehicle response --temperatures 80degC --fmin 0.5Hz --fmax 20Hz"""
 
 
 def strut_temperatures(P, text):

@@ -9,7 +9,6 @@ need every case), 130 interrupted (re-run the same command to resume).
 """
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -42,7 +41,10 @@ def register(sub):
     p.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the drives on an existing Dask distributed cluster (needs the 'dask' extra)")
-    p.add_argument("--list", action="store_true", help="list the priors and the number of drives, run nothing")
+    p.add_argument("--list", action="store_true",
+                   help="list the priors, the number of drives and their estimated wall time, run nothing")
+    p.add_argument("--yes", action="store_true",
+                   help="start without asking (at a terminal a study estimated above 5 min asks first)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON only")
     p.set_defaults(func=cmd_uq)
 
@@ -67,15 +69,29 @@ def cmd_uq(args):
     summary = run_scenario_study(args.scenario, samples=args.samples, method=args.method, seed=args.seed,
                                  output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                                  parameters=patterns, distance=args.distance, groups=args.groups,
-                                 per_axle_struts=args.per_axle_struts, log=log)
+                                 per_axle_struts=args.per_axle_struts, log=log,
+                                 before_start=lambda nominal, n: _preview(args, nominal, n))
     from vehicle.presentation.uq_plots import study_plots
 
     summary["files"].update(study_plots(summary, Path(summary["study"])))
+    from vehicle.studies.confidence import ranked
+
+    summary["influence_confidence"] = {k: dict(zip(("index", "rows"), ranked(summary, k)))
+                                       for k in summary.get("most_influential") or {}}
     if args.json:
         print_json(summary)
     else:
         print(format_study(summary))
     return 3 if summary["failed"] or not summary["nominal_done"] else 0
+
+
+def _preview(args, nominal_case, n: int, probe: bool = True):
+    """The number of drives and the estimated wall time (vehicle.studies.cost); asks at a terminal when long."""
+    from vehicle.studies import cost
+
+    est = cost.estimate([nominal_case] * n, args.workers, cluster=bool(args.scheduler), probe=probe)
+    cost.confirm(est, "hpsim uq", args.yes)
+    return est
 
 
 def _list(args, patterns) -> int:
@@ -90,12 +106,17 @@ def _list(args, patterns) -> int:
     params, notes, _ = scenario_parameters(src, per_axle_struts=args.per_axle_struts)
     params = select(params, patterns)
     draws = len({p.section for p in params}) if args.groups == "section" else len(params)
-    runs = None
+    runs = est = None
     if args.samples is not None:
         check_settings(args.method, args.samples, args.groups, len(params))
         runs = n_cases(args.method, args.samples, draws) + 1
+        from vehicle.scenario.schema import prepare
+        from vehicle.studies import cost
+
+        est = cost.estimate([prepare(src)] * runs, args.workers, cluster=bool(args.scheduler), probe=False)
     if args.json:
-        print_json({"parameters": [p.describe() for p in params], "notes": notes, "drives": runs})
+        print_json({"parameters": [p.describe() for p in params], "notes": notes, "drives": runs,
+                    "estimated_wall_s": None if est is None else est.wall_s})
         return 0
     grouped = args.groups == "section"
     rows = [[p.name, f"{p.prior.to_unit(p.prior.value):.4g} {p.prior.unit}".strip(), p.prior.describe()]
@@ -106,6 +127,8 @@ def _list(args, patterns) -> int:
     if runs is not None:
         print(f"{len(params)} parameters" + (f" in {draws} groups" if args.groups == "section" else "") +
               f": {args.method} with --samples {args.samples} runs {runs} drives (nominal included)")
+        print(est.line("estimate") if est is not None else "estimate: no drive recorded on this machine yet in this "
+              "solver mode (any hpsim run records the rate; without --list the study measures it first)")
     else:
         print(f"{len(params)} parameters: sobol runs N x {draws + 2} + 1 drives, lhs N + 1")
     return 0
@@ -141,19 +164,10 @@ def format_study(s: dict) -> str:
     if "sensitivity" in s:
         lines.append(f"sensitivity: {s['sensitivity']['skipped']}")
     top = s.get("most_influential") or {}
-    key = "ST" if "sobol" in s else "PRCC"
-    if key == "PRCC" and not any(math.isfinite(r["prcc"]) for v in s["ranking"].values() for r in v["rows"]
-                                 if r["prcc"] is not None):
-        key = "Spearman"          # too few cases for partial correlations
+    from vehicle.studies.confidence import influence_line
+
     for k in [k for k in ("mean_rise_K", "load_shift_pct") if k in top] or list(top)[:3]:
-        table = (s.get("sobol") or s.get("ranking"))[k]["rows"]
-        by = {r["parameter"]: r for r in table}
-        parts = []
-        for name in top[k]:
-            r = by[name]
-            parts.append(f"{name} ({r['ST']:.2f})" if key == "ST" else
-                         f"{name} ({r['prcc' if key == 'PRCC' else 'spearman']:+.2f})")
-        lines.append(f"most influential on {k} (by {key}): " + ", ".join(parts))
+        lines.append(influence_line(s, k))
     for name, path in s["files"].items():
         lines.append(f"{name}: {path}")
     return "\n".join(lines)

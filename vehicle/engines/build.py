@@ -4,6 +4,7 @@ settings. A new engine is one module and one line in ENGINES (docs/CONTRIBUTING.
 from __future__ import annotations
 
 from hpsim.errors import UserInputError
+from hpsim.stages import timed
 
 from vehicle.scenario.settings import resolve_segments
 from vehicle.engines.contract import Engine
@@ -38,10 +39,10 @@ def engine_name(prepared) -> str:
 
 def build_engine(prepared) -> tuple[object, Engine]:
     """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run."""
-    model = prepared.model()
+    model = timed("build: model", prepared.model)
     prepared.check_vehicle(model)          # the quiet `hpsim vehicle check`: warnings logged, errors refuse the drive
-    road = prepared.road()
+    road = timed("road", prepared.road)
     try:
-        return model, ENGINES[engine_name(prepared)](model, road, prepared)
+        return model, timed("build: drive (the compile included)", ENGINES[engine_name(prepared)], model, road, prepared)
     except UserInputError as exc:
         raise UserInputError(f"{prepared.source.name}: {exc}") from None

@@ -42,6 +42,9 @@ from pathlib import Path
 import casadi as ca
 
 from hpsim.errors import UserInputError
+from hpsim.stages import timed
+
+from vehicle.numerics import compile_time
 
 CACHE_ENV = "HPSIM_CACHE"
 CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
@@ -304,12 +307,17 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
     if cc is None:
         return 0
     todo = []
-    for fn in fns:
-        flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
+    plans = timed("compile: C generated and looked up in the cache", lambda: [_plan(fn, cc, opt_level) for fn in fns])
+    for flags, code, code_sha, d, stem in plans:
         if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
             todo.append((cc, flags, code, code_sha, d, stem))
-    _run_builds(todo, width=max(1, os.cpu_count() or 1))      # no more compilers than cores
+    width = max(1, os.cpu_count() or 1)                         # no more compilers than cores
     if todo:
+        compile_time.announce([len(t[2]) for t in todo], width, todo[0][4])
+    t0 = time.perf_counter()
+    timed("compile", _run_builds, todo, width=width)
+    if todo:
+        compile_time.record([len(t[2]) for t in todo], width, time.perf_counter() - t0, todo[0][4])
         evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
     return len(todo)
 
@@ -327,11 +335,13 @@ def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool =
     flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
+        compile_time.announce([len(code)], 1, d)
         t0 = time.perf_counter()
         error = _build(cc, flags, code, code_sha, d, stem)
         if error is not None:
             warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
             return fn
+        compile_time.compiled_s += time.perf_counter() - t0
         if verbose:
             print(f"compiled {fn.name()} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
         evict(d, cache_limit_bytes(), keep=(stem,))

@@ -11,7 +11,7 @@ from vehicle.analysis.ride_metrics import axle_rows
 
 def format_report(rep: dict) -> str:
     head = (f"{rep['file']}: {rep['status']}, {rep['distance_km']:.3f} of {rep['planned_distance_km']:.6g} km, "
-            f"simulated {rep['simulated_s'] / 3600:.3f} h in {rep['wall_s']:.1f} s wall, "
+            f"simulated {rep['simulated_s'] / 3600:.3f} h (the drive {rep['wall_s']:.1f} s wall), "
             f"compensation {'on' if rep['compensation'] else 'off'}")
     # T end: the outer surface (pyrometer); oil and gas inside (the heat network, vehicle.physics.thermal)
     cols = ["axle", "T_start_C", "T_end_C", "T_oil_end_C", "T_gas_end_C", "dh_mm", "N_before_daN", "N_after_daN",
@@ -42,10 +42,12 @@ def format_report(rep: dict) -> str:
         tail.append(f"solver mode multiscale: {est['windows']} windows of {est['window_m']:.0f} m, one per "
                     f"{est['spacing_m'] / 1e3:.3g} km ({est['covered_km']:.3g} km driven with the full model); "
                     f"estimated error (95 %, {est['sigmas']:.2g} sigma, road sampling"
-                    f"{', with the control variate on the ' + est.get('proxy', 'road_rate').replace('_', '-') + ' proxy' if est.get('control_variate') else ''}): T end "
+                    f"{', with the control variate on the ' + est.get('proxy', 'road_rate').replace('_', '-') + ' proxy' if est.get('control_variate') else ''}): T surface end "
                     + ", ".join("-" if x is None else f"{x:.2f}" for x in est["T_end_K"]) + " K, dN "
                     + ", ".join("-" if x is None else f"{x:.3f}" for x in est["dN_pct"])
-                    + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp)")
+                    + f" pp per axle (up to {worst(est['T_end_K']):.2f} K, {worst(est['dN_pct']):.3f} pp); it covers "
+                    "the surface temperature and dN only, not the oil and gas end temperatures (the gas's "
+                    "last-interval mean follows the last window's road: 1.1-1.4 K off a full run, docs/validation.md)")
     if rep.get("solver_mode") == "time_parallel" and est:
         tail.append(f"solver mode time_parallel: {est['segments']} segments in parallel processes, slow states "
                     f"corrected at the joins (coarse prediction off by up to {est['coarse_mismatch_K']:.3f} K); "
@@ -78,11 +80,16 @@ AXLE_COLUMNS = (("dynamic_load_coefficient", "DLC", 1.0, ".3f"),
                 ("lift_off_share", "lift-off [%]", 100.0, ".2f"),
                 ("end_stop_time_s", "on stops [s]", 1.0, ".3g"),
                 ("end_stop_energy_J", "stop energy [kJ]", 1e-3, ".3g"),
-                ("strut_travel_min_m", "travel min [mm]", 1e3, ".1f"),
-                ("strut_travel_max_m", "travel max [mm]", 1e3, ".1f"),
+                ("strut_travel_min_m", "travel bin lo [mm]", 1e3, ".1f"),
+                ("strut_travel_max_m", "travel bin hi [mm]", 1e3, ".1f"),
                 ("strut_travel_p1_m", "p1 [mm]", 1e3, ".1f"),
                 ("strut_travel_p99_m", "p99 [mm]", 1e3, ".1f"),
                 ("rms_strut_velocity_m_per_s", "RMS v [mm/s]", 1e3, ".0f"))
+
+
+TRAVEL_NOTE = ("travel bin lo/hi: edges of the lowest and highest strut-travel bins (equal bins over the stroke) "
+               "the strut spent time in, not measured extremes: the smallest and largest deflections lie within "
+               "one bin inside them; p1/p99 interpolated within the bins")
 
 
 def _ride_table(rows, columns, first):
@@ -110,6 +117,8 @@ def format_ride(ride: dict, n_axles: int) -> str:
     if table:
         parts.append("road holding and strut travel (worst of left and right)")
         parts.append(table)
+        if "travel bin lo" in table:
+            parts.append(TRAVEL_NOTE)
     hull = ride.get("hull")
     if hull:
         parts.append(f"hull RMS acceleration: heave {hull['rms_heave_acceleration_m_s2']:.3g} m/s^2, "

@@ -48,7 +48,9 @@ import numpy as np
 
 from hpsim import __version__
 from hpsim.errors import SimulationError, UserInputError
+from hpsim.stages import timed
 
+from vehicle.numerics import drive_rate
 from vehicle.physics.weighing import band_datasets, weighing_bands
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
 from vehicle.engines.build import build_engine
@@ -279,9 +281,10 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     (solver failure after writing status 'failed'; disk full) or RunInterrupted (Ctrl-C, status 'interrupted').
     """
     log = log or (lambda msg: None)
+    t_start = time.perf_counter()
     out = Path(out)
     src = scenario if isinstance(scenario, ScenarioSource) else (
-        read_scenario(scenario) if scenario is not None else None)
+        timed("reading", read_scenario, scenario) if scenario is not None else None)
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():
@@ -307,7 +310,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
             raise UserInputError(f"{out}: not found and no scenario given")
         if resume:
             log(f"{out}: nothing to resume, starting")
-        prep = prepare(src)                            # every check before any work
+        prep = timed("scenario checks", prepare, src)  # every check before any work
         model, drive = build_engine(prep)
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
@@ -321,7 +324,11 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
             if is_disk_full(exc):
                 raise _disk_full(out, exc, "before the drive started", "free some space and run again") from None
             raise
-        return _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+        summary = _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+        # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies
+        drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
+                          summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"])
+        return summary
 
 
 def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
@@ -489,7 +496,7 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
         sink = H5Sink(f, counts[0], counts[1], counts[2])
         f.swmr_mode = True
         old_handler = _catch_sigint(sink)
-        res = drive.run(sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
+        res = timed("drive", drive.run, sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
         sink.flush()
     except SimulationError as exc:
         try:
@@ -532,10 +539,10 @@ def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoin
         raise
     close_bar()
     _fault("before_final_write")
-    final = final_info(drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
+    final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     try:
-        _final_write(out, final)
-        record(out)                     # the validity warnings, in the file (/summary attrs)
+        timed("summary: write", _final_write, out, final)
+        timed("summary: validity checks", record, out)      # the validity warnings, in the file (/summary attrs)
     except (OSError, RuntimeError) as exc:
         if is_disk_full(exc):
             raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \

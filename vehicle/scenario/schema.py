@@ -27,6 +27,7 @@ from pydantic import Field, StrictBool, StrictInt, ValidationInfo, field_validat
 
 from hpsim.config import Model, Quantity, format_validation_error, load_yaml, parse_yaml, read_text_file
 from hpsim.errors import UserInputError
+from hpsim.stages import timed
 from hpsim.units import parse_quantity
 from hpsim.validators import in_range, quantity
 from struts.params import load_strut

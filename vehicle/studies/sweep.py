@@ -107,8 +107,8 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
             text = f"# case {name} of sweep {path.name}: base {base.name} with {ov}\n" + \
                 yaml.safe_dump(merged, sort_keys=False)
             src = ScenarioSource(text=text, name=label, base_dir=base.base_dir, data=merged)
-            prepare(src)                     # every case validated before anything runs
-            cases.append({"name": name, "overrides": ov, "source": src})
+            prepared = prepare(src)          # every case validated before anything runs
+            cases.append({"name": name, "overrides": ov, "source": src, "prepared": prepared})
     return spec, base, cases
 
 
@@ -203,7 +203,9 @@ def worker_init(parent_pid: int) -> None:
 
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
-              scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+              scheduler: str | None = None, log: Callable[[str], None] | None = None,
+              before_start: Callable[[list], None] | None = None) -> dict:
+    """before_start(the cases to run, prepared): called before any runs (the cost preview may stop it)."""
     log = log or (lambda m: None)
     path = Path(path)
     spec, base, cases = load_sweep(path)
@@ -222,6 +224,8 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
             todo.append(c)
     n = len(todo)
     log(f"{path}: {len(cases)} cases, {n} to run, results in {out_dir}/")
+    if before_start is not None:
+        before_start([c["prepared"] for c in todo])
     t0 = time.perf_counter()
     done = 0
 

@@ -372,7 +372,8 @@ class DriveRunner:
 def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[str, dict], dict], *,
               method: str = "sobol", samples: int = 16, seed: int = 0, groups: str = "none",
               workers: int | None = None, scheduler: str | None = None, model: str = "",
-              log: Callable[[str], None] | None = None, nominal: bool = True, label: str = "") -> dict:
+              log: Callable[[str], None] | None = None, nominal: bool = True, label: str = "",
+              before_start: Callable[[int], None] | None = None) -> dict:
     """Sample, run (resuming), analyse. `runner(case, {parameter name: SI value}) -> {output: value}`
     must be picklable for more than one worker. `model` identifies what the runner computes (a
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
@@ -402,6 +403,8 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
     n_design = sum(1 for name, _ in rows if name != NOMINAL)
     log(f"{label or out_dir}: {len(params)} parameters, {method} design of {samples} -> {n_design} cases"
         + (" + nominal" if nominal else "") + f"; {len(rows) - len(todo)} done earlier, {len(todo)} to run")
+    if before_start is not None:
+        before_start(len(todo))          # the cost preview (vehicle.studies.cost) may stop it here
     t0 = time.perf_counter()
     done, failed_now = 0, {}
     client = dask_client(scheduler) if scheduler else None
@@ -438,8 +441,10 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        output_dir: str | Path | None = None, workers: int | None = None,
                        scheduler: str | None = None, parameters: list[str] | None = None,
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
-                       log: Callable[[str], None] | None = None) -> dict:
-    """`hpsim uq`: the study of a scenario file's priors with the drive runner."""
+                       log: Callable[[str], None] | None = None,
+                       before_start: Callable[[object, int], None] | None = None) -> dict:
+    """`hpsim uq`: the study of a scenario file's priors with the drive runner. before_start(the nominal case
+    prepared, drives to run) is called before any drive."""
     log = log or (lambda m: None)
     src = read_scenario(scenario)
     if distance is not None:
@@ -453,11 +458,12 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     out_dir = Path(output_dir) if output_dir else Path(f"{Path(scenario).stem}_uq")
     runner = DriveRunner(src.data, src.name, str(src.base_dir), params, str((out_dir / "cases").resolve()), distance)
     # every check before any drive: the nominal case and the first draw must be valid scenarios
-    prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
+    nominal_case = prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
                            data=case_scenario(src.data, params, {p.name: p.prior.value for p in params}, distance)))
     model = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
-                        workers=workers, scheduler=scheduler, model=model, log=log, label=src.name)
+                        workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
+                        before_start=None if before_start is None else (lambda n: before_start(nominal_case, n)))
     summary["scenario"] = str(scenario)
     summary["distance"] = distance
     summary["notes"] = notes

@@ -1,0 +1,140 @@
+"""Studies say what they cost before they start, and how far their ranking can be trusted (issue 20)."""
+from __future__ import annotations
+
+import io
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+
+from hpsim.errors import UserInputError
+from vehicle import cli
+from vehicle.numerics import codegen, compile_time, drive_rate
+from vehicle.studies import confidence, cost
+from tests.helpers import REPO
+
+ROOT = REPO
+
+
+@pytest.fixture
+def private_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache"))
+    return codegen.cache_dir()
+
+
+def test_a_finished_drive_records_its_rate_and_a_fresh_process_s_set_up(private_cache, monkeypatch):
+    monkeypatch.setattr(drive_rate, "_setup_recorded", False)       # as in a fresh process
+    monkeypatch.setattr(compile_time, "compiled_s", 2.0)             # which compiled for 2 s in its set-up
+    drive_rate.record("full", 0.004, 900.0, 3.0, 7.0)
+    drive_rate.record("full", 0.004, 900.0, 4.5, 0.5)     # a later drive of the process: the model was in memory
+    r = drive_rate.read("full")
+    assert r["steps_per_s"] == pytest.approx(900.0 / 0.004 / 4.5)   # the latest rate
+    assert r["build_s"] == pytest.approx(5.0)                        # the first drive's set-up, compile excluded
+    assert drive_rate.read("multiscale") is None
+
+
+def test_uq_list_says_how_many_drives_and_how_long(private_cache, capsys, monkeypatch):
+    # the quick demo: 5 km at 20 km/h = 900 s of driving, 225,000 steps of 4 ms
+    monkeypatch.setattr(drive_rate, "_setup_recorded", False)
+    monkeypatch.setattr(compile_time, "compiled_s", 0.0)
+    drive_rate.record("full", 0.004, 900.0, 2.25, 2.0)               # 1e5 steps/s, 2 s of set-up
+    code = cli.main(["uq", str(ROOT / "scenarios" / "quick_demo.yaml"), "--list", "--samples", "16",
+                     "--workers", "2", "--json"])
+    listing = json.loads(capsys.readouterr().out)
+    assert code == 0
+    per_drive = 2.0 + 225000 / 1e5
+    drives = listing["drives"]
+    assert drives == 16 * (len(listing["parameters"]) + 2) + 1       # Saltelli: N (d + 2), and the nominal
+    assert listing["estimated_wall_s"] == pytest.approx(drives * per_drive / (2 * cost.PARALLEL_EFFICIENCY), rel=1e-3)
+    cli.main(["uq", str(ROOT / "scenarios" / "quick_demo.yaml"), "--list", "--samples", "16", "--workers", "2"])
+    text = capsys.readouterr().out
+    assert re.search(rf"estimate: {drives} drives on 2 workers, estimated [0-9.]+ min wall \(4 s per drive", text), text
+
+
+def _estimate(wall_s):
+    return cost.Estimate(drives=833, workers=2, per_drive_s=wall_s * 1.3 / 833, wall_s=wall_s, basis="test")
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_a_long_study_asks_at_a_terminal_and_only_there():
+    err = io.StringIO()
+    with pytest.raises(UserInputError, match=r"not started \(833 drives, estimated 3 h 0 min\); give --yes"):
+        cost.confirm(_estimate(3 * 3600), "hpsim uq", False, stdin=_Terminal("n\n"), stderr=err)
+    assert "start 833 drives, about 3 h 0 min? [y/N]" in err.getvalue()
+    cost.confirm(_estimate(3 * 3600), "hpsim uq", False, stdin=_Terminal("y\n"), stderr=io.StringIO())
+    quiet = io.StringIO()
+    cost.confirm(_estimate(3 * 3600), "hpsim uq", True, stdin=_Terminal(""), stderr=quiet)          # --yes
+    cost.confirm(_estimate(3 * 3600), "hpsim uq", False, stdin=io.StringIO(""), stderr=quiet)      # a script
+    cost.confirm(_estimate(cost.CONFIRM_ABOVE_S / 2), "hpsim uq", False, stdin=_Terminal(""), stderr=quiet)  # short
+    assert quiet.getvalue() == ""
+
+
+def test_a_sweep_prints_its_drives_and_estimate_before_it_starts(tmp_path):
+    text = (ROOT / "scenarios" / "quick_demo.yaml").read_text().replace("distance: 5 km", "distance: 300 m")
+    (tmp_path / "base.yaml").write_text(text)
+    (tmp_path / "sw.yaml").write_text("base: base.yaml\ngrid: {speed: [20 km/h, 25 km/h]}\n")
+    p = subprocess.run([sys.executable, "-m", "vehicle.cli", "sweep", "sw.yaml", "--workers", "1"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    m = re.search(r"hpsim sweep: 2 drives on 1 worker, estimated ([0-9.]+) (s|min) wall \(([0-9.]+) (s|min) per drive",
+                  p.stderr)
+    assert m, p.stderr
+    # said before the first case started
+    assert p.stderr.index("hpsim sweep: 2 drives") < p.stderr.index("[1/2]")
+    estimate_s = float(m.group(1)) * (60 if m.group(2) == "min" else 1)
+    took = [float(s) for s in re.findall(r"\[\d/2\] \S+: done in ([0-9.]+) s", p.stderr)]
+    assert len(took) == 2
+    # a rate measured on this machine: the right order of magnitude (the load of a shared machine varies)
+    assert sum(took) / 4 < estimate_s < 4 * sum(took), (estimate_s, took)
+
+
+def test_ranking_intervals_resolve_a_real_effect_and_not_noise():
+    rng = np.random.default_rng(7)
+    n, d, trials = 12, 10, 300
+    z = confidence.family_quantile(d)
+    false_alarms = 0
+    for _ in range(trials):
+        X, y = rng.random((n, d)), rng.random(n)
+        rho = [spearmanr(X[:, j], y).statistic for j in range(d)]
+        false_alarms += any(lo > 0 or hi < 0 for lo, hi in
+                            (confidence.correlation_interval(r, n, spearman=True, z=z) for r in rho))
+    # at most 5 % of studies of pure noise claim any parameter (Bonferroni is conservative); 300 trials:
+    # a binomial standard deviation of 1.3 %
+    assert false_alarms / trials < 0.08
+    X = rng.random((20, d))
+    y = X[:, 0] + 0.1 * rng.standard_normal(20)
+    lo, hi = confidence.correlation_interval(spearmanr(X[:, 0], y).statistic, 20, spearman=True, z=z)
+    assert lo > 0
+
+
+def test_the_issue_s_ranking_of_8_cases_over_50_parameters_says_not_resolved():
+    names = [f"p{i}" for i in range(50)]
+    summary = {"done": 8, "parameters": [{"name": n} for n in names], "most_influential": {"mean_rise_K": names[:3]},
+               "ranking": {"mean_rise_K": {"constant": False, "rows": [
+                   {"parameter": n, "prcc": float("nan"), "spearman": r} for n, r in zip(names, [0.76, -0.7, 0.6] + [0.1] * 47)]}}}
+    line = confidence.influence_line(summary, "mean_rise_K")
+    assert "NOT RESOLVED" in line and line.count("not resolved") == 3 and "0.16 per parameter" in line
+
+
+def test_without_a_recorded_rate_a_short_probe_drive_measures_it(tmp_path, monkeypatch):
+    from vehicle.scenario.schema import prepare, read_scenario
+
+    record = tmp_path / "drive_rate.json"
+    monkeypatch.setattr(drive_rate, "_path", lambda: record)        # nothing recorded (the compiled model is cached)
+    prep = prepare(read_scenario(ROOT / "scenarios" / "quick_demo.yaml"))
+    assert drive_rate.read("full") is None
+    est = cost.estimate([prep] * 3, 1)
+    assert "rate measured now on a probe drive" in est.basis and est.drives == 3
+    rate = drive_rate.read("full")
+    assert rate is not None and rate["steps_per_s"] > 0
+    # 5 km at 20 km/h in steps of 4 ms, at the probe's rate, plus its set-up
+    assert est.per_drive_s == pytest.approx(rate["build_s"] + 225000 / rate["steps_per_s"], rel=1e-9)
+    assert est.wall_s == pytest.approx(3 * est.per_drive_s)

@@ -1,0 +1,32 @@
+"""The command's own wall time, for the line `hpsim run` ends with (issue 20: the time printed is the command's).
+
+`command_wall_s()` counts from the process start (Linux: /proc/self/stat, so the imports count too),
+else from the first import of the command line package.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+_IMPORTED = time.perf_counter()
+
+
+def _process_age_s() -> float | None:
+    """Seconds since this process started (Linux /proc), or None where that is not known."""
+    try:
+        with open("/proc/self/stat") as fh:
+            start_ticks = int(fh.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as fh:
+            uptime_s = float(fh.read().split()[0])
+        return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+_AGE_AT_IMPORT = _process_age_s()
+
+
+def command_wall_s() -> float:
+    """Wall seconds since the command started."""
+    since_import = time.perf_counter() - _IMPORTED
+    return since_import + (_AGE_AT_IMPORT or 0.0)

@@ -1,0 +1,80 @@
+"""The measured speed of drives on this machine, kept in the compile cache (`drive_rate.json`), so that a
+study can say what it will cost before it starts (vehicle.studies.cost).
+
+Every completed `hpsim run` (and so every sweep and UQ case) records, per solver mode, the integration
+steps per second of wall time of its drive (simulated time / dt / the drive's wall, writing the results
+included) and the rest of a run in a fresh process with the model compiled (`build_s`: reading, checks,
+road, model, build, file, summary; taken from the first run of a process only, as later ones reuse the
+model built in memory, and without the compiler's time, vehicle.numerics.compile_time). A new process's
+imports (~2 s) are not in it.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+from vehicle.numerics import compile_time
+from vehicle.numerics.codegen import cache_dir
+
+RECORD = "drive_rate.json"
+_setup_recorded = False        # this process recorded its first drive's set-up
+
+
+def _path() -> Path:
+    return cache_dir() / RECORD
+
+
+def read(mode: str) -> dict | None:
+    """{"steps_per_s", "build_s", "dt_s", "recorded"} of the last drive in this mode, or None."""
+    try:
+        entry = json.loads(_path().read_text()).get(mode)
+        ok = (isinstance(entry, dict) and math.isfinite(float(entry["steps_per_s"])) and float(entry["steps_per_s"]) > 0
+              and math.isfinite(float(entry["build_s"])) and float(entry["build_s"]) >= 0)
+        return entry if ok else None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
+def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float) -> None:
+    """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written)."""
+    global _setup_recorded
+    if not (dt_s > 0 and simulated_s > 0 and wall_s > 0 and build_s >= 0):
+        return
+    first, _setup_recorded = not _setup_recorded, True
+    build_s = max(build_s - compile_time.compiled_s, 0.0) if first else 0.0
+    path = _path()
+    try:
+        data = json.loads(path.read_text())
+        data = data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        data = {}
+    old = data.get(mode) if isinstance(data.get(mode), dict) else {}
+    build = build_s if first else float(old.get("build_s", 0.0))
+    data[mode] = {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
+                  "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"), "load": load_average()}
+    try:
+        tmp = path.with_name(f".{RECORD}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(data))
+        tmp.replace(path)
+    except OSError:
+        pass
+
+
+def load_average() -> float | None:
+    """The machine's 1-minute load average (runnable processes), or None where the system does not say."""
+    try:
+        return float(os.getloadavg()[0])
+    except (OSError, AttributeError):
+        return None
+
+
+def mode_of(scenario) -> str:
+    """The record's key for a scenario (vehicle.scenario.schema.Scenario): full, multiscale, time_parallel/P."""
+    solver = scenario.solver
+    if solver.mode == "multiscale":
+        return "multiscale"
+    P = solver.time_parallel
+    return f"time_parallel/{P}" if P not in (None, 1) else "full"
