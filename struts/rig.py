@@ -180,7 +180,8 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     if algebraic:
         opts["calc_ic"] = True
     integ = ca.integrator("rig", "idas" if algebraic else "cvodes", dae, 0.0, grid[1:], opts)
-    x0 = [float(v) for v in strut.initial_states(T, x=mean_m, m_gas=m_gas).values()] + [0.0] * (len(MECHANISMS) + 2)
+    x0 = [float(v) for v in strut.initial_states(T, x=mean_m, m_gas=m_gas,
+                                                 excitation_Hz_m=(frequency_Hz, amplitude_m)).values()] + [0.0] * (len(MECHANISMS) + 2)
     args = {"x0": x0}
     z0 = np.zeros((0, 1))
     if algebraic:
