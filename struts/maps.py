@@ -65,12 +65,16 @@ class _Map(Model):
 
     values: list[list[float]]
     sources: list[list[str]]
+    legend: dict[str, str] = {}     # what each source label means (the figure, the text, or "assumed ...")
     note: str = ""
 
     @model_validator(mode="after")
     def _shapes(self):
         if len(self.sources) != len(self.values) or any(len(s) != len(v) for s, v in zip(self.sources, self.values)):
             raise ValueError("sources must have the shape of values (one label per point)")
+        unknown = sorted({s for row in self.sources for s in row} - set(self.legend)) if self.legend else []
+        if unknown:
+            raise ValueError(f"source labels {unknown} are not in legend")
         return self
 
 
