@@ -256,3 +256,27 @@ def test_rig_cycle_energy_balance_with_maps_and_memory(params, strut):
     assert r.work_in_J == pytest.approx(total, rel=1e-8)
     assert abs(E["gas"]) < 2e-4 * r.work_in_J
     assert E["valve"] > 0 and E["friction"] > 0
+
+
+def test_cycle_json_reports_internal_parameters_and_equivalent_stiffness_damping(capsys):
+    """`hpsim strut cycle --json`: per run the internal parameters at the run's temperature and frequency, the
+    strut's own excitation measure (= the rig frequency, the estimator starts at the sine's mean squares) and the
+    first-harmonic k_eq, c_eq, whose c_eq is the loop energy over pi omega A^2."""
+    import json
+
+    from vehicle.cli import main
+
+    code = main(["strut", "cycle", "--strut", "yin2023", "--amplitude", "8mm", "--frequency", "2Hz,8Hz",
+                 "--mean", "60mm", "--temperature", "50degC", "--cycles", "2", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code in (0, None) and len(out) == 2
+    for r in out:
+        assert set(r["internal"]) == set(INTERNAL_NAMES)
+        assert r["internal"]["gas_fraction"] == pytest.approx(float(
+            map_value(load_strut("yin2023").internal_maps, "gas_fraction", 323.15, r["frequency_Hz"])))
+        assert r["excitation_frequency_Hz"] == pytest.approx(r["frequency_Hz"], rel=0.01)
+        w, A = 2 * math.pi * r["frequency_Hz"], r["amplitude_m"]
+        assert r["equivalent_damping_N_s_per_m"] == pytest.approx(r["energy_per_cycle_J"] / (math.pi * w * A * A),
+                                                                  rel=1e-3)
+        assert r["equivalent_stiffness_N_per_m"] > 0
+    assert out[1]["internal"]["transition_velocity_compression"] > out[0]["internal"]["transition_velocity_compression"]
