@@ -163,6 +163,13 @@ def cmd_report(args):
     from vehicle.presentation.report import format_report, report
 
     rep = report(args.results)
+    from vehicle.analysis.internal_drift import damping_over_drive
+    from vehicle.runs.reader import open_results as _open
+
+    with _open(args.results) as r:
+        drift = damping_over_drive(r)
+    if drift is not None:
+        rep["damping_over_drive"] = drift
     if args.psd:
         from vehicle.presentation.plots import psd_plot
         from vehicle.presentation.report import format_psd
