@@ -93,9 +93,12 @@ def seal_friction(v, x, p, *, F0_comp, F0_reb, f_p, K_brk, v_s, f_v, eps, v_h_co
     F_c_comp = coulomb_level(p, F0_comp, f_p)
     F_c_reb = coulomb_level(p, F0_reb, f_p)
     w_comp = 0.5 * (1.0 + s_v)                       # 1 in compression, 0 in rebound
-    mag_comp = _stribeck_magnitude(a_v, F_c_comp, K_brk, v_s)
-    mag_reb = _stribeck_magnitude(a_v, F_c_reb, K_reb, v_s_r)
-    F_out = (w_comp * mag_comp + (1.0 - w_comp) * mag_reb) * s_v + f_v * v   # seed 001 eq. 2
+    if K_brk_reb is None and v_s_reb is None:     # one Stribeck law, the Coulomb level blended (fewer operations)
+        mag = _stribeck_magnitude(a_v, w_comp * F_c_comp + (1.0 - w_comp) * F_c_reb, K_brk, v_s)
+    else:
+        mag = (w_comp * _stribeck_magnitude(a_v, F_c_comp, K_brk, v_s)
+               + (1.0 - w_comp) * _stribeck_magnitude(a_v, F_c_reb, K_reb, v_s_r))
+    F_out = mag * s_v + f_v * v   # seed 001 eq. 2
     if _is_zero(v_h_comp) and _is_zero(v_h_reb):
         return F_out
     if stroke_dir is None and eps_x is None:

@@ -152,8 +152,8 @@ class Friction(Model):
     hysteresis_velocity_rebound: m_per_s = 0.0
     hysteresis_smoothing_displacement: m = 1e-3      # eps_x: width of sgn(x) in the band (numerical)
     # time constant of the reversal memory (the stroke direction, struts.friction.stroke_direction_rate) once
-    # the velocity has left the band: numerical, well below a half period (31 ms at 8 Hz)
-    reversal_memory_time: s = 0.005
+    # the velocity has left the band: numerical, well below a half period; required with a hysteresis band
+    reversal_memory_time: s | None = None
     bristle_stiffness: N_per_m = 1e7                 # LuGre sigma0
     bristle_damping: N_s_per_m = 0.0                 # LuGre sigma1
 
@@ -205,6 +205,17 @@ class StrutParams(Model):
     # internal parameters over body temperature and excitation frequency (seed 001 §5.2; struts.maps)
     internal_maps: InternalMaps | None = None
     calibration: dict = {}      # free text: what was fitted to what
+
+    @model_validator(mode="after")
+    def _reversal_memory(self):
+        f, m = self.friction, self.internal_maps
+        band = f.hysteresis_velocity_compression != 0 or f.hysteresis_velocity_rebound != 0 or (
+            m is not None and (m.transition_velocity_compression is not None
+                               or m.transition_velocity_rebound is not None))
+        if band and f.model == "stribeck" and f.reversal_memory_time is None:
+            raise ValueError("friction.reversal_memory_time (s) is required with the seed 001 hysteresis band "
+                             "(a transition velocity): the time constant of the band's reversal memory, e.g. 5 ms")
+        return self
 
     def with_overrides(self, overrides: dict) -> "StrutParams":
         data = deep_update(self.model_dump(), overrides)
