@@ -293,8 +293,8 @@ def test_cycle_json_reports_internal_parameters_and_equivalent_stiffness_damping
 def test_light_4x4_on_integrated_struts_stands_and_runs_at_the_default_step():
     """vehicle/data/light_4x4_integrated.yaml: the charged vehicle stands inside the stroke; on 300 m of an ISO
     class D road at 30 km/h from 30 degC the default 4 ms step gives each strut's heat (valve + friction + end
-    stops) within 1 % of a 2 ms run (measured: 0.3 % at most, the 2 ms run being the reference; the ROS2 step's
-    error is second order). Every strut carries the maps, the reversal memory and the excitation states, and the
+    stops) within 1 % of a 2 ms run (measured: 0.48-0.59 %; against 1 ms: 4 ms 0.60-0.73 %, 2 ms 0.13-0.15 %,
+    second order). Every strut carries the maps, the reversal memory and the excitation states, and the
     measure follows the motion (0.5 Hz at rest, well above it after the drive)."""
     from terrain import RoadSpec, build_road
     from vehicle.numerics import solvers
