@@ -16,7 +16,7 @@ from . import gas as gaslaw
 from . import maps as mapslaw
 from . import oil as oillaw
 from . import valves
-from .params import StrutParams
+from .params import REVERSAL_MEMORY_TIME_S, StrutParams
 
 
 class StrutBase:
@@ -105,7 +105,8 @@ class StrutBase:
             i = internal or self.internal_parameters(u.T_wall)
             rates["stroke_dir"] = fr.stroke_direction_rate(
                 states["stroke_dir"], u.v, i["transition_velocity_compression"], i["transition_velocity_rebound"],
-                f.smoothing_velocity, f.reversal_memory_time)
+                f.smoothing_velocity,
+                REVERSAL_MEMORY_TIME_S if f.reversal_memory_time is None else f.reversal_memory_time)
         if self.uses_excitation:
             rates.update(excitation.rates(u.x, u.v, states, self.p.internal_maps.excitation_time_constant))
         return rates

@@ -132,6 +132,9 @@ class Valve(Model):
     check_discharge_coefficient: Number | None = None
 
 
+REVERSAL_MEMORY_TIME_S = 0.005     # default of friction.reversal_memory_time: 5 ms, inside the 31 ms half period at 8 Hz
+
+
 class Friction(Model):
     """Seal friction: Coulomb (pressure dependent) + Stribeck + viscous (REFERENCE §7, seed 001 eq. 2-3)."""
 
@@ -152,7 +155,8 @@ class Friction(Model):
     hysteresis_velocity_rebound: m_per_s = 0.0
     hysteresis_smoothing_displacement: m = 1e-3      # eps_x: width of sgn(x) in the band (numerical)
     # time constant of the reversal memory (the stroke direction, struts.friction.stroke_direction_rate) once
-    # the velocity has left the band: numerical, well below a half period; required with a hysteresis band
+    # the velocity has left the band: numerical, well below a half period. None: REVERSAL_MEMORY_TIME_S (kept out
+    # of the parameters so that a strut without a band compiles exactly as before)
     reversal_memory_time: s | None = None
     bristle_stiffness: N_per_m = 1e7                 # LuGre sigma0
     bristle_damping: N_s_per_m = 0.0                 # LuGre sigma1
@@ -205,17 +209,6 @@ class StrutParams(Model):
     # internal parameters over body temperature and excitation frequency (seed 001 §5.2; struts.maps)
     internal_maps: InternalMaps | None = None
     calibration: dict = {}      # free text: what was fitted to what
-
-    @model_validator(mode="after")
-    def _reversal_memory(self):
-        f, m = self.friction, self.internal_maps
-        band = f.hysteresis_velocity_compression != 0 or f.hysteresis_velocity_rebound != 0 or (
-            m is not None and (m.transition_velocity_compression is not None
-                               or m.transition_velocity_rebound is not None))
-        if band and f.model == "stribeck" and f.reversal_memory_time is None:
-            raise ValueError("friction.reversal_memory_time (s) is required with the seed 001 hysteresis band "
-                             "(a transition velocity): the time constant of the band's reversal memory, e.g. 5 ms")
-        return self
 
     def with_overrides(self, overrides: dict) -> "StrutParams":
         data = deep_update(self.model_dump(), overrides)
