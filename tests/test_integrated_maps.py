@@ -325,3 +325,32 @@ def test_light_4x4_on_integrated_struts_stands_and_runs_at_the_default_step():
     assert np.all(heat[0.004] > 100.0)
     assert np.max(np.abs(heat[0.004] / heat[0.002] - 1.0)) < 0.01
     assert f_rest == pytest.approx([0.5] * m.n, rel=1e-6) and min(f_eq[0.004]) > 1.0
+
+
+def test_report_shows_damping_and_friction_moving_with_temperature(tmp_path, capsys):
+    """`hpsim report` of a drive of the light 4x4: per axle the oil temperature, the equivalent valve and friction
+    damping (interval power / v_rms^2) and the mapped Coulomb friction in the first and last statistics interval;
+    the oil warms and the Coulomb levels follow their maps at those temperatures. The APC's report has no such
+    table (its struts have no maps)."""
+    import json
+
+    from vehicle.cli import main
+
+    sc = tmp_path / "l4.yaml"
+    sc.write_text("vehicle: {name: light_4x4_integrated}\nroad: {iso_class: D, seed: 1}\nspeed: 30 km/h\n"
+                  "distance: 0.4 km\nambient_temperature: 30 degC\nsolver: {dt: 4 ms}\n"
+                  "output: {interval: 0.2 s, stats_interval: 0.2 km}\n")
+    assert main(["run", str(sc), "-o", str(tmp_path / "l4.h5"), "-q"]) in (0, None)
+    capsys.readouterr()
+    assert main(["report", str(tmp_path / "l4.h5"), "--json"]) in (0, None)
+    rep = json.loads(capsys.readouterr().out)
+    rows = rep["damping_over_drive"]
+    maps = load_strut("yin2023").internal_maps
+    assert [r["axle"] for r in rows] == [1, 2]
+    for r in rows:
+        assert r["T_oil_last_C"] > r["T_oil_first_C"] > 30.0
+        assert r["c_valve_first_kNs_m"] > 0 and r["c_friction_last_kNs_m"] > 0
+        assert r["coulomb_compression_last_N"] == pytest.approx(float(map_value(
+            maps, "coulomb_compression", r["T_oil_last_C"] + C, 0.5)), rel=1e-9)
+    assert main(["report", str(tmp_path / "l4.h5")]) in (0, None)
+    assert "damping and friction over the drive" in capsys.readouterr().out
