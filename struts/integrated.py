@@ -15,7 +15,16 @@ States (same interface as `struts.model.SeparatedStrut`):
          REFERENCE §6). With V_g as the state both are explicit (no inversion of the BWR equation)
          and a change of body temperature acts on the pressure at once, as in the separated strut.
   p_r    rod-side chamber pressure (seed 001 eq. 6).
-  T_gas  gas temperature (energy process only); z_bristle (LuGre friction only).
+  T_gas  gas temperature (energy process only); z_bristle (LuGre friction only); stroke_dir (the seal band's
+         reversal memory, `struts.friction.stroke_direction_rate`, with a band); exc_* (the excitation measure of
+         `struts.excitation`, only with frequency-dependent internal maps).
+
+Internal parameters (seed 001 §5.2, `struts.maps`, `StrutBase.internal_parameters`): the gas fraction gamma_0,
+the bleed and check discharge coefficients and the friction's per-stroke Coulomb, peak, Stribeck and transition
+values are the file's constants or, with `internal_maps:`, functions of T_wall and the excitation frequency.
+A gas fraction that follows the excitation changes the emulsion's compressibility and density at once; the slow
+change of the emulsion's volume it implies (under 2 cm^3 of 0.55 L from 0.6 to 1.2 %, against a free-gas
+volume of about 0.4 L) is not moved into the gas balance.
 Both V_gas and p_r are stiff (time constants ~ 0.1-2 ms): `stiff_state_names`. With quasi-steady chambers
 (below) p_r is not a state.
 
