@@ -23,8 +23,9 @@ Internal parameters (seed 001 §5.2, `struts.maps`, `StrutBase.internal_paramete
 the bleed and check discharge coefficients and the friction's per-stroke Coulomb, peak, Stribeck and transition
 values are the file's constants or, with `internal_maps:`, functions of T_wall and the excitation frequency.
 A gas fraction that follows the excitation changes the emulsion's compressibility and density at once; the slow
-change of the emulsion's volume it implies (under 2 cm^3 of 0.55 L from 0.6 to 1.2 %, against a free-gas
-volume of about 0.4 L) is not moved into the gas balance.
+change of the emulsion's volume it implies (N (gamma_1 - gamma_0) ((p0/p)^(1/n) - 1) / (1 + gamma): about 1 cm^3
+from 0.6 to 1.2 % at the rig's 2.4 MPa, 3 cm^3 at 20 MPa, against a free-gas volume of about 0.4 L) is not moved
+into the gas balance.
 Both V_gas and p_r are stiff (time constants ~ 0.1-2 ms): `stiff_state_names`. With quasi-steady chambers
 (below) p_r is not a state.
 
