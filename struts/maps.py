@@ -16,13 +16,10 @@ frequency").
 """
 from __future__ import annotations
 
-from typing import Annotated
-
-from pydantic import BeforeValidator, model_validator
+from pydantic import model_validator
 
 from hpsim import symbolic as sym
-from hpsim.config import Model, Quantity, QuantityList, _strip_source
-from hpsim.units import parse_quantity
+from hpsim.config import Model, Quantity, QuantityList
 
 __all__ = ["InternalMaps", "MAP_UNITS", "map_value", "validity_warnings", "INTERNAL_NAMES"]
 
@@ -41,22 +38,6 @@ MAP_UNITS = {
     "transition_velocity_rebound": "m/s",
 }
 INTERNAL_NAMES = tuple(MAP_UNITS)
-
-
-def _table(unit: str):
-    """Rows of quantities (numbers in SI or strings with units): one row per temperature."""
-    def _parse(value):
-        value = _strip_source(value)
-        if not isinstance(value, (list, tuple)) or not value:
-            raise ValueError("expected a table: a list of rows, one per temperature")
-        rows = []
-        for i, row in enumerate(value):
-            if not isinstance(row, (list, tuple)):
-                raise ValueError(f"row {i}: expected a list of values, one per frequency")
-            rows.append([parse_quantity(_strip_source(v), unit, where=f"row {i} item {j} (in {unit})")
-                         for j, v in enumerate(row)])
-        return rows
-    return Annotated[list[list[float]], BeforeValidator(_parse)]
 
 
 class _Map(Model):
@@ -79,7 +60,8 @@ class _Map(Model):
 
 
 def _map_class(unit: str, name: str):
-    return type(name, (_Map,), {"__annotations__": {"values": _table(unit)}, "__module__": __name__})
+    # one row per temperature, each a list of quantities (numbers in SI or strings with units), one per frequency
+    return type(name, (_Map,), {"__annotations__": {"values": list[QuantityList(unit)]}, "__module__": __name__})
 
 
 _MapFraction = _map_class("dimensionless", "MapFraction")
