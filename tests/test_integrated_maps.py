@@ -338,8 +338,8 @@ def test_report_shows_damping_and_friction_moving_with_temperature(tmp_path, cap
 
     sc = tmp_path / "l4.yaml"
     sc.write_text("vehicle: {name: light_4x4_integrated}\nroad: {iso_class: D, seed: 1}\nspeed: 30 km/h\n"
-                  "distance: 0.4 km\nambient_temperature: 30 degC\nsolver: {dt: 4 ms}\n"
-                  "output: {interval: 0.2 s, stats_interval: 0.2 km}\n")
+                  "distance: 0.3 km\nambient_temperature: 30 degC\nsolver: {dt: 4 ms}\n"
+                  "output: {interval: 0.2 s, stats_interval: 0.15 km}\n")
     assert main(["run", str(sc), "-o", str(tmp_path / "l4.h5"), "-q"]) in (0, None)
     capsys.readouterr()
     assert main(["report", str(tmp_path / "l4.h5"), "--json"]) in (0, None)
