@@ -12,8 +12,8 @@ so the strut estimates one from its own motion with smooth states that a 4 ms st
 For x = x_0 + A sin(omega t) the mean squares are A^2 omega^2 / 2 and A^2 / 2, so omega_eq = omega exactly
 (up to the filters' ripple at 2 omega, attenuated by (1 + (2 omega tau)^2) per stage: 0.6 % per stage at
 0.5 Hz with tau = 2 s, and the moving mean's ripple A / (2 omega tau)). On random motion omega_eq is the
-"mean-square frequency" sqrt(int omega^2 S(omega) / int S(omega)) of the deflection's spectrum (Rice's
-zero-crossing rate times pi), a smooth, bounded quantity. At rest (s_v, s_x << d_0^2) it reads omega_0
+"mean-square frequency" sqrt(int omega^2 S(omega) / int S(omega)) of the deflection's spectrum (for Gaussian
+motion 2 pi times Rice's rate of up-crossings of the mean), a smooth, bounded quantity. At rest (s_v, s_x << d_0^2) it reads omega_0
 (the lowest frequency of the strut's maps, `deflection_floor` d_0): small motions are keyed on the slowest
 rig test. The state names are `STATE_NAMES`; all states are >= 0 when started >= 0 (x_m aside), and slow
 (tau of seconds): none is stiff.
