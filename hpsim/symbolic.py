@@ -94,3 +94,23 @@ def ramp(x, eps):
     away from contact (end stops, tyre lift-off, dead bands).
     """
     return if_else(x <= -eps, 0.0 * x, if_else(x >= eps, x, (x + eps) * (x + eps) / (4.0 * eps)))
+
+
+def interp_linear(x, xs, ys):
+    """Piecewise-linear interpolation of the points (xs[k], ys[k]) at x, held constant outside [xs[0], xs[-1]].
+
+    y = ys[0] + sum_k (ys[k+1] - ys[k]) / (xs[k+1] - xs[k]) clip(x - xs[k], 0, xs[k+1] - xs[k]): only
+    fmin/fmax, so x, xs and ys may be NumPy values or CasADi symbols (xs strictly increasing).
+    """
+    y = ys[0] + 0.0 * x
+    for k in range(len(xs) - 1):
+        h = xs[k + 1] - xs[k]
+        y = y + (ys[k + 1] - ys[k]) / h * fmin(fmax(x - xs[k], 0.0), h)
+    return y
+
+
+def interp_bilinear(x, y, xs, ys, table):
+    """Piecewise-bilinear interpolation of table[i][j] at (xs[i], ys[j]), clamped outside the grid
+    (`interp_linear` along y per row, then along x); NumPy- and CasADi-friendly."""
+    rows = [interp_linear(y, ys, row) for row in table]
+    return interp_linear(x, xs, rows)

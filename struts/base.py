@@ -10,11 +10,13 @@ from functools import cached_property
 
 from hpsim import symbolic as sym
 
+from . import excitation
 from . import friction as fr
 from . import gas as gaslaw
+from . import maps as mapslaw
 from . import oil as oillaw
 from . import valves
-from .params import StrutParams
+from .params import REVERSAL_MEMORY_TIME_S, StrutParams
 
 
 class StrutBase:
@@ -37,7 +39,77 @@ class StrutBase:
             names += ("T_gas",)
         if self.p.friction.model == "lugre":
             names += ("z_bristle",)
+        elif self.hysteresis_band:
+            names += ("stroke_dir",)
+        if self.uses_excitation:
+            names += excitation.STATE_NAMES
         return names
+
+    @property
+    def hysteresis_band(self) -> bool:
+        """Seed 001 eq. 3 band on: a non-zero transition velocity (constant or mapped). The band then carries the
+        reversal memory `stroke_dir` (struts.friction.stroke_direction_rate)."""
+        f, m = self.p.friction, self.p.internal_maps
+        mapped = m is not None and any(getattr(m, n) is not None for n in
+                                       ("transition_velocity_compression", "transition_velocity_rebound"))
+        return mapped or not (fr._is_zero(f.hysteresis_velocity_compression)
+                              and fr._is_zero(f.hysteresis_velocity_rebound))
+
+    @property
+    def uses_excitation(self) -> bool:
+        """True when an internal map varies with frequency: the strut then carries the excitation states of
+        `struts.excitation` (no other strut does, so their cost falls only on struts that use them)."""
+        m = self.p.internal_maps
+        return m is not None and m.uses_frequency
+
+    # --- internal parameters over temperature and excitation (seed 001 §5.2, struts.maps) -------
+    def excitation_frequency(self, states: dict):
+        """Equivalent excitation frequency [Hz] from the excitation states (`struts.excitation`); the maps'
+        lowest frequency when the strut carries none."""
+        m = self.p.internal_maps
+        if m is None:
+            return None
+        if not self.uses_excitation:
+            return m.frequencies[0]
+        return excitation.equivalent_frequency(states, m.frequencies[0], m.deflection_floor)
+
+    def internal_parameters(self, T_wall, f_Hz=None) -> dict:
+        """The seed 001 §5.2 internal parameters (`struts.maps.INTERNAL_NAMES`, SI) at body temperature T_wall [K]
+        and excitation frequency f_Hz [Hz]: the map where the file gives one, else the file's constant."""
+        f, v, m = self.p.friction, self.p.valve, self.p.internal_maps
+        cd_check = v.discharge_coefficient if v.check_discharge_coefficient is None else v.check_discharge_coefficient
+        out = {
+            "gas_fraction": self.p.emulsion.initial_gas_fraction,
+            "bleed_discharge_coefficient": v.discharge_coefficient,
+            "check_discharge_coefficient": cd_check,
+            "coulomb_compression": f.F0_compression,
+            "coulomb_rebound": f.F0_rebound,
+            "peak_compression": f.breakaway_ratio * f.F0_compression,
+            "peak_rebound": f.breakaway_ratio * f.F0_rebound,
+            "stribeck_coefficient_compression": 1.0 / f.stribeck_velocity,
+            "stribeck_coefficient_rebound": 1.0 / f.stribeck_velocity,
+            "transition_velocity_compression": f.hysteresis_velocity_compression,
+            "transition_velocity_rebound": f.hysteresis_velocity_rebound,
+        }
+        if m is not None:
+            f_Hz = m.frequencies[0] if f_Hz is None else f_Hz
+            for name in m.mapped():
+                out[name] = mapslaw.map_value(m, name, T_wall, f_Hz)
+        return out
+
+    def memory_rates(self, u, states: dict, internal: dict | None) -> dict:
+        """Rates of the reversal memory and the excitation states this strut carries (none for most struts)."""
+        rates = {}
+        if "stroke_dir" in self.state_names:
+            f = self.p.friction
+            i = internal or self.internal_parameters(u.T_wall)
+            rates["stroke_dir"] = fr.stroke_direction_rate(
+                states["stroke_dir"], u.v, i["transition_velocity_compression"], i["transition_velocity_rebound"],
+                f.smoothing_velocity,
+                REVERSAL_MEMORY_TIME_S if f.reversal_memory_time is None else f.reversal_memory_time)
+        if self.uses_excitation:
+            rates.update(excitation.rates(u.x, u.v, states, self.p.internal_maps.excitation_time_constant))
+        return rates
 
     # --- charge -------------------------------------------------------------------------------
 
@@ -116,9 +188,22 @@ class StrutBase:
         f = self.p.friction
         return f.viscous * self.oil_viscosity(T_wall) / self.oil_viscosity(self.p.oil.reference_temperature)
 
-    def friction_force(self, v, x_rel, p_gas, T_wall, z_bristle=None):
+    def friction_force(self, v, x_rel, p_gas, T_wall, z_bristle=None, stroke_dir=None, internal: dict | None = None):
+        """(seal friction [N], dz_bristle/dt or None). internal: the internal parameters of
+        `internal_parameters` (per-direction Coulomb, peak, Stribeck and transition values); stroke_dir: the
+        reversal memory (replaces sgn(x_rel) in the band)."""
         f = self.p.friction
         f_v = self.friction_viscous(T_wall)
+        if internal is not None and f.model == "stribeck":
+            i = internal
+            return fr.seal_friction(
+                v, x_rel, p_gas, F0_comp=i["coulomb_compression"], F0_reb=i["coulomb_rebound"],
+                f_p=f.pressure_coefficient, K_brk=i["peak_compression"] / i["coulomb_compression"],
+                K_brk_reb=i["peak_rebound"] / i["coulomb_rebound"],
+                v_s=1.0 / i["stribeck_coefficient_compression"], v_s_reb=1.0 / i["stribeck_coefficient_rebound"],
+                f_v=f_v, eps=f.smoothing_velocity, v_h_comp=i["transition_velocity_compression"],
+                v_h_reb=i["transition_velocity_rebound"], eps_x=f.hysteresis_smoothing_displacement,
+                stroke_dir=stroke_dir), None
         if f.model == "lugre":
             F_c = fr.coulomb_level(p_gas, 0.5 * (f.F0_compression + f.F0_rebound), f.pressure_coefficient)
             F_s = F_c * f.breakaway_ratio
@@ -130,7 +215,7 @@ class StrutBase:
             K_brk=f.breakaway_ratio, v_s=f.stribeck_velocity, f_v=f_v, eps=f.smoothing_velocity,
             v_h_comp=f.hysteresis_velocity_compression, v_h_reb=f.hysteresis_velocity_rebound,
             eps_x=None if fr._is_zero(f.hysteresis_velocity_compression) and fr._is_zero(f.hysteresis_velocity_rebound)
-            else f.hysteresis_smoothing_displacement)
+            else f.hysteresis_smoothing_displacement, stroke_dir=stroke_dir)
         return F, None
 
 

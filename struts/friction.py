@@ -17,6 +17,7 @@ __all__ = [
     "coulomb_level",
     "stribeck_friction",
     "seal_friction",
+    "stroke_direction_rate",
     "lugre_bristle_rate",
     "lugre_force",
     "friction_power",
@@ -56,7 +57,7 @@ def _is_zero(value) -> bool:
 
 
 def seal_friction(v, x, p, *, F0_comp, F0_reb, f_p, K_brk, v_s, f_v, eps, v_h_comp=0.0, v_h_reb=0.0,
-                  eps_x=None):
+                  eps_x=None, K_brk_reb=None, v_s_reb=None, stroke_dir=None):
     """Asymmetric seal friction [N] with the seed-001 hysteresis band (seed 001 eq. 2-3, seed 000 §4.1).
 
     v [m/s] deflection rate (> 0 compression); x [m] deflection measured from the mid position
@@ -78,35 +79,62 @@ def seal_friction(v, x, p, *, F0_comp, F0_reb, f_p, K_brk, v_s, f_v, eps, v_h_co
     to about half the breakaway level over a few eps; for |x| < eps_x the reversal test is
     undecided and the band contributes half its weight. x = 0 must be the centre of the motion
     (seed 001 uses the excitation displacement).
+
+    Per stroke direction (seed 001 §5.2, Fig. 11b-c): K_brk and v_s are the compression values and K_brk_reb,
+    v_s_reb (default: the same) the rebound ones. Reversal memory: stroke_dir (in [-1, 1], the state of
+    `stroke_direction_rate`: +1 after a compression stroke, -1 after a rebound one) replaces sgn(x) as the
+    direction of the stroke before the reversal, so the band needs no centre and works on any motion; on a
+    sinusoid it is sgn(x) wherever the band is active (the old band exactly). eps_x is then not used.
     """
+    K_reb = K_brk if K_brk_reb is None else K_brk_reb
+    v_s_r = v_s if v_s_reb is None else v_s_reb
     s_v = sym.smooth_sign(v, eps)
     a_v = _smooth_magnitude(v, eps)
     F_c_comp = coulomb_level(p, F0_comp, f_p)
     F_c_reb = coulomb_level(p, F0_reb, f_p)
     w_comp = 0.5 * (1.0 + s_v)                       # 1 in compression, 0 in rebound
-    F_c = w_comp * F_c_comp + (1.0 - w_comp) * F_c_reb
-    F_out = _stribeck_magnitude(a_v, F_c, K_brk, v_s) * s_v + f_v * v   # seed 001 eq. 2
+    if K_brk_reb is None and v_s_reb is None:     # one Stribeck law, the Coulomb level blended (fewer operations)
+        mag = _stribeck_magnitude(a_v, w_comp * F_c_comp + (1.0 - w_comp) * F_c_reb, K_brk, v_s)
+    else:
+        mag = (w_comp * _stribeck_magnitude(a_v, F_c_comp, K_brk, v_s)
+               + (1.0 - w_comp) * _stribeck_magnitude(a_v, F_c_reb, K_reb, v_s_r))
+    F_out = mag * s_v + f_v * v   # seed 001 eq. 2
     if _is_zero(v_h_comp) and _is_zero(v_h_reb):
         return F_out
-    if eps_x is None:
+    if stroke_dir is None and eps_x is None:
         raise UserInputError(
             "seal_friction: eps_x (smoothing width of sgn(x) for the seed-001 hysteresis band, m) is required "
             f"when v_h_comp or v_h_reb is non-zero (got v_h_comp={v_h_comp!r}, v_h_reb={v_h_reb!r}); "
             "pass eps_x > 0, e.g. a small fraction of the motion amplitude")
 
     # --- seed 001 eq. 3: the band after a reversal ----------------------------------------------
-    s_x = sym.smooth_sign(x, eps_x)
-    old_comp = 0.5 * (1.0 + s_x)      # x > 0: the stroke before the reversal was compression
-    F_c_old = old_comp * F_c_comp + (1.0 - old_comp) * F_c_reb
-    F_c_new = (1.0 - old_comp) * F_c_comp + old_comp * F_c_reb
+    s_x = sym.smooth_sign(x, eps_x) if stroke_dir is None else stroke_dir
+    old_comp = 0.5 * (1.0 + s_x)      # x > 0 (or stroke_dir > 0): the stroke before the reversal was compression
+    # v = 0: breakaway level of the old stroke; |v| = v_h: eq. 2 of the new stroke
+    F_start = (old_comp * K_brk * F_c_comp + (1.0 - old_comp) * K_reb * F_c_reb) * s_x
     v_h = (1.0 - old_comp) * v_h_comp + old_comp * v_h_reb       # band of the new stroke
-    F_start = K_brk * F_c_old * s_x                              # v = 0: breakaway level of the old stroke
-    F_end = -s_x * _stribeck_magnitude(v_h, F_c_new, K_brk, v_s)  # |v| = v_h: eq. 2 of the new stroke
+    F_end = -s_x * ((1.0 - old_comp) * _stribeck_magnitude(v_h, F_c_comp, K_brk, v_s)
+                    + old_comp * _stribeck_magnitude(v_h, F_c_reb, K_reb, v_s_r))
     F_band = F_start + (F_end - F_start) * a_v / sym.fmax(v_h, eps) + f_v * v
     # weights: reversal (x v < 0) and inside the band (|v| < v_h; zero for |v| >= v_h or v_h = 0)
     reversal = 0.5 * (1.0 - s_x * s_v)
     inside = 1.0 - sym.smooth_step(a_v, v_h - 2.0 * eps, v_h - eps)
     return F_out + reversal * inside * (F_band - F_out)
+
+
+def stroke_direction_rate(stroke_dir, v, v_h_comp, v_h_reb, eps, tau_s):
+    """d(stroke_dir)/dt [1/s]: the reversal memory of `seal_friction` (seed 001 eq. 3 on any motion).
+
+    stroke_dir relaxes to sgn(v) with time constant tau_s [s] only once |v| has passed the transition velocity
+    of the current stroke (v_h_comp or v_h_reb [m/s], C1 switch of width eps [m/s]): through a reversal and the
+    band after it, it holds the direction of the stroke that ended. Bounded in [-1, 1]; smooth.
+    """
+    s_v = sym.smooth_sign(v, eps)
+    w_comp = 0.5 * (1.0 + s_v)
+    v_h = w_comp * v_h_comp + (1.0 - w_comp) * v_h_reb
+    a_v = _smooth_magnitude(v, eps)
+    past = sym.smooth_step(a_v, v_h, v_h + eps)
+    return past * (s_v - stroke_dir) / tau_s
 
 
 def _lugre_g(v, F_c, F_s, v_s):

@@ -15,7 +15,17 @@ States (same interface as `struts.model.SeparatedStrut`):
          REFERENCE §6). With V_g as the state both are explicit (no inversion of the BWR equation)
          and a change of body temperature acts on the pressure at once, as in the separated strut.
   p_r    rod-side chamber pressure (seed 001 eq. 6).
-  T_gas  gas temperature (energy process only); z_bristle (LuGre friction only).
+  T_gas  gas temperature (energy process only); z_bristle (LuGre friction only); stroke_dir (the seal band's
+         reversal memory, `struts.friction.stroke_direction_rate`, with a band); exc_* (the excitation measure of
+         `struts.excitation`, only with frequency-dependent internal maps).
+
+Internal parameters (seed 001 §5.2, `struts.maps`, `StrutBase.internal_parameters`): the gas fraction gamma_0,
+the bleed and check discharge coefficients and the friction's per-stroke Coulomb, peak, Stribeck and transition
+values are the file's constants or, with `internal_maps:`, functions of T_wall and the excitation frequency.
+A gas fraction that follows the excitation changes the emulsion's compressibility and density at once; the slow
+change of the emulsion's volume it implies (N (gamma_1 - gamma_0) ((p0/p)^(1/n) - 1) / (1 + gamma): about 1 cm^3
+from 0.6 to 1.2 % at the rig's 2.4 MPa, 3 cm^3 at 20 MPa, against a free-gas volume of about 0.4 L) is not moved
+into the gas balance.
 Both V_gas and p_r are stiff (time constants ~ 0.1-2 ms): `stiff_state_names`. With quasi-steady chambers
 (below) p_r is not a state.
 
@@ -83,6 +93,7 @@ from __future__ import annotations
 from hpsim import symbolic as sym
 from hpsim.errors import UserInputError
 
+from . import excitation
 from . import gas as gaslaw
 from . import oil as oillaw
 from . import valves
@@ -146,7 +157,7 @@ class IntegratedStrut(StrutBase):
         """Compressible chambers: V_gas and p_r (the relaxation through the valves, 0.01-1 ms). Quasi-steady:
         V_gas, which then carries the gas spring (coupled to the stiff wheel station, as the separated strut's
         gas spring is through its stiffness), and z_bristle for the LuGre seal."""
-        return tuple(n for n in self.state_names if n in ("V_gas", "p_r", "z_bristle"))
+        return tuple(n for n in self.state_names if n in ("V_gas", "p_r", "z_bristle", "stroke_dir"))
 
     @property
     def algebraic_names(self) -> tuple[str, ...]:
@@ -196,16 +207,17 @@ class IntegratedStrut(StrutBase):
         beta_h = self.oil_bulk_modulus(T_wall)
         return rho_h, beta_h
 
-    def emulsion(self, p, T_wall) -> dict:
+    def emulsion(self, p, T_wall, gamma0=None) -> dict:
         """Emulsion properties at pressure p [Pa] and body temperature T_wall [K].
 
         gamma (eq. 9), rho [kg/m^3] (eq. 10), nu = V/V(p0) [-] (relative volume of a fixed mass),
         kappa = -d ln nu/dp [1/Pa] (compressibility, the exact derivative of the eq. 8 volumes;
-        1/kappa is seed 001 eq. 11 up to O((p - p0)/beta_h)).
+        1/kappa is seed 001 eq. 11 up to O((p - p0)/beta_h)). gamma0: the gas fraction at p0 (default: the
+        file's emulsion.initial_gas_fraction; a map's value at the excitation, seed 001 Fig. 10a).
         """
         n = self.p.gas.polytropic_exponent
         p0 = self.p.charge.pressure
-        g0 = self.p.emulsion.initial_gas_fraction
+        g0 = self.p.emulsion.initial_gas_fraction if gamma0 is None else gamma0
         rho_h, beta_h = self._oil_state(T_wall)
         gamma = oillaw.emulsion_gas_fraction(p, p0, g0, n, beta_h)
         rho = oillaw.emulsion_density(p, p0, rho_h, beta_h, gamma)
@@ -226,7 +238,7 @@ class IntegratedStrut(StrutBase):
         p = gaslaw.polytropic_pressure(p_ext, V_ext, V_g, n)
         return p, -n * p / V_g
 
-    def static_state(self, x, T, m_gas, dV_oil=0.0, process: str | None = None):
+    def static_state(self, x, T, m_gas, dV_oil=0.0, process: str | None = None, gamma0=None):
         """(p [Pa], V_g [m^3]) at rest at deflection x, body and gas at temperature T.
 
         process=None uses the file's: "energy" -> isothermal at T, "polytropic" -> from full
@@ -242,7 +254,7 @@ class IntegratedStrut(StrutBase):
         V = target
         for _ in range(_STATIC_NEWTON_ITERATIONS):
             p, dp_dV = self._gas_law(V, T, m_gas, process, ref)
-            em = self.emulsion(p, T)
+            em = self.emulsion(p, T, gamma0)
             residual = V - target + N * (em["nu"] - 1.0)
             slope = 1.0 - N * em["nu"] * em["kappa"] * dp_dV
             V = V - residual / slope
@@ -254,14 +266,20 @@ class IntegratedStrut(StrutBase):
         p, _ = self.static_state(x, T, m_gas, dV_oil, process)
         return p * self.rod_area
 
-    def initial_states(self, T_wall, x=None, m_gas=None, dV_oil=0.0) -> dict:
+    def initial_states(self, T_wall, x=None, m_gas=None, dV_oil=0.0, excitation_Hz_m=None) -> dict:
         """States at rest at deflection x [m] (required), gas mass m_gas [kg] (default: the charge),
-        oil added dV_oil [m^3], gas and body at T_wall: the static state (`static_state`)."""
+        oil added dV_oil [m^3], gas and body at T_wall: the static state (`static_state`). excitation_Hz_m
+        (frequency [Hz], amplitude [m]) of a rig sinusoid about x: the excitation states start at its mean
+        squares (`struts.excitation.steady_states`) and the emulsion at its gas fraction; default: at rest."""
         if x is None:
             raise ValueError("IntegratedStrut.initial_states needs the deflection x (its chamber states depend on it)")
         m = self.charge_gas_mass if m_gas is None else m_gas
-        p, V_g = self.static_state(x, T_wall, m, dV_oil)
-        out = {"V_gas": V_g + self._thermal_gas_volume_loss(T_wall, dV_oil), "p_r": p}
+        f_Hz, amp = excitation_Hz_m if excitation_Hz_m is not None else (None, 0.0)
+        gamma0 = self.internal_parameters(T_wall, f_Hz)["gas_fraction"]
+        p, V_g = self.static_state(x, T_wall, m, dV_oil, gamma0=gamma0)
+        out = {"V_gas": V_g + self._thermal_gas_volume_loss(T_wall, dV_oil), "p_r": p, "stroke_dir": 0.0}
+        if self.uses_excitation:
+            out.update(excitation.steady_states(x, amp, f_Hz if f_Hz is not None else 0.0))
         if "T_gas" in self.state_names:
             out["T_gas"] = T_wall
         if "z_bristle" in self.state_names:
@@ -269,15 +287,24 @@ class IntegratedStrut(StrutBase):
         return {k: out[k] for k in self.state_names}
 
     # --- valves (seed 001 eq. 12) ------------------------------------------------------------------
-    def _valve_kwargs(self, rho, T_wall) -> dict:
+    def _internal(self, u: StrutInputs, states: dict) -> dict | None:
+        """Internal parameters at this instant (maps at T_wall and the excitation states' frequency), or None
+        when the file has no maps (the constants are then read where they are used)."""
+        if self.p.internal_maps is None:
+            return None
+        return self.internal_parameters(u.T_wall, self.excitation_frequency(states))
+
+    def _valve_kwargs(self, rho, T_wall, internal: dict | None = None) -> dict:
         """Keyword arguments of struts.valves.valve_flow for the bleed orifices + check valves + leakage.
 
         One discharge coefficient per call: the check-valve area is weighted by C_v/C_b (the
         orifice law depends on C_d A only). Laminar/turbulent transition as in the separated strut.
+        internal: the mapped discharge coefficients (seed 001 Fig. 10b), else the file's constants.
         """
         v = self.p.valve
-        cd = v.discharge_coefficient
-        cd_check = cd if v.check_discharge_coefficient is None else v.check_discharge_coefficient
+        i = internal or self.internal_parameters(T_wall)
+        cd = i["bleed_discharge_coefficient"]
+        cd_check = i["check_discharge_coefficient"]
         rho_oil, _ = self._oil_state(T_wall)
         nu = self.oil_viscosity(T_wall)
         d_h = sym.sqrt(4.0 * v.bleed_area / _PI)
@@ -345,7 +372,8 @@ class IntegratedStrut(StrutBase):
         """The reduced volume balance (module docstring, "Quasi-steady chambers"): dV_gas/dt with the emulsion of
         both chambers at p_c, the valve flow q [m^3/s] (c -> r) it implies and the emulsion at p_c."""
         gs = self._gas_side(u, states)
-        em = self.emulsion(gs["p_c"], u.T_wall)
+        internal = self._internal(u, states)
+        em = self.emulsion(gs["p_c"], u.T_wall, internal and internal["gas_fraction"])
         V_e, V_r = self._chamber_volumes(u, states["V_gas"])
         C_c, C_r = V_e * em["kappa"], V_r * em["kappa"]
         C = C_c + C_r
@@ -353,7 +381,7 @@ class IntegratedStrut(StrutBase):
         dV_gas = (self.rod_area * u.v + C * b * r_ext - C * a_th) / (C * b - 1.0)
         dp_c = b * (dV_gas - r_ext) + a_th
         q = self.annulus_area * u.v + C_r * dp_c
-        return dict(gs, em=em, dV_gas=dV_gas, dp_c=dp_c, q=q, C_r=C_r)
+        return dict(gs, em=em, dV_gas=dV_gas, dp_c=dp_c, q=q, C_r=C_r, internal=internal)
 
     def valve_demand(self, u: StrutInputs, states: dict):
         """Quasi-steady chambers: (q = (A_c - A_r) v + C_r dp_c/dt [m^3/s], valve_flow arguments at the emulsion
@@ -361,7 +389,7 @@ class IntegratedStrut(StrutBase):
         if not self.quasi_steady:
             return super().valve_demand(u, states)
         bal = self._quasi_steady_balance(u, states)
-        return bal["q"], self._valve_kwargs(bal["em"]["rho"], u.T_wall)
+        return bal["q"], self._valve_kwargs(bal["em"]["rho"], u.T_wall, bal["internal"])
 
     def chamber_time_constant(self, u: StrutInputs, states: dict, dp=None):
         """tau = C_eff / (dq/d dp) [s]: the relaxation time of the chamber-pressure difference through the valves
@@ -371,15 +399,16 @@ class IntegratedStrut(StrutBase):
         import casadi as ca
 
         gs = self._gas_side(u, states)
-        em = self.emulsion(gs["p_c"], u.T_wall)
+        internal = self._internal(u, states)
+        em = self.emulsion(gs["p_c"], u.T_wall, internal and internal["gas_fraction"])
         V_e, V_r = self._chamber_volumes(u, states["V_gas"])
         C_r, C_c = V_r * em["kappa"], V_e * em["kappa"] - 1.0 / gs["b"]
         if dp is None:
             q, kw = self.valve_demand(u, states) if self.quasi_steady else \
-                (self.annulus_area * u.v, self._valve_kwargs(em["rho"], u.T_wall))
+                (self.annulus_area * u.v, self._valve_kwargs(em["rho"], u.T_wall, internal))
             dp = valves.valve_pressure_drop(q, newton_iterations=60, **kw)
         d = ca.SX.sym("dp")
-        kw = self._valve_kwargs(em["rho"], u.T_wall)
+        kw = self._valve_kwargs(em["rho"], u.T_wall, internal)
         G = ca.Function("G", [d], [ca.jacobian(valves.valve_flow(d, **kw), d)])(dp)
         return float(C_r * C_c / (C_r + C_c) / G)
 
@@ -409,11 +438,13 @@ class IntegratedStrut(StrutBase):
         p_c, T_gas, V_g, b, a_th, heat_gas, r_ext = (gs[k] for k in ("p_c", "T_gas", "V_g", "b", "a_th", "heat_gas",
                                                                        "r_ext"))
         rates = {}
-        em_c = self.emulsion(p_c, u.T_wall)
-        em_r = self.emulsion(p_r, u.T_wall)
+        internal = self._internal(u, states)
+        g0 = internal and internal["gas_fraction"]
+        em_c = self.emulsion(p_c, u.T_wall, g0)
+        em_r = self.emulsion(p_r, u.T_wall, g0)
         rho_mean = 0.5 * (em_c["rho"] + em_r["rho"])
         dp = p_c - p_r
-        q = valves.valve_flow(dp, **self._valve_kwargs(rho_mean, u.T_wall))   # seed 001 eq. 12, c -> r
+        q = valves.valve_flow(dp, **self._valve_kwargs(rho_mean, u.T_wall, internal))   # seed 001 eq. 12, c -> r
         m_dot = rho_mean * q
         # chamber c (seed 001 eq. 5): emulsion volume and its compliance
         V_e, V_r = self._chamber_volumes(u, V_gas)
@@ -423,30 +454,33 @@ class IntegratedStrut(StrutBase):
         # chamber r (seed 001 eq. 6-7)
         rates["p_r"] = (m_dot / em_r["rho"] - A_a * u.v) / (V_r * em_r["kappa"])
         return self._outputs(u, states, rates, p_c, p_r, T_gas, V_g, dV_gas - r_ext, heat_gas, r_ext, q, dp * q,
-                             residual=None)
+                             residual=None, internal=internal)
 
     def _equations_quasi_steady(self, u: StrutInputs, states: dict, dp_valve) -> dict:
         """Quasi-steady chambers (module docstring): V_gas from the reduced volume balance, p_r = p_c - dp_valve with
         dp_valve algebraic (residual: valve_flow(dp_valve) - q, q from the balance)."""
         bal = self._quasi_steady_balance(u, states)
         p_c = bal["p_c"]
-        q = valves.valve_flow(dp_valve, **self._valve_kwargs(bal["em"]["rho"], u.T_wall))
+        q = valves.valve_flow(dp_valve, **self._valve_kwargs(bal["em"]["rho"], u.T_wall, bal["internal"]))
         rates = {"V_gas": bal["dV_gas"]}
         # the reduced model's dissipation: force work minus the reversible storage (gas and emulsion at p_c)
         power_valve = dp_valve * self.annulus_area * u.v
         return self._outputs(u, states, rates, p_c, p_c - dp_valve, bal["T_gas"], bal["V_g"],
                              bal["dV_gas"] - bal["r_ext"], bal["heat_gas"], bal["r_ext"], bal["q"], power_valve,
-                             residual=q - bal["q"])
+                             residual=q - bal["q"], internal=bal["internal"])
 
-    def _outputs(self, u, states, rates, p_c, p_r, T_gas, V_g, dV_g, heat_gas, r_ext, q, power_valve, residual):
+    def _outputs(self, u, states, rates, p_c, p_r, T_gas, V_g, dV_g, heat_gas, r_ext, q, power_valve, residual,
+                 internal=None):
         """Gas temperature and friction rates, forces and powers shared by both chamber treatments."""
         P = self.p
         if P.gas.process == "energy":
             rates["T_gas"] = gaslaw.gas_temperature_rate(T_gas, u.T_wall, P.gas.thermal_time_constant,
                                                          V_g / u.m_gas, dV_g / u.m_gas, self.gas, P.gas.eos)
-        F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_r, u.T_wall, states.get("z_bristle"))
+        F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_r, u.T_wall, states.get("z_bristle"),
+                                         states.get("stroke_dir"), internal)
         if dz is not None:
             rates["z_bristle"] = dz
+        rates.update(self.memory_rates(u, states, internal))
         F_stop, F_stop_damping = self.end_stop_force(u.x, u.v)
         F_gas = p_c * self.rod_area
         F_valve = (p_c - p_r) * self.annulus_area

@@ -15,6 +15,8 @@ from pydantic import model_validator
 from hpsim.config import Model, Plain, Quantity, deep_update, load_yaml, validate
 from hpsim.errors import UserInputError
 
+from .maps import InternalMaps
+
 Pa = Quantity("Pa")
 K = Quantity("K")
 m = Quantity("m")
@@ -130,11 +132,14 @@ class Valve(Model):
     check_discharge_coefficient: Number | None = None
 
 
+REVERSAL_MEMORY_TIME_S = 0.005     # default of friction.reversal_memory_time: 5 ms, inside the 31 ms half period at 8 Hz
+
+
 class Friction(Model):
     """Seal friction: Coulomb (pressure dependent) + Stribeck + viscous (REFERENCE §7, seed 001 eq. 2-3)."""
 
     _must_be_positive = ("stribeck_velocity", "smoothing_velocity", "hysteresis_smoothing_displacement",
-                         "bristle_stiffness")
+                         "bristle_stiffness", "reversal_memory_time")
     _must_be_non_negative = ("F0_compression", "F0_rebound", "pressure_coefficient", "breakaway_ratio", "viscous",
                              "hysteresis_velocity_compression", "hysteresis_velocity_rebound", "bristle_damping")
 
@@ -149,6 +154,10 @@ class Friction(Model):
     hysteresis_velocity_compression: m_per_s = 0.0   # seed 001 eq. 3 band (0: off)
     hysteresis_velocity_rebound: m_per_s = 0.0
     hysteresis_smoothing_displacement: m = 1e-3      # eps_x: width of sgn(x) in the band (numerical)
+    # time constant of the reversal memory (the stroke direction, struts.friction.stroke_direction_rate) once
+    # the velocity has left the band: numerical, well below a half period. None: REVERSAL_MEMORY_TIME_S (kept out
+    # of the parameters so that a strut without a band compiles exactly as before)
+    reversal_memory_time: s | None = None
     bristle_stiffness: N_per_m = 1e7                 # LuGre sigma0
     bristle_damping: N_s_per_m = 0.0                 # LuGre sigma1
 
@@ -214,6 +223,8 @@ class StrutParams(Model):
     end_stops: EndStops = EndStops()
     emulsion: Emulsion = Emulsion()
     limits: Limits = Limits()
+    # internal parameters over body temperature and excitation frequency (seed 001 §5.2; struts.maps)
+    internal_maps: InternalMaps | None = None
     calibration: dict = {}      # free text: what was fitted to what
 
     def with_overrides(self, overrides: dict) -> "StrutParams":

@@ -13,7 +13,8 @@ Inputs from the outside world (`StrutInputs`):
   m_gas    gas mass [kg] (constant in a sealed strut, set by the charge)
   dV_oil   oil added to the strut by a levelling system [m^3] (reduces the gas volume)
   dV_oil_rate, dT_wall_rate   their rates (gas-volume work from oil flow and expansion)
-  x_mid    centre of the motion (for the seed-001 hysteresis band)
+  x_mid    centre of the motion (the seed-001 band's former reversal test sgn(x - x_mid); the band now reads the
+           reversal memory state stroke_dir, struts.friction.stroke_direction_rate)
 
 Implementations: `struts.separated.SeparatedStrut` (seed 000), `struts.integrated.IntegratedStrut`
 (seed 001), siblings on `struts.base.StrutBase`; `struts.model.make_strut` picks one by layout.

@@ -20,6 +20,7 @@ from scipy.optimize import brentq
 
 from hpsim.errors import UserInputError
 
+from .maps import validity_warnings
 from .model import MECHANISMS, StrutInputs, make_strut
 from .params import StrutParams
 
@@ -109,6 +110,14 @@ class CycleResult:
     heat_out_J: float = 0.0
     peak_force_compression_N: float = 0.0
     peak_force_rebound_N: float = 0.0
+    # first harmonic of the last cycle's force: F ~ F_mean + k_eq (x - mean) + c_eq v (c_eq = E / (pi omega A^2))
+    equivalent_stiffness_N_per_m: float = 0.0
+    equivalent_damping_N_s_per_m: float = 0.0
+    # the seed 001 §5.2 internal parameters at the run's body temperature and frequency (struts.maps), the strut's
+    # own excitation measure over the last cycle (None without frequency maps) and the maps' validity warnings
+    internal: dict = field(default_factory=dict)
+    excitation_frequency_Hz: float | None = None
+    warnings: list = field(default_factory=list)
 
     def summary(self) -> dict:
         return {
@@ -119,7 +128,21 @@ class CycleResult:
             "energy_by_mechanism_J": dict(self.energy_by_mechanism_J),
             "peak_force_compression_N": self.peak_force_compression_N,
             "peak_force_rebound_N": self.peak_force_rebound_N,
+            "equivalent_stiffness_N_per_m": self.equivalent_stiffness_N_per_m,
+            "equivalent_damping_N_s_per_m": self.equivalent_damping_N_s_per_m,
+            "internal": dict(self.internal),
+            "excitation_frequency_Hz": self.excitation_frequency_Hz,
         }
+
+
+def equivalent_stiffness_damping(t_s, force_N, amplitude_m, frequency_Hz) -> tuple[float, float]:
+    """(k_eq [N/m], c_eq [N s/m]): the first harmonic of one period of F(t) under x = mean + A sin(omega t):
+    k_eq = (2/T) int F sin / A, c_eq = (2/T) int F cos / (A omega) (so c_eq = loop energy / (pi omega A^2)).
+    t_s, force_N: one period sampled uniformly, the end point included."""
+    w = 2.0 * math.pi * frequency_Hz
+    t, F = np.asarray(t_s)[:-1], np.asarray(force_N)[:-1]
+    return (float(2.0 * np.mean(F * np.sin(w * t)) / amplitude_m),
+            float(2.0 * np.mean(F * np.cos(w * t)) / (amplitude_m * w)))
 
 
 def check_cycle_arguments(params: StrutParams, amplitude, frequency, mean, cycles):
@@ -180,7 +203,8 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     if algebraic:
         opts["calc_ic"] = True
     integ = ca.integrator("rig", "idas" if algebraic else "cvodes", dae, 0.0, grid[1:], opts)
-    x0 = [float(v) for v in strut.initial_states(T, x=mean_m, m_gas=m_gas).values()] + [0.0] * (len(MECHANISMS) + 2)
+    x0 = [float(v) for v in strut.initial_states(T, x=mean_m, m_gas=m_gas,
+                                                 excitation_Hz_m=(frequency_Hz, amplitude_m)).values()] + [0.0] * (len(MECHANISMS) + 2)
     args = {"x0": x0}
     z0 = np.zeros((0, 1))
     if algebraic:
@@ -204,6 +228,12 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     by_mech = {m: float(dE[i]) for i, m in enumerate(MECHANISMS)}
     x_arr = mean_m + amplitude_m * np.sin(omega * grid)
     v_arr = amplitude_m * omega * np.cos(omega * grid)
+    k_eq, c_eq = equivalent_stiffness_damping(grid[last], F[last], amplitude_m, frequency_Hz)
+    f_eq = None
+    if getattr(strut, "uses_excitation", False):
+        f_eq = float(np.mean(np.asarray(strut.excitation_frequency(
+            {n: X[i, last] for i, n in enumerate(names)}), float)))
+    internal = {k: float(v) for k, v in strut.internal_parameters(T, frequency_Hz).items()}
     res = CycleResult(
         amplitude_m=amplitude_m, frequency_Hz=frequency_Hz, mean_m=mean_m, cycles=int(cycles),
         t_s=grid[last], x_m=x_arr[last], v_m_per_s=v_arr[last], force_N=F[last],
@@ -218,5 +248,8 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
         # smallest while extending (v < 0), where the resisting forces subtract from the gas force
         peak_force_compression_N=float(np.max(F[last][v_arr[last] > 0])),
         peak_force_rebound_N=float(np.min(F[last][v_arr[last] < 0])),
+        equivalent_stiffness_N_per_m=k_eq, equivalent_damping_N_s_per_m=c_eq,
+        internal=internal, excitation_frequency_Hz=f_eq,
+        warnings=validity_warnings(params.internal_maps, T, frequency_Hz, f"strut {params.name}"),
     )
     return res

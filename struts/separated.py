@@ -32,6 +32,10 @@ class SeparatedStrut(StrutBase):
             raise UserInputError(
                 f"strut {params.name}: valve.oil_model: quasi_steady is for layout: integrated; a separated strut "
                 "takes compressible or incompressible (its algebraic valve pressure drop)")
+        if params.internal_maps is not None:
+            raise UserInputError(
+                f"strut {params.name}: internal_maps (seed 001 §5.2: emulsion, valve and seal parameters over "
+                "temperature and frequency) is for layout: integrated")
 
     # --- structure ------------------------------------------------------------------------
     @property
@@ -42,7 +46,7 @@ class SeparatedStrut(StrutBase):
     @property
     def stiff_state_names(self) -> tuple[str, ...]:
         """Internal states with fast dynamics (time constants far below a millisecond step)."""
-        return tuple(n for n in self.state_names if n in ("dp_valve", "z_bristle"))
+        return tuple(n for n in self.state_names if n in ("dp_valve", "z_bristle", "stroke_dir"))
 
     @property
     def algebraic_names(self) -> tuple[str, ...]:
@@ -140,9 +144,11 @@ class SeparatedStrut(StrutBase):
             p_gas = self.gas_pressure(u.x, None, u.T_wall, m_gas, u.dV_oil)
             T_gas = u.T_wall
             heat_gas = 0.0 * u.v  # a reversible polytrope exchanges no net heat over a cycle
-        F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_gas, u.T_wall, states.get("z_bristle"))
+        F_fric, dz = self.friction_force(u.v, u.x - u.x_mid, p_gas, u.T_wall, states.get("z_bristle"),
+                                         states.get("stroke_dir"))
         if dz is not None:
             rates["z_bristle"] = dz
+        rates.update(self.memory_rates(u, states, None))
         F_stop, F_stop_damping = self.end_stop_force(u.x, u.v)
         q = self.valve_flow_demand(u.v)
         vargs = self.valve_arguments(u.T_wall)
@@ -176,7 +182,7 @@ class SeparatedStrut(StrutBase):
             gas_work_rate=-p_gas * dVdt,     # mechanical power into the gas [W]
         )
 
-    def initial_states(self, T_wall, x=None, m_gas=None, dV_oil=0.0) -> dict:
+    def initial_states(self, T_wall, x=None, m_gas=None, dV_oil=0.0, excitation_Hz_m=None) -> dict:
         """States at rest at body temperature T_wall (x, m_gas, dV_oil: not needed here; the
         integrated strut's chamber states depend on them)."""
         out = {}
@@ -186,6 +192,8 @@ class SeparatedStrut(StrutBase):
             out["T_gas"] = T_wall
         if "z_bristle" in self.state_names:
             out["z_bristle"] = 0.0
+        if "stroke_dir" in self.state_names:
+            out["stroke_dir"] = 0.0
         return out
 
 

@@ -3,4 +3,5 @@
     summary       per-axle numbers read back from results
     ride_metrics  ISO 2631 ride numbers per seat
     psd           power spectral densities of stored series
+    internal_drift  how an integrated strut's damping and friction moved with temperature over a drive
 """

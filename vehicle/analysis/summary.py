@@ -34,6 +34,7 @@ from vehicle.physics.weighing import difference_bands
 from vehicle.results import validity
 from vehicle.results.reader import ResultsView, open_results  # noqa: F401  (re-exported)
 from vehicle.analysis import ride_metrics
+from vehicle.analysis.internal_drift import damping_over_drive
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 
@@ -162,6 +163,9 @@ def report_from(r: ResultsView, name: str) -> dict:
 
     out["ride"] = ride_metrics.summarise(r)
     out["warnings"] = validity.check(r)
+    drift = damping_over_drive(r)            # integrated struts with internal maps only
+    if drift is not None:
+        out["damping_over_drive"] = drift
     return out
 
 

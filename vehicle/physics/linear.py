@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from struts.params import load_strut
+
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import VehicleParams
@@ -95,6 +97,11 @@ def equivalent_friction_params(params: VehicleParams, velocity_amplitude_m_s: fl
         ov.update({"friction.model": "stribeck", "friction.smoothing_velocity": math.pi * V / 4.0,
                    "friction.breakaway_ratio": 1.0, "friction.hysteresis_velocity_compression": 0.0,
                    "friction.hysteresis_velocity_rebound": 0.0})
+        if load_strut(axle["strut"], axle.get("strut_overrides") or None).internal_maps is not None:
+            # seed 001 maps of the peak, Stribeck and band: off too (their constants above take over)
+            ov.update({f"internal_maps.{k}": None for k in ("peak_compression", "peak_rebound",
+                                                            "transition_velocity_compression",
+                                                            "transition_velocity_rebound")})
         axle["strut_overrides"] = ov
     return VehicleParams.model_validate(data)
 

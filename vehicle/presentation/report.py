@@ -60,10 +60,36 @@ def format_report(rep: dict) -> str:
     if ride:
         tail.append("")
         tail.append(ride)
+    if rep.get("damping_over_drive"):
+        tail.append("")
+        tail.append(format_damping_over_drive(rep["damping_over_drive"]))
     if rep.get("warnings"):
         tail.append("")
         tail += format_warnings(rep["warnings"])
     return "\n".join([head, table] + tail)
+
+
+def format_damping_over_drive(rows) -> str:
+    """The struts' equivalent damping and mapped friction in the first and last statistics interval
+    (vehicle.analysis.internal_drift)."""
+    from hpsim.tables import format_table
+
+    def pair(r, key, fmt):
+        a, b = r.get(f"{key}_first{fmt[0]}"), r.get(f"{key}_last{fmt[0]}")
+        return "-" if a is None or b is None else f"{a:{fmt[1]}} -> {b:{fmt[1]}}"
+    body = [[r["axle"], pair(r, "T_oil", ("_C", ".1f")), pair(r, "c_valve", ("_kNs_m", ".2f")),
+             pair(r, "c_friction", ("_kNs_m", ".2f")), pair(r, "coulomb_compression", ("_N", ".0f")),
+             pair(r, "coulomb_rebound", ("_N", ".0f"))] for r in rows]
+    out = ("damping and friction over the drive (first -> last statistics interval; c = P / v_rms^2 at the strut)\n"
+           + format_table(["axle", "T oil [degC]", "c valve [kN s/m]", "c friction [kN s/m]",
+                           "Coulomb comp [N]", "Coulomb reb [N]"], body))
+    outside = [r for r in rows if r.get("maps_range_C") and any(
+        not r["maps_range_C"][0] <= r.get(f"T_oil_{t}_C", 0.0) <= r["maps_range_C"][1] for t in ("first", "last"))]
+    if outside:
+        lo, hi = outside[0]["maps_range_C"]
+        out += (f"\nnote: oil temperature outside the struts' internal maps ({lo:.0f}-{hi:.0f} degC, seed 001's tests) at "
+                f"axle {', '.join(str(r['axle']) for r in outside)}: the maps' edge values are used there")
+    return out
 
 
 def format_warnings(warnings) -> list[str]:

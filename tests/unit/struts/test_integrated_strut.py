@@ -18,12 +18,15 @@ from struts.rig import cycle_test, static_point
 
 MID = 0.06          # mid stroke of yin2023 [m]
 AMP = 0.01          # 10 mm
+# the chamber physics with the internal parameters held at the file's constants (the maps of seed 001 §5.2 and
+# their excitation states: tests/test_integrated_maps.py)
+CONSTANTS = {"internal_maps": None}
 
 
 @pytest.fixture(scope="module")
 def params():
     """Seed 001's equations as written: compressible chambers (the file's default is quasi_steady, tested below)."""
-    return load_strut("yin2023").with_overrides({"valve.oil_model": "compressible"})
+    return load_strut("yin2023", CONSTANTS).with_overrides({"valve.oil_model": "compressible"})
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +48,7 @@ def loop_area(y, x):
 
 def test_layout_and_interface(params, strut):
     assert type(strut).__name__ == "IntegratedStrut"
-    assert strut.stiff_state_names == ("V_gas", "p_r")
+    assert strut.stiff_state_names == ("V_gas", "p_r", "stroke_dir")   # stroke_dir: the reversal memory
     assert strut.algebraic_names == () and strut.compressible
     # seed 001 Table 1 values reach the model
     assert strut.piston_area == pytest.approx(44.179e-4)
@@ -152,7 +155,8 @@ def test_no_pumping_after_fast_cycles(params, strut):
 
     mass, p_c, p_r, *_, X = simulate(strut, params, x_of_t, 1.0)
     assert np.max(np.abs(mass / mass[0] - 1)) < 1e-8
-    assert np.allclose(X[:, -1], X[:, 0], rtol=1e-7)
+    chambers = [i for i, n in enumerate(strut.state_names) if n != "stroke_dir"]   # the reversal memory remembers
+    assert np.allclose(X[chambers, -1], X[chambers, 0], rtol=1e-7)
     assert np.ptp(p_c - p_r) > 1e6                      # the valves worked hard meanwhile
 
 
@@ -170,7 +174,7 @@ def test_energy_process_balance(params):
     """Energy equation for the gas (REFERENCE §6): heat to the wall closes the balance once periodic."""
     p = params.with_overrides({"gas.process": "energy", "gas.thermal_time_constant": 0.05})
     s = make_strut(p)
-    assert s.state_names == ("V_gas", "p_r", "T_gas")
+    assert s.state_names == ("V_gas", "p_r", "T_gas", "stroke_dir")
     r = cycle_test(p, AMP, 2.0, MID, cycles=5)
     W = r.energy_per_cycle_J
     assert r.energy_by_mechanism_J["gas"] > 1e-3 * W          # a real gas hysteresis now
@@ -280,14 +284,14 @@ def test_force_derivatives_match_finite_differences(name, oil_model):
 
 @pytest.fixture(scope="module")
 def quasi_steady():
-    return load_strut("yin2023")
+    return load_strut("yin2023", CONSTANTS)
 
 
 def test_quasi_steady_chambers_are_the_default_and_reduce_the_states(quasi_steady, params):
     s = make_strut(quasi_steady)
     assert quasi_steady.valve.oil_model == "quasi_steady" and s.quasi_steady
-    assert s.state_names == ("V_gas",) and s.algebraic_names == ("dp_valve",) and not s.compressible
-    assert s.stiff_state_names == ("V_gas",)
+    assert s.state_names == ("V_gas", "stroke_dir") and s.algebraic_names == ("dp_valve",) and not s.compressible
+    assert s.stiff_state_names == ("V_gas", "stroke_dir")
     # the statics are the same model (p_c = p_r at rest)
     T, m = params.charge.temperature, s.charge_gas_mass
     assert float(s.static_gas_force(MID, T, m)) == float(make_strut(params).static_gas_force(MID, T, m))
