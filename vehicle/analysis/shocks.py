@@ -206,3 +206,46 @@ def seat_shocks(a_z_m_s2, fs_hz: float, a_y_m_s2=None, daily_s: float = REFERENC
         reasons.append(f"MTVV/a_w {out['mtvv_ratio']:.2f} > {MTVV_RATIO_LIMIT:g}")
     out["a_w_unreliable"] = reasons
     return out
+
+
+# --- from a drive's stored series ---------------------------------------------------------------------
+MIN_SAMPLE_RATE_HZ = 30.0     # the Wk weighting's main band reaches ~20 Hz; sparser series miss the shocks
+START_SKIP_S = 5.0            # the drive's start from standing (a transient of several m/s^2 as the road
+                              # profile comes under the wheels), left out as in vehicle.runs.psd
+
+
+def seat_signals(view, seats, skip_s: float = START_SKIP_S) -> tuple[float, dict] | None:
+    """(sample rate [Hz], {seat name: (vertical, lateral) acceleration [m/s^2]}) at the seats from the stored
+    hull accelerations (vehicle.physics.ride.seat_vertical_acceleration / seat_lateral_acceleration); None when
+    the series are missing, uneven or sparser than MIN_SAMPLE_RATE_HZ. seats: the resolved vehicle's seats
+    (dicts with name, x_from_cg, y_from_cg, z_from_cg in m); the first skip_s of the drive left out."""
+    t = view.series("time")
+    parts = [view.series(n) for n in ("heave_acceleration", "pitch_acceleration", "roll_acceleration")]
+    roll = view.series("roll")
+    if t is None or len(t) < 16 or any(p is None for p in parts) or not seats:
+        return None
+    dt = np.diff(np.asarray(t, float))
+    h = float(np.median(dt))
+    if h <= 0 or not np.allclose(dt, h, rtol=1e-6, atol=1e-9) or 1.0 / h < MIN_SAMPLE_RATE_HZ:
+        return None
+    keep = np.asarray(t, float) >= float(t[0]) + skip_s
+    if keep.sum() < 2 * MTVV_WINDOW_S / h:
+        return None
+    heave, pitch, roll_acc = (np.asarray(p, float)[keep] for p in parts)
+    roll = None if roll is None else np.asarray(roll, float)[keep]
+    out = {}
+    for s in seats:
+        az = ride.seat_vertical_acceleration(heave, pitch, roll_acc, s["x_from_cg"], s["y_from_cg"])
+        ay = None if roll is None else ride.seat_lateral_acceleration(roll_acc, roll, s.get("z_from_cg", 0.0))
+        out[s["name"]] = (np.asarray(az, float), ay)
+    return 1.0 / h, out
+
+
+def drive_shocks(view, seats, daily_s: float = REFERENCE_DAILY_EXPOSURE_S) -> dict:
+    """{seat name: seat_shocks(...)} of a drive's stored series ({} when they are too sparse: the numbers need
+    output.interval <= 1/MIN_SAMPLE_RATE_HZ; the first START_SKIP_S of the drive left out)."""
+    sig = seat_signals(view, seats)
+    if sig is None:
+        return {}
+    fs, per_seat = sig
+    return {name: seat_shocks(az, fs, ay, daily_s) for name, (az, ay) in per_seat.items()}

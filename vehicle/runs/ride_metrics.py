@@ -28,6 +28,7 @@ import json
 
 import numpy as np
 
+from vehicle.analysis import shocks as shock_metrics
 from vehicle.physics import ride
 
 PERCENTILES = (1, 50, 99)
@@ -93,6 +94,7 @@ def summarise(view) -> dict:
                 s["absorbed_power_W"] = float((T * pa[:, k]).sum() / total)
             seats.append(s)
         out["seats"] = seats
+    add_shocks(out, view, resolved.get("vehicle", {}).get("seats", []))
     stations = [{"station": s} for s in view.stations]
     per_station = {
         "dynamic_load_coefficient": lambda a: mean_sq(a),
@@ -136,6 +138,25 @@ def summarise(view) -> dict:
         out["hull"] = {"rms_heave_acceleration_m_s2": float(r[0]), "rms_pitch_acceleration_rad_s2": float(r[1]),
                        "rms_roll_acceleration_rad_s2": float(r[2])}
     return out
+
+
+SHOCK_KEYS = ("crest_factor", "mtvv_m_s2", "mtvv_ratio", "dose_z_m_s2", "dose_y_m_s2", "sed_MPa", "daily_sed_MPa",
+              "daily_exposure_s", "sed_assessment", "a_w_unreliable")
+
+
+def add_shocks(out: dict, view, seats) -> None:
+    """Per seat: crest factor, MTVV and the ISO 2631-5 doses (vehicle.analysis.shocks) from the stored series,
+    when they are dense enough; the seat rows get them under SHOCK_KEYS."""
+    found = shock_metrics.drive_shocks(view, seats)
+    if not found:
+        return
+    rows = {s["seat"]: s for s in out.setdefault("seats", [])}
+    for name, values in found.items():
+        row = rows.get(name)
+        if row is None:
+            row = {"seat": name}
+            out["seats"].append(row)
+        row.update({k: values[k] for k in SHOCK_KEYS if k in values})
 
 
 def axle_rows(summary: dict, axles) -> list[dict]:
