@@ -42,8 +42,12 @@ def register(sub):
                          "correction of the slow states (overrides solver.time_parallel; auto: one per CPU)")
     pr.set_defaults(func=cmd_run)
 
-    pp = sub.add_parser("report", help="per-axle summary of a results file")
-    pp.add_argument("results", help="HDF5 file written by `hpsim run`")
+    pp = sub.add_parser("report", help="per-axle summary of a results file (or a shareable HTML/PDF report, also "
+                                       "of a sweep or UQ study folder)")
+    pp.add_argument("results", help="HDF5 file written by `hpsim run`, or (with --html/--pdf) a sweep or UQ study folder")
+    pp.add_argument("--html", default=None, metavar="FILE",
+                    help="one self-contained HTML file (figures embedded; needs jinja2: pip install \"hpsim[report]\")")
+    pp.add_argument("--pdf", default=None, metavar="FILE", help="the same report as a PDF")
     pp.add_argument("--json", action="store_true", help="print JSON only")
     pp.add_argument("--psd", default=None, metavar="PNG",
                     help="response PSDs (hull heave/pitch/roll acceleration, strut forces; Welch) to this figure, "
@@ -162,6 +166,8 @@ def cmd_report(args):
 
     from vehicle.presentation.report import format_report, report
 
+    if args.html or args.pdf:
+        return _shareable_report(args)
     rep = report(args.results)
     if args.psd:
         from vehicle.presentation.plots import psd_plot
@@ -185,6 +191,24 @@ def cmd_report(args):
         if args.psd:
             print()
             print(format_psd(rep["psd"]))
+    return 0
+
+
+def _shareable_report(args):
+    from vehicle.presentation.html_report import document, write_html, write_pdf
+
+    for value, flag, suffix in ((args.html, "--html", (".html", ".htm")), (args.pdf, "--pdf", (".pdf",))):
+        if value is not None:
+            check_output_file(Path(value), flag, make_parents=True)
+            if Path(value).suffix.lower() not in suffix:
+                raise UserInputError(f"{flag}: {value!r} must end in {' or '.join(suffix)}")
+    if not Path(args.results).exists():
+        raise UserInputError(f"{args.results}: no such results file or study folder")
+    doc = document(args.results)
+    if args.html:
+        print(f"wrote {write_html(doc, args.html)}")
+    if args.pdf:
+        print(f"wrote {write_pdf(doc, args.pdf)}")
     return 0
 
 
