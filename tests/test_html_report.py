@@ -1,0 +1,139 @@
+"""Shareable reports (vehicle.presentation.html_report, `hpsim report --html/--pdf`): the HTML is one
+self-contained file holding every per-axle number of `report --json`; the PDF has the text pages and the
+figures; a sweep folder and a UQ study folder get their own reports; the ride rows carry the ISO 2631 shock
+numbers of the dense series."""
+from __future__ import annotations
+
+import json
+import math
+import re
+import shutil
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from vehicle import cli
+from vehicle.presentation import html_report
+
+QUICK = Path(__file__).resolve().parents[1] / "scenarios" / "quick_demo.yaml"
+
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory):
+    """A 200 m drive stored at 50 Hz (the shock metrics and spectra need dense series)."""
+    import vehicle
+
+    out = tmp_path_factory.mktemp("drive") / "short.h5"
+    vehicle.Simulation(QUICK, overrides={"distance": "200 m", "output.interval": "0.02 s",
+                                         "output.stats_interval": "100 m"}).run(out=out)
+    return out
+
+
+class Tables(HTMLParser):
+    """The cells of every table, and every src/href attribute."""
+
+    def __init__(self):
+        super().__init__()
+        self.tables, self.links, self._cell = [], [], None
+
+    def handle_starttag(self, tag, attrs):
+        self.links += [v for k, v in attrs if k in ("src", "href")]
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "tr":
+            self.tables[-1].append([])
+        elif tag in ("td", "th"):
+            self._cell = ""
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self.tables[-1][-1].append(self._cell.strip())
+            self._cell = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell += data
+
+
+def _numbers(cell: str) -> list[float]:
+    return [float(x) for x in re.findall(r"[-+]?\d+(?:\.\d+)?", cell)]
+
+
+def test_html_is_self_contained_and_has_every_per_axle_number(drive, tmp_path, capsys):
+    out = tmp_path / "report.html"
+    assert cli.main(["report", str(drive), "--html", str(out)]) == 0
+    capsys.readouterr()
+    assert cli.main(["report", str(drive), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    text = out.read_text()
+    p = Tables()
+    p.feed(text)
+    # no network: every image is inline, no stylesheet, script or link elsewhere
+    assert p.links and all(v.startswith("data:image/png;base64,") for v in p.links)
+    assert not re.search(r"https?://|<link|<script|@import|url\(", text)
+    assert "<img" in text and rep["axles"]
+    # the per-axle table: one row per axle, every number of the JSON row at the displayed precision
+    table = next(t for t in p.tables if t and t[0] and t[0][0] == "axle" and "T start [degC]" in t[0])
+    assert len(table) == 1 + len(rep["axles"])
+    for row_json, row in zip(rep["axles"], table[1:]):
+        cells = dict(zip(table[0], row))
+        for key, header, spec in html_report.AXLE_COLUMNS:
+            v = row_json[key]
+            shown = _numbers(cells[header])
+            want = v if isinstance(v, list) else [v]
+            assert len(shown) == len(want), (key, cells[header])
+            decimals = int(spec[1:-1]) if spec.endswith("f") else 0
+            for s, w in zip(shown, want):
+                assert abs(s - w) <= 0.5 * 10 ** -decimals + 1e-12, (key, s, w)
+    # the ride rows with the shock metrics, the validity warnings, solver facts and provenance
+    for needle in ("crest factor", "MTVV", "Sed daily", "Validity warnings", "step-error estimate",
+                   "scenario hash", "machine", "hpsim"):
+        assert needle in text, needle
+    seat = rep["ride"]["seats"][0]
+    assert seat["crest_factor"] > math.sqrt(2) and seat["daily_sed_MPa"] > seat["sed_MPa"] > 0
+
+
+def test_pdf_has_text_pages_and_the_dashboard(drive, tmp_path):
+    out = tmp_path / "report.pdf"
+    png = tmp_path / "page1.png"
+    html_report.write_pdf(html_report.document(drive), out, png)
+    data = out.read_bytes()
+    assert data.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", data)) >= 2
+    assert png.stat().st_size > 20_000
+
+
+def test_bad_report_targets_exit_2(drive, tmp_path, capsys):
+    assert cli.main(["report", str(drive), "--html", str(tmp_path / "r.txt")]) == 2
+    assert cli.main(["report", str(tmp_path), "--html", str(tmp_path / "r.html")]) == 2
+    err = capsys.readouterr().err
+    assert "must end in .html" in err and "not a study folder" in err
+
+
+def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):
+    import yaml
+    from hpsim.priors import collect_priors
+    from vehicle.runs import uq
+
+    sweep = tmp_path / "sweep"
+    sweep.mkdir()
+    for name in ("a", "b"):
+        shutil.copy(drive, sweep / f"{name}.h5")
+    (sweep / "summary.csv").write_text("case,status,load_shift_pct\na,done,0.1\nb,done,0.1\n")
+    html_report.write_html(html_report.document(sweep), tmp_path / "sweep.html")
+    text = (tmp_path / "sweep.html").read_text()
+    assert "Comparison" in text and "axle 1 dN [%]" in text and text.count("data:image/png") == 1
+
+    priors = yaml.safe_load("a: {value: 1, prior: {uniform: [0, 2]}}\nb: {value: 1, prior: {uniform: [0, 2]}}")
+    params = uq.parameters_from(collect_priors(priors, "toy.yaml"))
+
+    def runner(case, v):        # axle 1 driven by a, axle 2 by b: Sobol' ranks them
+        return {"axle1.rise_K": 3 * v["a"] + 0.1 * v["b"], "axle2.rise_K": v["b"]}
+
+    uq.run_study(tmp_path / "study", params, runner, method="sobol", samples=16, seed=1, workers=1)
+    html_report.write_html(html_report.document(tmp_path / "study"), tmp_path / "uq.html")
+    p = Tables()
+    p.feed((tmp_path / "uq.html").read_text())
+    ranking = [t for t in p.tables if t and t[0][0] == "parameter" and "ST" in t[0]]
+    assert ranking and ranking[0][1][0] == "a"             # axle1.rise_K: a first
+    assert all(v.startswith("data:image/png;base64,") for v in p.links) and len(p.links) >= 2
