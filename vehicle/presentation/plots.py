@@ -2,6 +2,7 @@
 runs (`hpsim compare --plot`, sweeps). Matplotlib with the Agg backend (no display needed)."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -384,13 +385,15 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     for j, key in enumerate(tops):
         a = fig.add_subplot(grid[0, j * (6 // len(tops)):(j + 1) * (6 // len(tops))])
         for i, hh in enumerate(hist):
-            if key in hh:
-                a.plot(*hh[key], color=colors[i % len(colors)], marker="o" if len(hh[key][0]) < 30 else None, ms=3)
+            if key in hh:        # identical runs stay visible: each its own dash, the first ones wider below
+                a.plot(*hh[key], color=colors[i % len(colors)], marker="o" if len(hh[key][0]) < 30 else None, ms=3,
+                       ls=("-", "--", "-.", ":")[i % 4], lw=max(0.9, 2.6 - 0.5 * i), zorder=2 + i)
         a.axhline(0, color="k", lw=0.6)
         a.set(xlabel="distance [km]", **({"ylabel": "strut temperature rise [K]",
                                           "title": "mean strut temperature rise (all struts)"} if key == "T" else
                                          {"ylabel": "hull height change [mm]",
                                           "title": "mean hull height change vs before-drive equilibrium (moving mean)"}))
+        a.title.set_fontsize(10)
         a.grid(alpha=0.3)
     x = np.arange(n_ax)
     w = 0.8 / max(len(runs), 1)
@@ -410,10 +413,13 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
         panel.set(ylabel=ylabel, title=title)
         panel.axhline(0, color="k", lw=0.6)
         panel.grid(alpha=0.3, axis="y")
-    handles = [plt.Rectangle((0, 0), 1, 1, color=colors[j % len(colors)]) for j in range(len(runs))]
+    handles = [plt.Line2D([], [], color=colors[j % len(colors)], ls=("-", "--", "-.", ":")[j % 4],
+                          lw=max(0.9, 2.6 - 0.5 * j), marker="s", ms=7) for j in range(len(runs))]
     warned = [f"{lab} ({len(r['warnings'])} warning{'s' if len(r['warnings']) > 1 else ''})" if r.get("warnings") else lab
               for lab, r in zip(labels, runs)]
     fig.legend(handles, warned, loc="outside lower center", ncol=min(len(runs), 4), fontsize=8, frameon=False)
+    same = "" if len({json.dumps(r["axles"], sort_keys=True) for r in runs}) > 1 else " (identical results)"
+    fig.suptitle(f"{len(runs)} runs compared: temperatures, heights and load changes{same}")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
