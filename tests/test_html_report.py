@@ -137,3 +137,29 @@ def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):
     ranking = [t for t in p.tables if t and t[0][0] == "parameter" and "ST" in t[0]]
     assert ranking and ranking[0][1][0] == "a"             # axle1.rise_K: a first
     assert all(v.startswith("data:image/png;base64,") for v in p.links) and len(p.links) >= 2
+
+
+def test_dashboard_and_compare_figures_are_clean(drive, tmp_path, monkeypatch):
+    """The dashboard (strut travel per axle against the stroke, load changes with the weighing bands, every
+    legend off the data) and the comparison of two identical runs (an overall title; both curves visible)."""
+    from vehicle.presentation.plots import compare_plot, dashboard_figure
+
+    from .figure_checks import assert_clean, captured_figures
+
+    fig = dashboard_figure(drive)
+    titles = [a.get_title() for a in fig.axes]
+    assert any("strut travel" in t for t in titles) and any("static wheel loads" in t for t in titles)
+    travel = next(a for a in fig.axes if "strut travel" in a.get_title())
+    assert [t.get_text() for t in travel.get_xticklabels()] == ["axle1", "axle2", "axle3", "axle4"]
+    loads = next(a for a in fig.axes if "static wheel loads" in a.get_title())
+    assert "weighing band (seal friction)" in [t.get_text() for t in loads.get_legend().get_texts()]
+    assert_clean(fig)
+    figs = captured_figures(monkeypatch)
+    shutil.copy(drive, tmp_path / "copy.h5")
+    compare_plot([drive, tmp_path / "copy.h5"], tmp_path / "cmp.png")
+    cmp = figs[-1]
+    assert "identical" in cmp._suptitle.get_text()
+    top = cmp.axes[0]
+    styles = [(ln.get_linestyle(), ln.get_linewidth()) for ln in top.get_lines() if len(ln.get_xdata()) > 2]
+    assert len(set(styles)) == 2
+    assert_clean(cmp)

@@ -244,7 +244,7 @@ def _panel_spectra(a, d):
         if name in psd["psd"]:
             a.semilogy(f_hz[keep], np.atleast_2d(psd["psd"][name])[0][keep], label=f"{label} [{psd['units'][name]}]")
     a.set_xlim(0, float(f_hz[keep][-1]))
-    a.set(xlabel="frequency [Hz]", ylabel="PSD", title=f"hull accelerations: response PSD (Welch, "
+    a.set(xlabel="frequency [Hz]", ylabel="PSD", title=f"hull accelerations: response PSD\n(Welch, "
           f"{psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz; hpsim report --psd)")
     a.title.set_fontsize(9)
     a.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
@@ -392,7 +392,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
         a.set(xlabel="distance [km]", **({"ylabel": "strut temperature rise [K]",
                                           "title": "mean strut temperature rise (all struts)"} if key == "T" else
                                          {"ylabel": "hull height change [mm]",
-                                          "title": "mean hull height change vs before-drive equilibrium (moving mean)"}))
+                                          "title": "mean hull height change vs before-drive\nequilibrium (moving mean)"}))
         a.title.set_fontsize(10)
         a.grid(alpha=0.3)
     x = np.arange(n_ax)
@@ -411,6 +411,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
             panel.bar(x - 0.4 + w * (j + 0.5), y, w, color=colors[j % len(colors)])
         panel.set_xticks(x, [f"axle {k + 1}" for k in range(n_ax)])
         panel.set(ylabel=ylabel, title=title)
+        panel.title.set_fontsize(10)
         panel.axhline(0, color="k", lw=0.6)
         panel.grid(alpha=0.3, axis="y")
     handles = [plt.Line2D([], [], color=colors[j % len(colors)], ls=("-", "--", "-.", ":")[j % 4],

@@ -38,7 +38,7 @@ def bands_plot(summary: dict, out: str | Path) -> Path:
     else:
         panels = [(k, f"{k} [{summary['units'].get(k, '')}]".replace(" []", ""), [k], [k]) for k in bands]
     panels = [p for p in panels if any(k in bands for k in p[2])]
-    fig, ax = plt.subplots(1, max(len(panels), 1), figsize=(4.3 * max(len(panels), 1), 4.3), constrained_layout=True,
+    fig, ax = plt.subplots(1, max(len(panels), 1), figsize=(max(7.0, 4.3 * len(panels)), 4.3), constrained_layout=True,
                            squeeze=False)
     for panel, (q, label, keys, ticks) in zip(ax[0], panels):
         x = np.arange(len(keys))
@@ -62,7 +62,7 @@ def bands_plot(summary: dict, out: str | Path) -> Path:
     extra = [f"{k}: {bands[k]['p50']:.3g} [{bands[k]['p5']:.3g}, {bands[k]['p95']:.3g}] {summary['units'].get(k, '')}"
              for k in HEADLINE if k in bands]
     fig.suptitle(f"prediction bands over the priors: {summary['done']} drives ({summary['method']})"
-                 + ("\n" + ";  ".join(extra) if extra else ""), fontsize=10)
+                 + ("\n" + "\n".join(extra) if extra else ""), fontsize=10)
     return _save(fig, Path(out))
 
 
