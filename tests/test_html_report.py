@@ -163,3 +163,27 @@ def test_dashboard_and_compare_figures_are_clean(drive, tmp_path, monkeypatch):
     styles = [(ln.get_linestyle(), ln.get_linewidth()) for ln in top.get_lines() if len(ln.get_xdata()) > 2]
     assert len(set(styles)) == 2
     assert_clean(cmp)
+
+
+def test_animation_has_one_frame_per_frame_interval_of_a_200_m_span(drive, tmp_path, capsys):
+    """`hpsim animate --from 0km --to 0.2km --fps 1`: the 200 m at 20 km/h take 36 s of driving, one frame a
+    second -> 1 + floor(36 s / 1 s) frames in the GIF (frames are stored samples, every 50th of the 50 Hz
+    series)."""
+    from PIL import Image
+
+    from vehicle.runs.reader import open_results
+
+    with open_results(drive) as r:
+        t, s = r.series("time"), r.series("distance")
+    span = (s >= 0.0) & (s <= 200.0)
+    expected = 1 + int((t[span][-1] - t[span][0]) / 1.0 + 1e-9)
+    assert expected == pytest.approx(37, abs=1)                     # 200 m at 20 km/h
+    out = tmp_path / "drive.gif"
+    assert cli.main(["animate", str(drive), "-o", str(out), "--from", "0km", "--to", "0.2km", "--fps", "1"]) == 0
+    assert f"{expected} frames" in capsys.readouterr().out
+    with Image.open(out) as im:
+        assert im.n_frames == expected
+    assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.gif"), "--from", "0.1km", "--to", "0.5km"]) == 2
+    if shutil.which("ffmpeg") is None:
+        assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.mp4")]) == 2
+        assert "needs ffmpeg" in capsys.readouterr().err

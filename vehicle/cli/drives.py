@@ -70,6 +70,14 @@ def register(sub):
     ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
     ps.set_defaults(func=cmd_sweep)
 
+    pa = sub.add_parser("animate", help="side-view movie of a drive (hull, wheels and struts over the road)")
+    pa.add_argument("results", help="HDF5 file written by `hpsim run` with its series stored (output.interval)")
+    pa.add_argument("-o", "--output", required=True, help="movie file: .gif (Pillow) or .mp4 (needs ffmpeg)")
+    pa.add_argument("--from", dest="start", default=None, metavar="DISTANCE", help="start of the span, e.g. 10km")
+    pa.add_argument("--to", dest="end", default=None, metavar="DISTANCE", help="end of the span, e.g. 10.2km")
+    pa.add_argument("--fps", type=float, default=None, help="frames per second of driving (default 20: real time)")
+    pa.set_defaults(func=cmd_animate)
+
     pl = sub.add_parser("plot", help="dashboard figure of a results file")
     pl.add_argument("results", help="HDF5 file written by `hpsim run`")
     pl.add_argument("-o", "--output", default=None, help="PNG file (default: <results>.png)")
@@ -240,6 +248,22 @@ def cmd_plot(args):
     check_figure_file(out, "-o/--output", make_parents=True)
     dashboard(args.results, out)
     print(f"wrote {out}")
+    return 0
+
+
+def cmd_animate(args):
+    from hpsim.units import parse_quantity
+
+    from vehicle.presentation.animation import FPS, animate
+
+    start = None if args.start is None else parse_quantity(args.start, "m", where="--from")
+    end = None if args.end is None else parse_quantity(args.end, "m", where="--to")
+    fps = FPS if args.fps is None else args.fps
+    if not 0 < fps <= 100:
+        raise UserInputError(f"--fps: must be in (0, 100] frames per second, got {args.fps}")
+    check_output_file(Path(args.output), "-o/--output", make_parents=True)
+    res = animate(args.results, args.output, start, end, fps)
+    print(f"wrote {res['file']} ({res['frames']} frames at {res['fps']:.3g} per second, {res['writer']})")
     return 0
 
 
