@@ -187,3 +187,22 @@ def test_animation_has_one_frame_per_frame_interval_of_a_200_m_span(drive, tmp_p
     if shutil.which("ffmpeg") is None:
         assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.mp4")]) == 2
         assert "needs ffmpeg" in capsys.readouterr().err
+
+
+def test_shock_numbers_are_in_the_file_the_json_and_the_api(drive):
+    """hpsim run records the seats' shock numbers in /summary (seat_shocks_json); they are what the series
+    give when computed afresh (vehicle.analysis.shocks), and the API's ride() carries them."""
+    import vehicle
+    from vehicle.analysis import shocks
+    from vehicle.runs.reader import open_results
+
+    with open_results(drive) as r:
+        stored = json.loads(str(r.summary_attrs()["seat_shocks_json"]))
+        seats = json.loads(r.scenario_attrs["resolved_json"])["vehicle"]["seats"]
+        fresh = shocks.drive_shocks(r, seats)
+    assert set(stored) == {s["name"] for s in seats}
+    for name, v in stored.items():
+        for key in ("crest_factor", "mtvv_m_s2", "sed_MPa", "daily_sed_MPa"):
+            assert v[key] == pytest.approx(fresh[name][key], rel=1e-12)
+    ride = vehicle.open_results(drive).ride()
+    assert {s["seat"]: s["daily_sed_MPa"] for s in ride["seats"]} == {k: v["daily_sed_MPa"] for k, v in stored.items()}

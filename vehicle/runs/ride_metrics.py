@@ -94,7 +94,7 @@ def summarise(view) -> dict:
                 s["absorbed_power_W"] = float((T * pa[:, k]).sum() / total)
             seats.append(s)
         out["seats"] = seats
-    add_shocks(out, view, resolved.get("vehicle", {}).get("seats", []))
+    add_shocks(out, view)
     stations = [{"station": s} for s in view.stations]
     per_station = {
         "dynamic_load_coefficient": lambda a: mean_sq(a),
@@ -144,10 +144,22 @@ SHOCK_KEYS = ("crest_factor", "mtvv_m_s2", "mtvv_ratio", "dose_z_m_s2", "dose_y_
               "daily_exposure_s", "sed_assessment", "a_w_unreliable")
 
 
-def add_shocks(out: dict, view, seats) -> None:
+def seat_shocks(view) -> dict:
+    """{seat: the shock numbers under SHOCK_KEYS} of a results view: as the file recorded them after the run
+    (/summary attribute seat_shocks_json), else computed from its series (vehicle.analysis.shocks; {} when
+    they are too sparse)."""
+    stored = view.summary_attrs().get("seat_shocks_json") if hasattr(view, "summary_attrs") else None
+    if stored:
+        return json.loads(str(stored))
+    resolved = json.loads(view.scenario_attrs["resolved_json"])
+    found = shock_metrics.drive_shocks(view, resolved.get("vehicle", {}).get("seats", []))
+    return {name: {k: v[k] for k in SHOCK_KEYS if k in v} for name, v in found.items()}
+
+
+def add_shocks(out: dict, view) -> None:
     """Per seat: crest factor, MTVV and the ISO 2631-5 doses (vehicle.analysis.shocks) from the stored series,
     when they are dense enough; the seat rows get them under SHOCK_KEYS."""
-    found = shock_metrics.drive_shocks(view, seats)
+    found = seat_shocks(view)
     if not found:
         return
     rows = {s["seat"]: s for s in out.setdefault("seats", [])}

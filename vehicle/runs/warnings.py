@@ -62,15 +62,21 @@ def check(view, thresholds: Thresholds | None = None) -> list[dict]:
 
 def record(path) -> list[dict]:
     """Check a finished results file and write the warnings into it: /summary attributes
-    `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list)."""
+    `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list); with them, when the
+    series are dense enough, the seats' shock numbers (`seat_shocks_json`, vehicle.runs.ride_metrics)."""
     from pathlib import Path
 
     from vehicle.runs.reader import open_results
+    from vehicle.runs.ride_metrics import seat_shocks
     from vehicle.runs.sinks import finish_file
 
     with open_results(path, check=False) as r:
         found = check(r)
-    finish_file(Path(path), {"summary": {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}})
+        shocks = seat_shocks(r)
+    attrs = {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}
+    if shocks:
+        attrs["seat_shocks_json"] = json.dumps(shocks)
+    finish_file(Path(path), {"summary": attrs})
     return found
 
 
