@@ -103,11 +103,17 @@ def test_pdf_has_text_pages_and_the_dashboard(drive, tmp_path):
     assert png.stat().st_size > 20_000
 
 
-def test_bad_report_targets_exit_2(drive, tmp_path, capsys):
+def test_bad_report_targets_exit_2(drive, tmp_path, capsys, monkeypatch):
+    import sys
+
     assert cli.main(["report", str(drive), "--html", str(tmp_path / "r.txt")]) == 2
     assert cli.main(["report", str(tmp_path), "--html", str(tmp_path / "r.html")]) == 2
     err = capsys.readouterr().err
     assert "must end in .html" in err and "not a study folder" in err
+    monkeypatch.setitem(sys.modules, "jinja2", None)          # the extra not installed: one line naming it
+    monkeypatch.setattr(html_report, "document", lambda path: html_report.Document("t", [], [], []))
+    assert cli.main(["report", str(drive), "--html", str(tmp_path / "r.html")]) == 2
+    assert 'pip install "hpsim[report]"' in capsys.readouterr().err
 
 
 def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):

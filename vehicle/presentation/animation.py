@@ -12,7 +12,8 @@ deflection is not drawn) and the strut joins it to the hull, so its length shows
 equal axes: sizes at true scale, the road's heights and every motion MOTION_SCALE times larger (centimetres
 would not show on a 10 m vehicle).
 
-Frames are the stored samples (every k-th to keep fps frames per second of driving); written with matplotlib's
+Frames are the stored samples (every k-th, k the largest that gives at least fps frames per second of driving,
+played in real time); written with matplotlib's
 animation writers: ffmpeg for .mp4 where installed, Pillow for .gif."""
 from __future__ import annotations
 
@@ -66,7 +67,7 @@ def drive_frames(path, start_m: float | None = None, end_m: float | None = None,
                              f"the stored drive [{s[0] / 1e3:.4g}, {s[-1] / 1e3:.4g}] km")
     t = np.asarray(data["time"], float)
     dt = float(np.median(np.diff(t)))
-    step = max(1, int(round(1.0 / (fps * dt))))
+    step = max(1, int(math.floor(1.0 / (fps * dt) + 1e-6)))      # every step-th sample: at least fps frames/s
     idx = np.flatnonzero((s >= lo - 1e-9) & (s <= hi + 1e-9))[::step]
     if len(idx) < 2:
         raise UserInputError(f"--from/--to: the span holds {len(idx)} stored sample(s) at {fps:g} frames/s; "
