@@ -187,11 +187,14 @@ def animate(path, out: str | Path, start_m: float | None = None, end_m: float | 
     view.update(0)
     view.fig.canvas.draw()
     view.fig.set_layout_engine("none")          # laid out once: every frame keeps the first frame's layout
-    anim = animation.FuncAnimation(view.fig, view.update, frames=n, blit=False)
     real_fps = 1.0 / d["frame_dt_s"]
     writer = (animation.FFMpegWriter(fps=real_fps) if suffix == ".mp4" else animation.PillowWriter(fps=real_fps))
     out.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(str(out), writer=writer, dpi=dpi)
+    # frame by frame through the writer (one draw per frame; FuncAnimation.save draws each frame twice)
+    with writer.saving(view.fig, str(out), dpi):
+        for k in range(n):
+            view.update(k)
+            writer.grab_frame()
     _plt().close(view.fig)
     return {"file": str(out), "frames": n, "writer": "ffmpeg" if suffix == ".mp4" else "pillow", "fps": real_fps}
 
