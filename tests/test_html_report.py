@@ -141,10 +141,12 @@ def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):
     sweep.mkdir()
     for name in ("a", "b"):
         shutil.copy(drive, sweep / f"{name}.h5")
-    (sweep / "summary.csv").write_text("case,status,load_shift_pct\na,done,0.1\nb,done,0.1\n")
+    (sweep / "summary.csv").write_text("case,status,error,file,speed,distance_km,load_shift_pct\n"
+                                       f"a,done,,{sweep / 'a.h5'},20 km/h,0.2,0.1\nb,done,,/moved/b.h5,30 km/h,0.2,0.1\n")
     html_report.write_html(html_report.document(sweep), tmp_path / "sweep.html")
     text = (tmp_path / "sweep.html").read_text()
     assert "Comparison" in text and "axle 1 dN [%]" in text and text.count("data:image/png") == 1
+    assert "30 km/h" in text and "axle 1 dN weighing band [%]" in text and "driver Sed daily [MPa]" in text
 
     priors = yaml.safe_load("a: {value: 1, prior: {uniform: [0, 2]}}\nb: {value: 1, prior: {uniform: [0, 2]}}")
     params = uq.parameters_from(collect_priors(priors, "toy.yaml"))

@@ -278,29 +278,67 @@ def uq_document(folder: Path) -> Document:
                     [bands, rank, params], provenance(src, "", "", str(folder)))
 
 
+SWEEP_RESULT_COLUMNS = ("load_shift_pct", "load_shift_vs_charged_pct", "mean_temperature_rise_K",
+                        "energy_dissipated_MJ", "warnings", "error")
+
+
+def _sweep_files(folder: Path, rows: list[dict]) -> list[str]:
+    """The finished cases' files (summary.csv's file column, relative to the folder when moved)."""
+    out = []
+    for r in rows:
+        if r.get("status") not in ("done", "skipped") or not r.get("file"):
+            continue
+        f = Path(r["file"])
+        f = f if f.exists() else folder / f.name
+        if f.exists():
+            out.append(str(f))
+    return out
+
+
 def sweep_document(folder: Path) -> Document:
     from vehicle.presentation.plots import compare_plot
     from vehicle.runs.summary import compare
 
     with open(folder / "summary.csv", newline="") as fh:
-        rows = list(csv.reader(fh))
-    sections = [Section("Cases", tables=[Table(rows[0], rows[1:], f"{folder / 'summary.csv'}",
-                                               tuple(range(1, len(rows[0]))))])]
-    files = sorted(str(p) for p in folder.glob("*.h5"))
+        rows = list(csv.DictReader(fh))
+    columns = list(rows[0]) if rows else []
+    start = columns.index("file") + 1 if "file" in columns else 2
+    stop = columns.index("distance_km") if "distance_km" in columns else len(columns)
+    shown = ["case", "status"] + columns[start:stop] + [c for c in SWEEP_RESULT_COLUMNS if c in columns]
+
+    def cell(v):
+        try:
+            return format(float(v), ".4g")
+        except ValueError:
+            return v
+
+    sections = [Section("Cases", tables=[Table(shown, [[cell(r.get(c, "")) for c in shown] for r in rows],
+                                               f"{folder / 'summary.csv'} (every column there; here the overrides "
+                                               "and the whole-vehicle results)", tuple(range(1, len(shown))))])]
+    files = _sweep_files(folder, rows)
     if files:
         cmp = compare(files)
         labels = [Path(r["file"]).stem for r in cmp["runs"]]
         per_axle = []
-        for key, what, spec in (("dN_pct", "dN [%]", ".2f"), ("dh_mm", "dh [mm]", ".2f"), ("T_end_C", "T end [degC]", ".1f")):
+        for key, what, spec in (("dN_pct", "dN [%]", ".2f"), ("dN_band_pct", "dN weighing band [%]", ".1f"),
+                                ("dh_mm", "dh [mm]", ".2f"), ("T_end_C", "T end [degC]", ".1f")):
             for k in range(len(cmp["runs"][0]["axles"])):
-                per_axle.append([f"axle {k + 1} {what}"] + [_fmt(r["axles"][k][key], spec) for r in cmp["runs"]])
-        sec = Section("Comparison", tables=[Table([""] + labels, per_axle, "Per axle, case by case")])
+                per_axle.append([f"axle {k + 1} {what}"] + [_fmt(r["axles"][k].get(key), spec) for r in cmp["runs"]])
+        seats = sorted({s["seat"] for r in cmp["runs"] for s in (r.get("ride") or {}).get("seats", [])})
+        for seat in seats:
+            for key, what, spec in (("weighted_rms_acceleration_m_s2", "a_w [m/s^2]", ".3f"),
+                                    ("daily_sed_MPa", "Sed daily [MPa]", ".3f")):
+                vals = [next((s.get(key) for s in (r.get("ride") or {}).get("seats", []) if s["seat"] == seat), None)
+                        for r in cmp["runs"]]
+                if any(v is not None for v in vals):
+                    per_axle.append([f"{seat} {what}"] + [_fmt(v, spec) for v in vals])
+        sec = Section("Comparison", tables=[Table([""] + labels, per_axle, "Per axle and seat, case by case")])
         fig = _png_figure(lambda out: compare_plot(files, out, labels=labels), "The cases compared")
         if fig:
             sec.figures.append(fig)
         sections.append(sec)
     text = (folder / "summary.csv").read_text()
-    return Document(f"hpsim sweep: {folder.name}", [f"The cases of the sweep in {folder}."], sections,
+    return Document(f"hpsim sweep: {folder.name}", [f"The {len(rows)} cases of the sweep in {folder}."], sections,
                     provenance(text, "", "", str(folder)))
 
 
