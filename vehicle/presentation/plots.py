@@ -178,7 +178,8 @@ def _panel_powers(a, d):
     a.set(xlabel="distance [km]", ylabel="dissipated power, all struts [kW]",
           title=f"dissipated power by mechanism ({d.power_how})")
     a.title.set_fontsize(9)
-    a.set_ylim(bottom=min(0.0, a.get_ylim()[0]))
+    lo, hi = a.get_ylim()
+    a.set_ylim(min(lo, -0.04 * hi), hi)           # a zero line above the axis, not on it
     a.legend(fontsize=7, ncol=4, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
 
 
