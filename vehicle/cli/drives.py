@@ -176,6 +176,9 @@ def cmd_report(args):
 
     if args.html or args.pdf:
         return _shareable_report(args)
+    if Path(args.results).is_dir():
+        raise UserInputError(f"{args.results}: a folder: its report needs --html FILE or --pdf FILE (a sweep or UQ "
+                             "study folder); the text report reads one results file")
     rep = report(args.results)
     if args.psd:
         from vehicle.presentation.plots import psd_plot
