@@ -45,6 +45,15 @@ def test_road_figures(tmp_path, monkeypatch):
     assert_clean(fig)
 
 
+def test_road_psd_and_strut_characteristic_figures(tmp_path, monkeypatch):
+    figs = captured_figures(monkeypatch)
+    assert cli.main(["-q", "road", "psd", "--class", "D", "--length", "2km", "--plot", str(tmp_path / "p.png")]) == 0
+    assert cli.main(["-q", "strut", "characteristic", "--strut", "apc", "--plot", str(tmp_path / "c.png")]) == 0
+    assert len(figs) == 2
+    for f in figs:
+        assert_clean(f)
+
+
 def test_vehicle_response_figure(tmp_path, monkeypatch):
     figs = captured_figures(monkeypatch)
     assert cli.main(["-q", "vehicle", "response", "--plot", str(tmp_path / "r.png")]) == 0

@@ -187,6 +187,14 @@ def test_dashboard_and_compare_figures_are_clean(drive, tmp_path, monkeypatch):
     styles = [(ln.get_linestyle(), ln.get_linewidth()) for ln in top.get_lines() if len(ln.get_xdata()) > 2]
     assert len(set(styles)) == 2
     assert_clean(cmp)
+    from vehicle.presentation.plots import psd_plot
+    from vehicle.runs.psd import response_psd
+    from vehicle.runs.reader import open_results
+
+    with open_results(drive) as r:
+        psd, stations = response_psd(r), r.stations
+    psd_plot(psd, tmp_path / "psd.png", stations)                 # hpsim report --psd
+    assert_clean(figs[-1])
 
 
 def test_animation_has_one_frame_per_frame_interval_of_a_200_m_span(drive, tmp_path, capsys):

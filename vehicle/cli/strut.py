@@ -181,7 +181,7 @@ def cmd_characteristic(args):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig, ax = plt.subplots(figsize=(6.4, 4.2))
+        fig, ax = plt.subplots(figsize=(6.4, 4.2), layout="constrained")
         ax.plot(res["x_m"] * 1e3, res["force_N"] / 1e3, label="gas force")
         stroke_mm = params.geometry.stroke * 1e3
         # labels where the rising curve is not: top left, bottom right
@@ -201,7 +201,7 @@ def cmd_characteristic(args):
         ax.legend(fontsize=8, loc="center left")
         ax.set_title(f"{params.name}: p0 = {res['p0_Pa'] / 1e6:.3g} MPa, T = {res['temperature_K'] - 273.15:.3g} degC, "
                      f"{args.process}", fontsize=10)
-        fig.tight_layout(); _save_figure(fig, args.plot, "--plot"); plt.close(fig)
+        _save_figure(fig, args.plot, "--plot"); plt.close(fig)
     rows = [{"x_m": float(x), "force_N": float(F)} for x, F in zip(res["x_m"][::20], res["force_N"][::20])]
     if args.json:
         print_json({"x_m": res["x_m"], "force_N": res["force_N"], "gas_pressure_Pa": res["gas_pressure_Pa"],
