@@ -150,13 +150,14 @@ def _panel_wheel_loads(a, d):
                    color="0.2", lw=1.2)
             lows.append(band[0])
             highs.append(band[1])
-        a.annotate(f"{ax_pct[k]:+.2f}%", (k, ax_pct[k]), ha="left", va="center", fontsize=7,
-                   xytext=(24, 0), textcoords="offset points")
+        top = max(ax_pct[k], np.max(pct[2 * k:2 * k + 2]), band[1] if band and None not in band else -np.inf)
+        a.annotate(f"{ax_pct[k]:+.2f}%", (k, top), ha="center", va="bottom", fontsize=7,
+                   xytext=(0, 3), textcoords="offset points")
     if lows:
         a.plot([], [], color="0.2", lw=1.2, label="weighing band (seal friction)")
     a.axhline(0, color="k", lw=0.6)
     span = max(np.max(np.abs(np.concatenate([pct, lows, highs]))), 0.05)
-    a.set_ylim(-1.2 * span, 1.2 * span)
+    a.set_ylim(-1.2 * span, 1.3 * span)
     a.set_xticks(x, list(d.axles))
     a.set(ylabel="static wheel load change [%]", title=f"static wheel loads: {what}\n"
           f"(loads {base.min() / 10:.0f}-{base.max() / 10:.0f} daN)")
