@@ -149,8 +149,8 @@ def _ride_section(rep: dict) -> Section | None:
     sec = Section("Ride and road holding")
     for rows, columns, first, caption in (
             (ride.get("seats") or [], SEAT_COLUMNS, "seat", "At the seats: ISO 2631-1 weighted RMS (a_w), VDV, absorbed "
-             "power; crest factor, MTVV and the ISO 2631-5 spinal dose Sed (drive, and per day of the same driving) "
-             "from the stored series (hull at the seat point, no cushion)."),
+             "power; with series stored at 30 Hz or more also crest factor, MTVV and the ISO 2631-5 spinal dose Sed (drive, "
+             "and per day of the same driving; hull at the seat point, no cushion)."),
             (axle_rows(ride, [None] * len(rep["axles"])), RIDE_AXLE, "axle", "Per axle, worst of left and right.")):
         cols = [c for c in columns if any(r.get(c[0]) is not None for r in rows)]
         if rows and cols:
