@@ -232,7 +232,7 @@ def _panel_travel(a, d):
     a.set_xticks(range(len(rows)), list(d.axles)[:len(rows)])
     a.set_xlim(-0.6, len(rows) - 0.4)
     a.set(ylabel="strut deflection [mm] (0: full extension)",
-          title="strut travel over the drive per axle (worst of left/right)")
+          title="strut travel over the drive per axle\n(worst of left/right)")
     a.title.set_fontsize(9)
     a.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
 
