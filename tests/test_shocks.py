@@ -102,3 +102,35 @@ def test_seat_shocks_flags_a_shocky_record():
     assert calm["a_w_unreliable"] == [] and rough["a_w_unreliable"]
     assert rough["sed_MPa"] > calm["sed_MPa"]
     assert rough["daily_sed_MPa"] == pytest.approx(rough["sed_MPa"] * (8 * 3600 / 30.0) ** (1 / 6), rel=1e-6)
+
+
+class _Series:
+    """A results view of synthetic hull series at 100 Hz."""
+
+    name = "<synthetic>"
+
+    def __init__(self, **data):
+        self.data = data
+
+    def series(self, name):
+        return self.data.get(name)
+
+
+def test_seat_signals_follow_the_hull_kinematics_and_skip_the_start():
+    """A seat x = 2 m behind and y = 0.5 m left of the CG: a_z = heave'' - 2 pitch'' + 0.5 roll'' (nose up and
+    left side up positive, vehicle.physics.hull); lateral reading -z roll'' + g roll; the first 5 s left out;
+    series sparser than 30 Hz give nothing."""
+    fs = 100.0
+    t = np.arange(1, 2001) / fs
+    heave, pitch, roll_acc = np.sin(3 * t), 0.1 * np.cos(2 * t), 0.2 * np.sin(5 * t)
+    roll = -0.2 / 25 * np.sin(5 * t)
+    view = _Series(time=t, heave_acceleration=heave, pitch_acceleration=pitch, roll_acceleration=roll_acc, roll=roll)
+    seat = {"name": "s", "x_from_cg": 2.0, "y_from_cg": 0.5, "z_from_cg": 0.4}
+    got_fs, sig = shocks.seat_signals(view, [seat])
+    keep = t >= t[0] + shocks.START_SKIP_S
+    assert got_fs == pytest.approx(fs)
+    np.testing.assert_allclose(sig["s"][0], (heave - 2 * pitch + 0.5 * roll_acc)[keep], rtol=1e-12)
+    np.testing.assert_allclose(sig["s"][1], (-0.4 * roll_acc + 9.80665 * roll)[keep], rtol=1e-9)
+    sparse = _Series(time=t[::5], heave_acceleration=heave[::5], pitch_acceleration=pitch[::5],
+                     roll_acceleration=roll_acc[::5], roll=roll[::5])
+    assert shocks.seat_signals(sparse, [seat]) is None and shocks.drive_shocks(sparse, [seat]) == {}
