@@ -106,7 +106,7 @@ def save_road_plot(road, stats: dict, path: str | Path, title: str = "") -> None
                          label=f"{name}: min-max per {chunk:.3g} m")
         ax1.step(x / 1000.0, rms, where="post", color=color, lw=1.2, label=f"{name}: RMS per {chunk:.3g} m")
         ax1.step(x / 1000.0, -rms, where="post", color=color, lw=1.2)
-    if n < road.n_points:
+    if n < road.n_points and road.length_m > 5 * DETAIL_LENGTH_M:      # a long road: where the detail is
         ax1.axvspan(0, d[n - 1] / 1000.0, color="0.5", alpha=0.25, lw=0, label=f"first {d[n - 1]:.0f} m (below)")
     ax1.set_xlabel("distance [km]")
     ax1.set_ylabel("height [m]")
