@@ -121,14 +121,19 @@ def spine_response_z(a_z_160hz) -> np.ndarray:
     n = len(a)
     # the input part of every hidden unit at once: sum_k a(t-k) w_(4+k) for k = 1..8
     lagged = np.stack([a[8 - k:n - k] for k in range(1, 9)], axis=1)          # (n-8, 8)
-    drive = lagged @ _WZ_HIDDEN[4:12] + _WZ_HIDDEN[12]                         # (n-8, 7)
-    w_rec = _WZ_HIDDEN[:4]
-    y = np.zeros(n - 8 + 4)                 # four zero outputs before the first
-    tanh = np.tanh
-    for t in range(n - 8):
-        past = y[t:t + 4][::-1]             # a_lz(t-1), ..., a_lz(t-4)
-        y[t + 4] = float(_WZ_OUTPUT @ tanh(past @ w_rec + drive[t])) + _WZ_OUTPUT_BIAS
-    return y[4:]
+    drive = (lagged @ _WZ_HIDDEN[4:12] + _WZ_HIDDEN[12]).tolist()             # (n-8, 7)
+    # the recurrence on plain floats (1.6x faster than NumPy calls on 7-vectors)
+    w1, w2, w3, w4 = (_WZ_HIDDEN[i].tolist() for i in range(4))
+    W, units, tanh = _WZ_OUTPUT.tolist(), range(7), math.tanh
+    y1 = y2 = y3 = y4 = 0.0               # a_lz(t-1) .. a_lz(t-4), from rest
+    out = []
+    for d in drive:
+        y = _WZ_OUTPUT_BIAS
+        for j in units:
+            y += W[j] * tanh(d[j] + y1 * w1[j] + y2 * w2[j] + y3 * w3[j] + y4 * w4[j])
+        out.append(y)
+        y4, y3, y2, y1 = y3, y2, y1, y
+    return np.array(out)
 
 
 def spine_response_xy(a_160hz) -> np.ndarray:
