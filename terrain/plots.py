@@ -10,6 +10,7 @@ from hpsim.errors import UserInputError
 from . import iso8608
 
 PROFILE_MAX_POINTS = 20000  # profile overview is drawn as a min/max envelope beyond this
+OVERVIEW_CHUNKS = 100       # a long profile's overview: range and RMS over this many chunks
 DETAIL_LENGTH_M = 200.0  # length of the zoomed profile panel
 
 
@@ -49,17 +50,21 @@ def draw_psd(ax, stats: dict):
         ax.loglog(n, iso8608.displacement_psd(n, stats["gd_n0_m3"], stats["waviness"]), "r--",
                   label=f"fit: Gd(n0)={stats['gd_n0_m3'] * 1e6:.4g}e-6 m³, w={stats['waviness']:.3f} "
                         f"(class {stats['iso_class']})")
-    ax.set_xlim(0.005, 10)
     lo, hi = iso8608.DEFAULT_BAND_CYCLE_PER_M
     inband = (f >= lo) & (f <= hi)
     pos = np.concatenate([stats["psd_left_m3"][inband], stats["psd_right_m3"][inband]])
     pos = pos[pos > 0]
     if pos.size:  # the class bands and the in-band PSD decide the scale, not the empty bins beyond the band
         g_min = iso8608.displacement_psd(hi, iso8608.class_limits(iso8608.ISO_CLASSES[0])[0])
-        ax.set_ylim(min(pos.min(), g_min) / 3.0, pos.max() * 10)
+        bottom = min(pos.min(), g_min) / 3.0
+        ax.set_ylim(bottom, pos.max() * 10)
+        # the x-axis over the frequencies whose PSD shows on this scale (and the class bands' labels)
+        shown = keep & (np.maximum(stats["psd_left_m3"], stats["psd_right_m3"]) >= bottom)
+        if shown.any():
+            ax.set_xlim(min(f[shown][0], lo) / 1.2, max(f[shown][-1], hi) * 1.8)
     ax.set_xlabel("spatial frequency n [cycle/m]")
     ax.set_ylabel("Gd(n) [m³]")
-    ax.legend(fontsize=7, loc="lower left")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)
     ax.grid(True, which="both", lw=0.3)
 
 
@@ -74,7 +79,7 @@ def _envelope(d, z, npts):
 
 def save_psd_plot(stats: dict, path: str | Path, title: str = "") -> None:
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig, ax = plt.subplots(figsize=(7, 5.4), layout="constrained")
     draw_psd(ax, stats)
     ax.set_title(title or "Road displacement PSD against ISO 8608 classes", fontsize=10)
     _save(fig, path, plt)
@@ -82,31 +87,41 @@ def save_psd_plot(stats: dict, path: str | Path, title: str = "") -> None:
 
 def save_road_plot(road, stats: dict, path: str | Path, title: str = "") -> None:
     plt = _pyplot()
-    fig = plt.figure(figsize=(10, 8))
+    fig = plt.figure(figsize=(10, 9), layout="constrained")
     ax1 = fig.add_subplot(3, 1, 1)
     d = road.distance_m
+    n = min(road.n_points, int(DETAIL_LENGTH_M / road.spacing_m) + 1)
     for (z, name), color in zip(((road.left_m, "left"), (road.right_m, "right")), ("C0", "C1")):
-        x, lo, hi = _envelope(d, z, PROFILE_MAX_POINTS)
-        if lo is hi:
-            ax1.plot(x / 1000.0, z, lw=0.5, color=color, label=name)
-        else:  # min/max over each pixel-sized chunk, so no peak is lost
-            ax1.fill_between(x / 1000.0, lo, hi, color=color, edgecolor=color, lw=0.6, alpha=0.6,
-                             label=f"{name} (min/max per {d[1] * (d.size // x.size):.3g} m)")
+        if d.size <= PROFILE_MAX_POINTS and road.length_m <= 5 * DETAIL_LENGTH_M:
+            ax1.plot(d / 1000.0, z, lw=0.5, color=color, label=name)
+            continue
+        # a long profile: the range (min/max of both tracks) and each track's RMS over each of OVERVIEW_CHUNKS
+        # chunks (no peak is lost, changes of roughness along the road show); the first DETAIL_LENGTH_M below
+        x, lo, hi = _envelope(d, z, OVERVIEW_CHUNKS)
+        step = d.size // x.size
+        zz = z[:x.size * step].reshape(-1, step)
+        rms = np.sqrt(np.mean((zz - zz.mean(axis=1, keepdims=True)) ** 2, axis=1))
+        chunk = d[1] * step
+        ax1.fill_between(x / 1000.0, lo, hi, color=color, lw=0, alpha=0.2, step="post",
+                         label=f"{name}: min-max per {chunk:.3g} m")
+        ax1.step(x / 1000.0, rms, where="post", color=color, lw=1.2, label=f"{name}: RMS per {chunk:.3g} m")
+        ax1.step(x / 1000.0, -rms, where="post", color=color, lw=1.2)
+    if n < road.n_points and road.length_m > 5 * DETAIL_LENGTH_M:      # a long road: where the detail is
+        ax1.axvspan(0, d[n - 1] / 1000.0, color="0.5", alpha=0.25, lw=0, label=f"first {d[n - 1]:.0f} m (below)")
     ax1.set_xlabel("distance [km]")
     ax1.set_ylabel("height [m]")
-    ax1.legend(fontsize=7)
+    ax1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=3, frameon=False)
     ax1.set_title(title or f"Road profile ({road.length_m / 1000:.3g} km at {road.spacing_m * 1000:.3g} mm)",
                   fontsize=10)
     ax2 = fig.add_subplot(3, 1, 2)
-    n = min(road.n_points, int(DETAIL_LENGTH_M / road.spacing_m) + 1)
+    ax2.set_title(f"the first {d[n - 1]:.0f} m", fontsize=9)
     ax2.plot(d[:n], road.left_m[:n], lw=0.8, label="left")
     ax2.plot(d[:n], road.right_m[:n], lw=0.8, label="right")
     ax2.set_xlabel("distance [m]")
     ax2.set_ylabel("height [m]")
-    ax2.legend(fontsize=7)
+    ax2.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)
     ax3 = fig.add_subplot(3, 1, 3)
     draw_psd(ax3, stats)
-    fig.tight_layout()
     _save(fig, path, plt)
 
 

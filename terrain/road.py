@@ -259,6 +259,15 @@ class Road:
         write_profile_csv(path, self.distance_m, self._z[0], self._z[1])
 
     @classmethod
+    def from_crg(cls, path: str | Path, track_width_m: float, spacing_m: float | None = None,
+                 length_m: float | None = None) -> "Road":
+        """The left and right tracks of an OpenCRG surface at the vehicle's track width (terrain.crg)."""
+        from .crg import read_crg
+
+        step, left, right, info = read_crg(path, track_width_m, spacing_m, length_m)
+        return cls(step, left, right, info=info, copy=False)
+
+    @classmethod
     def from_csv(cls, path: str | Path, spacing_m: float | None = None,
                  length_m: float | None = None) -> "Road":
         """Read a measured profile; distance shifted to start at 0 and resampled to a uniform grid.

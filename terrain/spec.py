@@ -48,6 +48,7 @@ class RoadSpec(Model):
     gd_n0: Quantity("m**3") | None = None
     waviness: float = iso8608.WAVINESS_ISO
     csv: str | None = None
+    crg: str | None = None           # an OpenCRG surface: its tracks at +-track_width/2 (terrain.crg)
     flat: bool = False
     band: tuple[float, float] = iso8608.DEFAULT_BAND_CYCLE_PER_M  # cycle/m
     length: Quantity("m") | None = None
@@ -106,7 +107,7 @@ class RoadSpec(Model):
         if not v > 0:
             raise ValueError("spacing must be > 0 m")
         data = info.data
-        random_road = data.get("csv") is None and not data.get("flat")
+        random_road = data.get("csv") is None and data.get("crg") is None and not data.get("flat")
         band = data.get("band")
         if random_road and band is not None:
             limit = 0.5 / band[1]
@@ -142,11 +143,12 @@ class RoadSpec(Model):
     def _source(self):
         given = [name for name, on in (("iso_class", self.iso_class is not None),
                                        ("gd_n0", self.gd_n0 is not None),
-                                       ("csv", self.csv is not None), ("flat", self.flat)) if on]
+                                       ("csv", self.csv is not None), ("crg", self.crg is not None),
+                                       ("flat", self.flat)) if on]
         if len(given) != 1:
             raise ValueError("give exactly one road source: iso_class (A-H), gd_n0 (custom Gd(n0)), "
-                             f"csv (measured profile) or flat: true (got {', '.join(given) or 'none'})")
-        if self.csv is None and self.length is None:
+                             f"csv (measured profile), crg (OpenCRG surface) or flat: true (got {', '.join(given) or 'none'})")
+        if self.csv is None and self.crg is None and self.length is None:
             raise ValueError("length is required for a random or flat road (e.g. length: 20 km)")
         if self.length is not None:
             for i, ev in enumerate(self.events):
@@ -173,12 +175,15 @@ def load_road_spec(path: str | Path) -> RoadSpec:
 def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     """Build the Road described by `spec` (a relative `csv` path is taken from `base_dir`, default cwd)."""
     info = {"spec": spec.model_dump(mode="json")}
-    if spec.csv is not None:
-        path = Path(spec.csv)
+    if spec.csv is not None or spec.crg is not None:
+        path = Path(spec.csv if spec.csv is not None else spec.crg)
         if not path.is_absolute():
             path = Path(base_dir or Path.cwd()) / path
         spacing = spec.spacing if "spacing" in spec.model_fields_set else None
-        road = Road.from_csv(path, spacing_m=spacing, length_m=spec.length)
+        if spec.crg is not None:
+            road = Road.from_crg(path, spec.track_width, spacing_m=spacing, length_m=spec.length)
+        else:
+            road = Road.from_csv(path, spacing_m=spacing, length_m=spec.length)
         if not spec.events and not spec.populations:
             return Road(road.spacing_m, road.left_m, road.right_m, info={**info, **road.info}, copy=False,
                         passes=spec.passes)

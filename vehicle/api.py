@@ -52,7 +52,8 @@ class Results:
     def ride(self) -> dict:
         """Ride and road holding over the drive (what `hpsim report` tables and `--json` "ride" hold): per seat
         the ISO 2631-1 weighted RMS accelerations (Wk vertical, Wd lateral), comfort band, VDV and absorbed
-        power; per station the dynamic load coefficient, lift-off share, end-stop time and energy, strut
+        power, and from series stored densely enough the crest factor, MTVV and ISO 2631-5 spinal dose (Sed, per
+        drive and per day; vehicle.physics.shocks); per station the dynamic load coefficient, lift-off share, end-stop time and energy, strut
         travel min/max/percentiles and histogram (vehicle.analysis.ride_metrics)."""
         return summarise(self.view)
 

@@ -5,7 +5,6 @@ every axle, the hottest axle taking load from the coolest) and conserve the load
 the after-drive wheel loads equals the weight within 0.5 %).
 """
 import json
-from pathlib import Path
 
 import pytest
 

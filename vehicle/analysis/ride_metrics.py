@@ -29,6 +29,7 @@ import json
 import numpy as np
 
 from vehicle.physics import ride
+from vehicle.results.validity import SHOCK_KEYS, seat_shocks  # noqa: F401  (SHOCK_KEYS: the seat rows' keys)
 from vehicle.physics.outputs import variable_name
 
 PERCENTILES = (1, 50, 99)
@@ -88,6 +89,7 @@ def summarise(view) -> dict:
                 s["absorbed_power_W"] = float((T * pa[:, k]).sum() / total)
             seats.append(s)
         out["seats"] = seats
+    add_shocks(out, view)
     stations = [{"station": s} for s in view.stations]
     per_station = {
         "dynamic_load_coefficient": lambda a: mean_sq(a),
@@ -131,6 +133,21 @@ def summarise(view) -> dict:
         out["hull"] = {"rms_heave_acceleration_m_s2": float(r[0]), "rms_pitch_acceleration_rad_s2": float(r[1]),
                        "rms_roll_acceleration_rad_s2": float(r[2])}
     return out
+
+
+def add_shocks(out: dict, view) -> None:
+    """Per seat: crest factor, MTVV and the ISO 2631-5 doses (vehicle.physics.shocks) from the stored series,
+    when they are dense enough; the seat rows get them under SHOCK_KEYS."""
+    found = seat_shocks(view)
+    if not found:
+        return
+    rows = {s["seat"]: s for s in out.setdefault("seats", [])}
+    for name, values in found.items():
+        row = rows.get(name)
+        if row is None:
+            row = {"seat": name}
+            out["seats"].append(row)
+        row.update({k: values[k] for k in SHOCK_KEYS if k in values})
 
 
 def axle_rows(summary: dict, axles) -> list[dict]:

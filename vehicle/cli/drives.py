@@ -44,8 +44,12 @@ def register(sub):
                          "correction of the slow states (overrides solver.time_parallel; auto: one per CPU)")
     pr.set_defaults(func=cmd_run)
 
-    pp = sub.add_parser("report", help="per-axle summary of a results file")
-    pp.add_argument("results", help="HDF5 file written by `hpsim run`")
+    pp = sub.add_parser("report", help="per-axle summary of a results file (or a shareable HTML/PDF report, also "
+                                       "of a sweep or UQ study folder)")
+    pp.add_argument("results", help="HDF5 file written by `hpsim run`, or (with --html/--pdf) a sweep or UQ study folder")
+    pp.add_argument("--html", default=None, metavar="FILE",
+                    help="one self-contained HTML file (figures embedded; needs jinja2: pip install \"hpsim[report]\")")
+    pp.add_argument("--pdf", default=None, metavar="FILE", help="the same report as a PDF")
     pp.add_argument("--json", action="store_true", help="print JSON only")
     pp.add_argument("--psd", default=None, metavar="PNG",
                     help="response PSDs (hull heave/pitch/roll acceleration, strut forces; Welch) to this figure, "
@@ -69,6 +73,14 @@ def register(sub):
     ps.add_argument("--yes", action="store_true",
                     help="start without asking (at a terminal a sweep estimated above 5 min asks first)")
     ps.set_defaults(func=cmd_sweep)
+
+    pa = sub.add_parser("animate", help="side-view movie of a drive (hull, wheels and struts over the road)")
+    pa.add_argument("results", help="HDF5 file written by `hpsim run` with its series stored (output.interval)")
+    pa.add_argument("-o", "--output", required=True, help="movie file: .gif (Pillow) or .mp4 (needs ffmpeg)")
+    pa.add_argument("--from", dest="start", default=None, metavar="DISTANCE", help="start of the span, e.g. 10km")
+    pa.add_argument("--to", dest="end", default=None, metavar="DISTANCE", help="end of the span, e.g. 10.2km")
+    pa.add_argument("--fps", type=float, default=None, help="frames per second of driving (default 20: real time)")
+    pa.set_defaults(func=cmd_animate)
 
     pl = sub.add_parser("plot", help="dashboard figure of a results file")
     pl.add_argument("results", help="HDF5 file written by `hpsim run`")
@@ -155,6 +167,11 @@ def cmd_report(args):
 
     from vehicle.presentation.report import format_report, report
 
+    if args.html or args.pdf:
+        return _shareable_report(args)
+    if Path(args.results).is_dir():
+        raise UserInputError(f"{args.results}: a folder: its report needs --html FILE or --pdf FILE (a sweep or UQ "
+                             "study folder); the text report reads one results file")
     rep = report(args.results)
     if args.psd:
         from vehicle.presentation.plots import psd_plot
@@ -178,6 +195,24 @@ def cmd_report(args):
         if args.psd:
             print()
             print(format_psd(rep["psd"]))
+    return 0
+
+
+def _shareable_report(args):
+    from vehicle.presentation.html_report import document, write_html, write_pdf
+
+    for value, flag, suffix in ((args.html, "--html", (".html", ".htm")), (args.pdf, "--pdf", (".pdf",))):
+        if value is not None:
+            check_output_file(Path(value), flag, make_parents=True)
+            if Path(value).suffix.lower() not in suffix:
+                raise UserInputError(f"{flag}: {value!r} must end in {' or '.join(suffix)}")
+    if not Path(args.results).exists():
+        raise UserInputError(f"{args.results}: no such results file or study folder")
+    doc = document(args.results)
+    if args.html:
+        print(f"wrote {write_html(doc, args.html)}")
+    if args.pdf:
+        print(f"wrote {write_pdf(doc, args.pdf)}")
     return 0
 
 
@@ -219,6 +254,22 @@ def _sweep_preview(args, prepared) -> None:
     cost.confirm(cost.estimate(prepared, args.workers,
                                cluster=bool(args.scheduler)),
                  "hpsim sweep", args.yes)
+
+
+def cmd_animate(args):
+    from hpsim.units import parse_quantity
+
+    from vehicle.presentation.animation import FPS, animate
+
+    start = None if args.start is None else parse_quantity(args.start, "m", where="--from")
+    end = None if args.end is None else parse_quantity(args.end, "m", where="--to")
+    fps = FPS if args.fps is None else args.fps
+    if not 0 < fps <= 100:
+        raise UserInputError(f"--fps: must be in (0, 100] frames per second, got {args.fps}")
+    check_output_file(Path(args.output), "-o/--output", make_parents=True)
+    res = animate(args.results, args.output, start, end, fps)
+    print(f"wrote {res['file']} ({res['frames']} frames at {res['fps']:.3g} per second, {res['writer']})")
+    return 0
 
 
 def cmd_sweep(args):

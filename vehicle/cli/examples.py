@@ -49,6 +49,10 @@ EXAMPLES = {
     "road psd": """\
   hpsim road psd road.csv --json
   hpsim road psd --class D --length 5km --plot psd.png      # a generated road, no file needed""",
+    "road import": """\
+  hpsim road import track.crg -o road.csv                  # the tracks at +-1.25 m of the reference line
+  hpsim road import track.crg -o road.csv --track 2.1m --spacing 20mm
+  hpsim road psd track.crg --json                          # an OpenCRG file works wherever a road CSV does""",
     "road plot": """\
   hpsim road plot road.csv -o road.png
   hpsim road plot --class C --length 2km -o road.png""",
@@ -65,7 +69,12 @@ EXAMPLES = {
   hpsim -q run scenarios/quick_demo.yaml -o demo.h5 --overwrite       # no progress bar, no messages""",
     "report": """\
   hpsim report demo.h5
-  hpsim report demo.h5 --json | python -m json.tool | head""",
+  hpsim report demo.h5 --json | python -m json.tool | head
+  hpsim report demo.h5 --html demo.html --pdf demo.pdf      # one shareable file (figures embedded)
+  hpsim report quick_sweep/ --html sweep.html              # a sweep or UQ study folder""",
+    "animate": """\
+  hpsim animate demo.h5 -o drive.gif --from 1km --to 1.2km   # needs series stored, e.g. output.interval 0.05 s
+  hpsim animate demo.h5 -o drive.mp4 --fps 10              # .mp4 with ffmpeg installed""",
     "compare": """\
   hpsim compare a.h5 b.h5
   hpsim compare results/*.h5 --plot compare.png""",

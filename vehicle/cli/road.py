@@ -5,8 +5,10 @@
     hpsim road psd road.csv [--json] [--plot psd.png]
     hpsim road psd --class D --length 20km --seed 7 [--json]
     hpsim road plot road.csv -o road.png
+    hpsim road import track.crg -o road.csv [--track 2.5m] [--spacing 50mm]
 
-A road comes either from a CSV file (distance_m,left_m,right_m) or from a spec: --class / --gd-n0
+A road comes either from a CSV file (distance_m,left_m,right_m), an OpenCRG file (*.crg: its tracks at
++-track/2 along the reference line; needs the extra crg) or from a spec: --class / --gd-n0
 options, or --spec road.yaml (a RoadSpec, with events; options given on the command line override
 its keys). Bad input raises UserInputError naming the argument, file or line (exit code 2).
 """
@@ -24,6 +26,7 @@ from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_file
 
 from terrain.coherence import COHERENCE_MODELS, coherence_model
+from terrain.crg import is_crg
 
 if TYPE_CHECKING:
     from terrain.road import Road
@@ -50,14 +53,23 @@ def register(sub):
     g.set_defaults(func=cmd_generate)
 
     q = rs.add_parser("psd", help="PSD, fitted Gd(n0) and w, ISO class, RMS, coherence, IRI")
-    q.add_argument("csv", nargs="?", help="road CSV (distance_m,left_m,right_m); or give a spec")
+    q.add_argument("csv", nargs="?", help="road CSV (distance_m,left_m,right_m) or OpenCRG file (*.crg); or give a spec")
     _spec_options(q)
     q.add_argument("--json", action="store_true", help="print only JSON on stdout")
     q.add_argument("--plot", metavar="PNG", help="also save the PSD figure")
     q.set_defaults(func=cmd_psd)
 
+    im = rs.add_parser("import", help="the left/right tracks of an OpenCRG road surface as a road CSV")
+    im.add_argument("crg", help="OpenCRG file (*.crg)")
+    im.add_argument("-o", "--output", required=True, help="CSV file to write (distance_m,left_m,right_m)")
+    im.add_argument("--track", default="2.5m", help="track width: the tracks lie at +-track/2 of the reference "
+                                                     "line (default 2.5m, the apc_8x8)")
+    im.add_argument("--spacing", default=None, help="grid spacing (default: the file's u increment)")
+    im.add_argument("--json", action="store_true", help="print only JSON on stdout")
+    im.set_defaults(func=cmd_import)
+
     pl = rs.add_parser("plot", help="plot the profile and its PSD against the ISO class bands")
-    pl.add_argument("csv", nargs="?", help="road CSV (distance_m,left_m,right_m); or give a spec")
+    pl.add_argument("csv", nargs="?", help="road CSV (distance_m,left_m,right_m) or OpenCRG file (*.crg); or give a spec")
     _spec_options(pl)
     pl.add_argument("-o", "--output", required=True, help="PNG file to write")
     pl.set_defaults(func=cmd_plot)
@@ -157,12 +169,48 @@ def _load_road(args) -> tuple[Road, RoadSpec | None]:
             spacing = parse_quantity(args.spacing, "m", where="--spacing")
             if not spacing > 0:
                 raise UserInputError(f"--spacing: must be > 0 m (got {args.spacing!r})")
+        if is_crg(args.csv):
+            return Road.from_crg(args.csv, _track(args.track_width), spacing_m=spacing), None
         return Road.from_csv(args.csv, spacing_m=spacing), None
     if not _spec_given(args):
         raise UserInputError("give a road CSV file, or a spec: --class A-H (or --gd-n0) --length ..., "
                              "or --spec road.yaml")
     spec, base_dir = spec_from_args(args)
     return build_road(spec, base_dir), spec
+
+
+def _track(text) -> float:
+    """--track [m] (default: RoadSpec's 2.5 m)."""
+    from hpsim.units import parse_quantity
+    from terrain.spec import MAX_TRACK_WIDTH_M, RoadSpec
+
+    if text is None:
+        return float(RoadSpec.model_fields["track_width"].default)
+    w = parse_quantity(text, "m", where="--track")
+    if not 0 < w <= MAX_TRACK_WIDTH_M:
+        raise UserInputError(f"--track: must be in (0, {MAX_TRACK_WIDTH_M}] m, got {text!r}")
+    return w
+
+
+def cmd_import(args) -> int:
+    from hpsim.units import parse_quantity
+    from terrain.road import Road
+
+    check_output_file(args.output, "-o/--output")
+    spacing = None if args.spacing is None else parse_quantity(args.spacing, "m", where="--spacing")
+    if spacing is not None and not spacing > 0:
+        raise UserInputError(f"--spacing: must be > 0 m (got {args.spacing!r})")
+    road = Road.from_crg(args.crg, _track(args.track), spacing_m=spacing)
+    road.to_csv(args.output)
+    summary = {"output": str(args.output), "length_m": road.length_m, "spacing_m": road.spacing_m,
+               "points": road.n_points, **road.info,
+               "rms_left_m": float(np.std(road.left_m)), "rms_right_m": float(np.std(road.right_m))}
+    if args.json:
+        print_json(summary)
+    else:
+        print(f"wrote {args.output}: {road.length_m:.6g} m at {road.spacing_m * 1e3:.4g} mm, tracks at "
+              f"+-{summary['track_width_m'] / 2:g} m of the reference line of {args.crg}")
+    return 0
 
 
 def _spec_summary(spec: RoadSpec | None) -> dict:

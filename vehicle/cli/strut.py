@@ -182,7 +182,7 @@ def cmd_characteristic(args):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig, ax = plt.subplots(figsize=(6.4, 4.2))
+        fig, ax = plt.subplots(figsize=(6.4, 4.2), layout="constrained")
         ax.plot(res["x_m"] * 1e3, res["force_N"] / 1e3, label="gas force")
         stroke_mm = params.geometry.stroke * 1e3
         # labels where the rising curve is not: top left, bottom right
@@ -202,7 +202,7 @@ def cmd_characteristic(args):
         ax.legend(fontsize=8, loc="center left")
         ax.set_title(f"{params.name}: p0 = {res['p0_Pa'] / 1e6:.3g} MPa, T = {res['temperature_K'] - 273.15:.3g} degC, "
                      f"{args.process}", fontsize=10)
-        fig.tight_layout(); _save_figure(fig, args.plot, "--plot"); plt.close(fig)
+        _save_figure(fig, args.plot, "--plot"); plt.close(fig)
     rows = [{"x_m": float(x), "force_N": float(F)} for x, F in zip(res["x_m"][::20], res["force_N"][::20])]
     if args.json:
         print_json({"x_m": res["x_m"], "force_N": res["force_N"], "gas_pressure_Pa": res["gas_pressure_Pa"],
@@ -341,34 +341,52 @@ def _max_frequency() -> float:
 
 
 def plot_loops(results, path, name, measured=()):
+    """Force-displacement and force-velocity loops; measured loops as wide light lines under the model's thin
+    ones (the same colour for the same test, black without a simulated one); the smallest loop on top and, when
+    it is much smaller than the largest, magnified in an inset of the force-velocity panel."""
     import matplotlib
     import numpy as np
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4), layout="constrained")
+    v_max = [float(np.max(np.abs(r.v_m_per_s))) * 1e3 for r in results]
+    small = int(np.argmin(v_max)) if results else 0
+    inset = None
+    if len(results) > 1 and v_max[small] < 0.25 * max(v_max):
+        inset = a2.inset_axes([0.6, 0.06, 0.37, 0.37])
+    measured_style = dict(lw=4.0, alpha=0.35, solid_capstyle="round", zorder=1)
     for j, r in enumerate(results):
+        c, z = f"C{j % 10}", 3 + len(results) - j           # later (larger) loops below the earlier ones
         lab = f"A={r.amplitude_m * 1e3:.3g} mm, f={r.frequency_Hz:.3g} Hz, E={r.energy_per_cycle_J:.4g} J"
-        a1.plot(r.x_m * 1e3, r.force_N / 1e3, label=lab, color=f"C{j % 10}")
-        a2.plot(r.v_m_per_s * 1e3, (r.force_N - r.components_N["gas"]) / 1e3, label=lab, color=f"C{j % 10}")
-        # the measured loop of the same test in the same colour, dashed; its resisting force is the
-        # measured force less the model's gas force at the same phase of the cycle
+        resist = (r.force_N - r.components_N["gas"]) / 1e3
+        a1.plot(r.x_m * 1e3, r.force_N / 1e3, label=lab, color=c, lw=1.2, zorder=z)
+        for a in (a2, inset) if (inset is not None and j == small) else (a2,):
+            a.plot(r.v_m_per_s * 1e3, resist, label=lab, color=c, lw=1.2, zorder=z)
+        # the measured loop of the same test; its resisting force is the measured force less the model's gas
+        # force at the same phase of the cycle
         for m in measured:
             if _same_test(m, r):
                 gas = np.interp(m["phase"], ((r.t_s - r.t_s[0]) * r.frequency_Hz) % 1.0, r.components_N["gas"],
                                 period=1.0)
-                a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, "--", color=f"C{j % 10}", lw=1.2,
-                        label=f"measured, E={m['energy_per_cycle_J']:.4g} J")
-                a2.plot(m["v_m_per_s"] * 1e3, (m["force_N"] - gas) / 1e3, "--", color=f"C{j % 10}", lw=1.2)
+                a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color=c, label=f"measured, E={m['energy_per_cycle_J']:.4g} J",
+                        **measured_style)
+                a2.plot(m["v_m_per_s"] * 1e3, (m["force_N"] - gas) / 1e3, color=c, **measured_style)
     for m in measured:
         if not any(_same_test(m, r) for r in results):
-            a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, "--", color="k", lw=1.0,
-                    label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz")
-    a1.set_xlabel("deflection [mm]"); a1.set_ylabel("force [kN]"); a1.grid(True); a1.legend(fontsize=7)
-    a2.set_xlabel("velocity [mm/s]"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
+            a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color="k",
+                    label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz "
+                          "(no simulated test)", **{**measured_style, "lw": 2.5, "alpha": 0.3})
+    if inset is not None:
+        inset.set_title(f"A={results[small].amplitude_m * 1e3:.3g} mm magnified", fontsize=7)
+        inset.tick_params(labelsize=6)
+        inset.grid(True, alpha=0.4)
+    a1.set_xlabel("deflection [mm]"); a1.set_ylabel("force [kN]"); a1.grid(True)
+    a1.legend(fontsize=7, loc="upper left")
+    a2.set_xlabel("velocity [mm/s] (> 0: compression)"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
     fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)"
-                 + ("; dashed: measured" if len(measured) else ""))
-    fig.tight_layout(); _save_figure(fig, path, "--plot"); plt.close(fig)
+                 + ("; wide light lines: measured" if len(measured) else ""))
+    _save_figure(fig, path, "--plot"); plt.close(fig)
 
 
 def cmd_fit(args):

@@ -2,7 +2,9 @@
 runs (`hpsim compare --plot`, sweeps). Matplotlib with the Agg backend (no display needed)."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -44,214 +46,276 @@ def _series(r, name):
     return r.series(name)
 
 
-def dashboard(path, out: str | Path) -> Path:
-    """The dashboard of one run, a panel for each thing the run stored: strut temperatures per axle
-    vs distance (with the ambient), hull height change per axle, the change of the static wheel
-    loads over the drive, dissipated power by mechanism, and, when the drive's statistics rows
-    carry them, ride comfort at the seats and strut travel per interval, and the hull's response PSDs when the
-    series are stored densely enough (output.interval <= 1/30 s). `path`: a results file or any
-    `vehicle.results.reader.ResultsView` (e.g. in-memory results)."""
+def _dashboard_data(f, path) -> SimpleNamespace:
+    """Everything the dashboard draws, read from a results view (file or memory)."""
+    d = SimpleNamespace(name=Path(str(path)).name, rep=report_from(f, str(path)), axles=f.axles, stations=f.stations)
+    s_km = _series(f, "distance")
+    d.s_km = None if s_km is None else s_km / 1e3
+    t_all = _series(f, "time")
+    d.sample_dt = float(np.median(np.diff(t_all))) if t_all is not None and len(t_all) > 1 else 1.0
+    d.T, d.T_oil = _series(f, "strut_temperature"), _series(f, "oil_temperature")   # T_oil: None in older files
+    d.h = _series(f, "axle_height_change")
+    d.before, after = f.equilibrium("before"), f.equilibrium("after")
+    d.N_before = np.asarray(d.before["wheel_load"], float)
+    d.N_after = np.asarray(after["wheel_load"], float) if after is not None else None
+    d.h_before = np.asarray(d.before["axle_height_change"], float)
+    d.s_stats = f.stats_series("km")
+    n_rows = 0 if d.s_stats is None else len(d.s_stats)
+    d.power = {}
+    if n_rows >= 2:
+        for key, _ in MECHANISMS:
+            P = f.stats_series(f"power_{key}")
+            if P is not None:
+                d.power[key] = P.sum(axis=1)
+        d.power_x, d.power_how = d.s_stats, "per statistics interval"
+    else:
+        for key, _ in MECHANISMS:
+            E = _series(f, f"energy_{key}")
+            if E is not None and t_all is not None and len(t_all) >= 2:
+                d.power[key] = np.gradient(E.sum(axis=1), t_all)
+        d.power_x, d.power_how = d.s_km, "from the energy time series"
+    d.T_stats = f.stats_series("strut_temperature")
+    charged = f.equilibrium("charged")
+    d.N_charged = None if charged is None else np.asarray(charged["wheel_load"], float)
+    d.ride_rows = _ride_rows(f)
+    d.psd = _dense_psd(f)
+    return d
+
+
+def _colors():
+    return pyplot().rcParams["axes.prop_cycle"].by_key()["color"]
+
+
+def _panel_temperatures(a, d):
+    colors = _colors()
+    if d.T is not None and d.s_km is not None:
+        x, Ts = d.s_km, d.T
+    else:                      # time series not stored: the start and the statistics rows
+        x = np.concatenate([[0.0], d.s_stats])
+        Ts = np.vstack([np.asarray(equilibrium_temperature(d.before), float)[None, :], d.T_stats])
+    Tax = 0.5 * (Ts[:, 0::2] + Ts[:, 1::2]) - 273.15
+    for k, name in enumerate(d.axles):
+        a.plot(x, Tax[:, k], color=colors[k % len(colors)], label=f"{name} surface", marker="o" if len(x) < 30 else None,
+               ms=3)
+    if d.T is not None and d.s_km is not None and d.T_oil is not None and len(d.T_oil) == len(x):
+        Toax = 0.5 * (d.T_oil[:, 0::2] + d.T_oil[:, 1::2]) - 273.15
+        for k in range(len(d.axles)):
+            a.plot(x, Toax[:, k], color=colors[k % len(colors)], ls=":", lw=1.0)
+        a.plot([], [], color="0.4", ls=":", lw=1.0, label="oil (dotted)")
+    amb = d.rep["ambient_C"]
+    a.axhline(amb, color="0.45", ls="--", lw=1.0)
+    a.annotate(f"ambient {amb:.0f} degC", (1.0, amb), xycoords=("axes fraction", "data"), textcoords="offset points",
+               xytext=(-4, 3), ha="right", fontsize=7, color="0.35")
+    a.set(xlabel="distance [km]", ylabel="strut temperature [degC]",
+          title="strut surface (pyrometer) and oil temperature (mean of left/right)")
+    a.title.set_fontsize(9)
+    a.legend(fontsize=7, ncol=min(len(d.axles) + 1, 5), loc="upper center", bbox_to_anchor=(0.5, -0.16),
+             frameon=False, handlelength=1.5, columnspacing=1.0)
+
+
+def _panel_heights(a, d):
+    colors = _colors()
+    window = int(np.clip(len(d.s_km) // 10, 1, 600))
+    # the drift (heating) is slow, the road's bumps fast: a centred moving mean over about a tenth of the
+    # drive (at most 600 samples) shows the drift
+    hs = _moving_mean(d.h, window)
+    for k, name in enumerate(d.axles):
+        a.plot(d.s_km, (hs[:, k] - d.h_before[k]) * 1e3, color=colors[k % len(colors)], label=name)
+    for k, r in enumerate(d.rep["axles"]):
+        if r["dh_mm"] is not None:
+            a.plot([d.s_km[-1]], [r["dh_mm"]], marker="o", color=colors[k % len(colors)], ms=6)
+    a.axhline(0, color="k", lw=0.6)
+    a.set(xlabel="distance [km]", ylabel="hull height change at the axle [mm]",
+          title=f"height change vs before-drive equilibrium\n(moving mean over {window * d.sample_dt:.0f} s; "
+                "dots: after-drive equilibrium)")
+    a.title.set_fontsize(9)
+    a.legend(fontsize=7, ncol=len(d.axles), loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+
+
+def _panel_wheel_loads(a, d):
+    """Per axle: the change of the static wheel load [%] (bar) and the band two weighings with seal friction
+    can give (vehicle.physics.weighing; whisker), left and right as dots."""
+    colors = _colors()
+    x = np.arange(len(d.axles))
+    if d.N_after is not None:
+        dN, base, what = d.N_after - d.N_before, d.N_before, "after - before the drive"
+    else:
+        dN, base, what = d.N_before - d.N_charged, d.N_charged, "before the drive - charged"
+    pct = 100.0 * dN / base
+    ax_pct = 0.5 * (pct[0::2] + pct[1::2])
+    a.bar(x, ax_pct, 0.55, color=[colors[k % len(colors)] for k in range(len(x))], alpha=0.85)
+    a.plot(np.repeat(x, 2) + np.tile([-0.12, 0.12], len(x)), pct, "k.", ms=4, label="left / right wheel")
+    lows, highs = [], []
+    for k, row in enumerate(d.rep["axles"]):
+        band = row.get("dN_band_pct") if d.N_after is not None else None
+        if band and None not in band:
+            a.plot([k, k], band, color="0.2", lw=1.2)
+            a.plot([k - 0.1, k + 0.1, np.nan, k - 0.1, k + 0.1], [band[0], band[0], np.nan, band[1], band[1]],
+                   color="0.2", lw=1.2)
+            lows.append(band[0])
+            highs.append(band[1])
+        top = max(ax_pct[k], np.max(pct[2 * k:2 * k + 2]), band[1] if band and None not in band else -np.inf)
+        a.annotate(f"{ax_pct[k]:+.2f}%", (k, top), ha="center", va="bottom", fontsize=7,
+                   xytext=(0, 3), textcoords="offset points")
+    if lows:
+        a.plot([], [], color="0.2", lw=1.2, label="weighing band (seal friction)")
+    a.axhline(0, color="k", lw=0.6)
+    span = max(np.max(np.abs(np.concatenate([pct, lows, highs]))), 0.05)
+    a.set_ylim(-1.2 * span, 1.3 * span)
+    a.set_xticks(x, list(d.axles))
+    a.set(ylabel="static wheel load change [%]", title=f"static wheel loads: {what}\n"
+          f"(loads {base.min() / 10:.0f}-{base.max() / 10:.0f} daN)")
+    a.title.set_fontsize(9)
+    a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, frameon=False)
+
+
+def _panel_powers(a, d):
+    styles = {"valve": "-", "friction": "--", "gas": "-.", "end_stop": ":"}
+    for key, label in MECHANISMS:
+        if key in d.power:
+            y = d.power[key] / 1e3
+            if d.power_how.startswith("from"):
+                y = _moving_mean(y, max(1, min(60, len(y) // 20)))
+            if not np.any(np.abs(y) > 1e-9):
+                label += " (zero)"           # a flat zero line lies on the axis: say so in the legend
+            a.plot(d.power_x, y, label=label, ls=styles[key], lw=1.6, marker="o" if len(d.power_x) < 30 else None,
+                   ms=3, clip_on=False)
+    a.set(xlabel="distance [km]", ylabel="dissipated power, all struts [kW]",
+          title=f"dissipated power by mechanism ({d.power_how})")
+    a.title.set_fontsize(9)
+    lo, hi = a.get_ylim()
+    a.set_ylim(min(lo, -0.04 * hi), hi)           # a zero line above the axis, not on it
+    a.legend(fontsize=7, ncol=4, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+
+
+def _panel_comfort(a, d):
+    rr = d.ride_rows
+    km, names, aw = rr["km"], rr["seats"], rr["weighted_rms_acceleration_m_s2"]
+    for k, name in enumerate(names):
+        a.plot(km, aw[:, k], marker="o" if len(km) < 30 else None, ms=3, label=name)
+    for lim, text in ((0.315, "not uncomfortable"), (0.63, "a little unc."), (1.0, "fairly unc.")):
+        if lim < 1.6 * max(float(np.max(aw)), 0.3):
+            a.axhline(lim, color="0.6", lw=0.7, ls=":")
+            a.annotate(text, (1.0, lim), xycoords=("axes fraction", "data"), fontsize=7, color="0.4", va="bottom",
+                       ha="right", xytext=(-3, 1), textcoords="offset points")
+    a.set(xlabel="distance [km]", ylabel="weighted RMS acceleration a_w [m/s$^2$]",
+          title="ride: ISO 2631-1 Wk at the seats, per statistics interval", ylim=(0, None))
+    a.title.set_fontsize(9)
+    a.legend(fontsize=7, ncol=len(names), loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+
+
+def _panel_travel(a, d):
+    """Per axle (worst of left and right): the deflection's 1-99 % band (thick), min-max (thin) and median
+    (dot) over the drive, against the stroke (0 and the stroke: the end stops)."""
+    from vehicle.analysis.ride_metrics import axle_rows
+
+    colors = _colors()
+    rows = axle_rows(d.rep.get("ride") or {}, d.axles)
+    stations = (d.rep.get("ride") or {}).get("stations") or []
+    for k, row in enumerate(rows):
+        c = colors[k % len(colors)]
+        lo, hi = row.get("strut_travel_min_m"), row.get("strut_travel_max_m")
+        if lo is not None and hi is not None:
+            a.plot([k, k], [1e3 * lo, 1e3 * hi], color=c, lw=1.5, solid_capstyle="butt")
+        p1, p99 = row.get("strut_travel_p1_m"), row.get("strut_travel_p99_m")
+        if p1 is not None and p99 is not None:
+            a.plot([k, k], [1e3 * p1, 1e3 * p99], color=c, lw=9, alpha=0.6, solid_capstyle="butt")
+        meds = [s.get("strut_travel_p50_m") for s in stations[2 * k:2 * k + 2] if s.get("strut_travel_p50_m") is not None]
+        if meds:
+            a.plot([k], [1e3 * float(np.mean(meds))], "o", color="k", ms=4)
+    a.plot([], [], color="0.5", lw=9, alpha=0.6, label="1-99 %")
+    a.plot([], [], color="0.5", lw=1.5, label="min-max")
+    a.plot([], [], "ko", ms=4, label="median")
+    stroke = d.ride_rows.get("stroke_m")
+    if stroke:
+        for y, text in ((0.0, "full extension"), (1e3 * stroke, "full compression")):
+            a.axhline(y, color="k", lw=0.8)
+            a.annotate(text, (1.0, y), xycoords=("axes fraction", "data"), ha="right", fontsize=7, color="0.3",
+                       va="bottom" if y > 0 else "top", xytext=(-3, 1 if y > 0 else -1), textcoords="offset points")
+        a.set_ylim(-0.08 * 1e3 * stroke, 1.08 * 1e3 * stroke)
+    a.set_xticks(range(len(rows)), list(d.axles)[:len(rows)])
+    a.set_xlim(-0.6, len(rows) - 0.4)
+    a.set(ylabel="strut deflection [mm] (0: full extension)",
+          title="strut travel over the drive per axle\n(worst of left/right)")
+    a.title.set_fontsize(9)
+    a.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
+
+
+def _panel_spectra(a, d):
+    psd = d.psd
+    f_hz = psd["f_hz"]
+    keep = (f_hz > 0) & (f_hz <= min(psd["fs_hz"] / 2, 30.0))
+    for name, label in (("heave_acceleration", "heave"), ("pitch_acceleration", "pitch"),
+                        ("roll_acceleration", "roll")):
+        if name in psd["psd"]:
+            a.semilogy(f_hz[keep], np.atleast_2d(psd["psd"][name])[0][keep], label=f"{label} [{psd['units'][name]}]")
+    a.set_xlim(0, float(f_hz[keep][-1]))
+    a.set(xlabel="frequency [Hz]", ylabel="PSD", title=f"hull accelerations: response PSD\n(Welch, "
+          f"{psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz; hpsim report --psd)")
+    a.title.set_fontsize(9)
+    a.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+
+
+def _dashboard_panels(d) -> list:
+    """The panels that have data, in order (no empty panels)."""
+    panels = []
+    if (d.T is not None and d.s_km is not None and len(d.s_km)) or (d.T_stats is not None and len(d.T_stats)):
+        panels.append(_panel_temperatures)
+    if d.h is not None and d.s_km is not None and len(d.s_km) > 1:
+        panels.append(_panel_heights)
+    if d.N_after is not None or d.N_charged is not None:
+        panels.append(_panel_wheel_loads)
+    if d.power and d.power_x is not None and len(d.power_x):
+        panels.append(_panel_powers)
+    if d.ride_rows.get("weighted_rms_acceleration_m_s2") is not None:
+        panels.append(_panel_comfort)
+    if any(r.get("strut_travel_max_m") is not None for r in ((d.rep.get("ride") or {}).get("stations") or [])):
+        panels.append(_panel_travel)
+    if d.psd is not None:
+        panels.append(_panel_spectra)
+    return panels
+
+
+def dashboard_figure(path):
+    """The dashboard of one run as a matplotlib figure (see `dashboard`)."""
     import contextlib
 
     plt = pyplot()
-    out = Path(out)
     view = path if hasattr(path, "series") else None
     with (contextlib.nullcontext(view) if view is not None else open_results(path)) as f:
-        path = f.name if view is not None else path
-        rep = report_from(f, str(path))
-        axles, stations = f.axles, f.stations
-        s_km = _series(f, "distance")
-        s_km = None if s_km is None else s_km / 1e3
-        t_all = _series(f, "time")
-        sample_dt = float(np.median(np.diff(t_all))) if t_all is not None and len(t_all) > 1 else 1.0
-        T = _series(f, "strut_temperature")
-        T_oil = _series(f, "oil_temperature")       # the heat network's oil node (None in older files)
-        h = _series(f, "axle_height_change")
-        before, after = f.equilibrium("before"), f.equilibrium("after")
-        N_before = np.asarray(before["wheel_load"], float)
-        N_after = np.asarray(after["wheel_load"], float) if after is not None else None
-        h_before = np.asarray(before["axle_height_change"], float)
-        s_stats = f.stats_series("km")
-        n_rows = 0 if s_stats is None else len(s_stats)
-        power = {}
-        if n_rows >= 2:
-            for key, _ in MECHANISMS:
-                P = f.stats_series(f"power_{key}")
-                if P is not None:
-                    power[key] = P.sum(axis=1)
-            power_x = s_stats
-            power_how = "per statistics interval"
-        else:
-            power_x = None
-            t = _series(f, "time")
-            for key, _ in MECHANISMS:
-                E = _series(f, f"energy_{key}")
-                if E is not None and t is not None and len(t) >= 2:
-                    power[key] = np.gradient(E.sum(axis=1), t)
-            power_x = s_km
-            power_how = "from the energy time series"
-
-        T_stats = f.stats_series("strut_temperature")
-        charged = f.equilibrium("charged")
-        N_charged = None if charged is None else np.asarray(charged["wheel_load"], float)
-        ride_rows = _ride_rows(f)
-        psd = _dense_psd(f)
-
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    panels = []            # (title, draw(ax)) of the panels that have data: no empty panels
-
-    def temperatures(a):
-        if T is not None and s_km is not None:
-            x, Ts = s_km, T
-        else:                      # time series not stored: the start and the statistics rows
-            x = np.concatenate([[0.0], s_stats])
-            Ts = np.vstack([np.asarray(equilibrium_temperature(before), float)[None, :], T_stats])
-        Tax = 0.5 * (Ts[:, 0::2] + Ts[:, 1::2]) - 273.15
-        for k, name in enumerate(axles):
-            a.plot(x, Tax[:, k], color=colors[k % len(colors)], label=name, marker="o" if len(x) < 30 else None, ms=3)
-        if T is not None and s_km is not None and T_oil is not None and len(T_oil) == len(x):
-            Toax = 0.5 * (T_oil[:, 0::2] + T_oil[:, 1::2]) - 273.15
-            for k in range(len(axles)):
-                a.plot(x, Toax[:, k], color=colors[k % len(colors)], ls=":", lw=1.0)
-            a.annotate("dotted: oil", (x[-1], float(np.max(Toax[-1]))), textcoords="offset points", xytext=(-40, 4),
-                       fontsize=7, color="0.35")
-        a.axhline(rep["ambient_C"], color="0.45", ls="--", lw=1.0)
-        a.annotate(f"ambient {rep['ambient_C']:.0f} degC", (x[0], rep["ambient_C"]), textcoords="offset points",
-                   xytext=(2, 3), fontsize=7, color="0.35")
-        a.set(xlabel="distance [km]", ylabel="strut temperature [degC]",
-              title="strut surface (pyrometer) and oil temperature (mean of left/right)")
-
-    if (T is not None and s_km is not None and len(s_km)) or (T_stats is not None and len(T_stats)):
-        panels.append(temperatures)
-
-    def heights(a):
-        window = int(np.clip(len(s_km) // 10, 1, 600))
-        # the drift (heating) is slow, the road's bumps fast: a centred moving mean over about a
-        # tenth of the drive (at most 600 samples) shows the drift
-        hs = _moving_mean(h, window)
-        for k, name in enumerate(axles):
-            a.plot(s_km, (hs[:, k] - h_before[k]) * 1e3, color=colors[k % len(colors)], label=name)
-        for k, r in enumerate(rep["axles"]):
-            if r["dh_mm"] is not None:
-                a.plot([s_km[-1]], [r["dh_mm"]], marker="o", color=colors[k % len(colors)], ms=6)
-        a.axhline(0, color="k", lw=0.6)
-        a.set(xlabel="distance [km]", ylabel="hull height change at the axle [mm]",
-              title=f"height change vs before-drive equilibrium\n(moving mean over {window * sample_dt:.0f} s; "
-                    "dots: after-drive equilibrium)")
-        a.title.set_fontsize(9)
-
-    if h is not None and s_km is not None and len(s_km) > 1:
-        panels.append(heights)
-
-    def wheel_loads(a):
-        x = np.arange(len(stations))
-        if N_after is not None:
-            dN, what = N_after - N_before, "after - before the drive"
-            base = N_before
-        else:
-            dN, what = N_before - N_charged, "before the drive - charged"
-            base = N_charged
-        bars = a.bar(x, dN / 10.0, 0.6, color=[colors[(k // 2) % len(colors)] for k in range(len(stations))])
-        for b, d, n0 in zip(bars, dN, base):
-            y = b.get_height()
-            a.annotate(f"{100 * d / n0:+.2f}%", (b.get_x() + b.get_width() / 2, y), ha="center",
-                       va="bottom" if y >= 0 else "top", fontsize=7, xytext=(0, 2 if y >= 0 else -2),
-                       textcoords="offset points")
-        a.axhline(0, color="k", lw=0.6)
-        span = max(np.max(np.abs(dN)) / 10.0, 1.0)
-        a.set_ylim(-1.35 * span, 1.35 * span)
-        a.set_xticks(x, [s.replace("axle", "A").replace("_left", " L").replace("_right", " R") for s in stations])
-        a.set(ylabel="wheel load change [daN]", title=f"static wheel loads: {what}\n"
-              f"(loads {base.min() / 10:.0f}-{base.max() / 10:.0f} daN)")
-        a.title.set_fontsize(9)
-
-    if N_after is not None or N_charged is not None:
-        panels.append(wheel_loads)
-
-    def powers(a):
-        for key, label in MECHANISMS:
-            if key in power:
-                y = power[key] / 1e3
-                if power_how.startswith("from"):
-                    y = _moving_mean(y, max(1, min(60, len(y) // 20)))
-                a.plot(power_x, y, label=label, marker="o" if len(power_x) < 30 else None, ms=3)
-        a.set(xlabel="distance [km]", ylabel="dissipated power, all struts [kW]",
-              title=f"dissipated power by mechanism ({power_how})")
-        a.legend(fontsize=8, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
-
-    if power and power_x is not None and len(power_x):
-        panels.append(powers)
-
-    def comfort(a):
-        km, names, aw = ride_rows["km"], ride_rows["seats"], ride_rows["weighted_rms_acceleration_m_s2"]
-        for k, name in enumerate(names):
-            a.plot(km, aw[:, k], marker="o" if len(km) < 30 else None, ms=3, label=name)
-        for lim, text in ((0.315, "not uncomfortable"), (0.63, "a little unc."), (1.0, "fairly unc.")):
-            if lim < 1.6 * max(float(np.max(aw)), 0.3):
-                a.axhline(lim, color="0.6", lw=0.7, ls=":")
-                a.annotate(text, (km[0], lim), fontsize=7, color="0.4", va="bottom")
-        a.set(xlabel="distance [km]", ylabel="weighted RMS acceleration a_w [m/s$^2$]",
-              title="ride: ISO 2631-1 Wk at the seats, per statistics interval", ylim=(0, None))
-        a.legend(fontsize=8, ncol=len(names), loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
-
-    if ride_rows.get("weighted_rms_acceleration_m_s2") is not None:
-        panels.append(comfort)
-
-    def travel(a):
-        km = ride_rows["km"]
-        lo, hi = ride_rows["strut_travel_min_m"], ride_rows["strut_travel_max_m"]
-        for k, name in enumerate(axles):
-            c = colors[k % len(colors)]
-            a.fill_between(km, 1e3 * np.min(lo[:, 2 * k:2 * k + 2], axis=1), 1e3 * np.max(hi[:, 2 * k:2 * k + 2], axis=1),
-                           color=c, alpha=0.25, step="mid")
-        stroke = ride_rows.get("stroke_m")
-        if stroke:
-            for y in (0.0, 1e3 * stroke):
-                a.axhline(y, color="k", lw=0.8)
-        a.set(xlabel="distance [km]", ylabel="strut deflection [mm]",
-              title="strut travel range per interval (0 and the stroke: the end stops)")
-        a.title.set_fontsize(9)
-
-    if ride_rows.get("strut_travel_min_m") is not None and ride_rows.get("strut_travel_max_m") is not None:
-        panels.append(travel)
-
-    def spectra(a):
-        f_hz = psd["f_hz"]
-        keep = (f_hz > 0) & (f_hz <= min(psd["fs_hz"] / 2, 30.0))
-        for name, label in (("heave_acceleration", "heave"), ("pitch_acceleration", "pitch"),
-                            ("roll_acceleration", "roll")):
-            if name in psd["psd"]:
-                a.semilogy(f_hz[keep], np.atleast_2d(psd["psd"][name])[0][keep],
-                           label=f"{label} [{psd['units'][name]}]")
-        a.set(xlabel="frequency [Hz]", ylabel="PSD", title=f"hull accelerations: response PSD (Welch, "
-              f"{psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz; hpsim report --psd)")
-        a.title.set_fontsize(9)
-        a.legend(fontsize=8)
-
-    if psd is not None:
-        panels.append(spectra)
-
+        d = _dashboard_data(f, f.name if view is not None else path)
+    panels = _dashboard_panels(d)
     n = len(panels)
     ncol = 2 if n <= 4 else 3
     nrow = max(1, -(-n // ncol))
-    fig, axs = plt.subplots(nrow, ncol, figsize=(6.5 * ncol if ncol == 2 else 6.0 * ncol, 4.3 * nrow),
-                            constrained_layout=True, squeeze=False)
-    title = (f"{Path(path).name}: {rep['distance_km']:.2f} km, compensation "
+    fig, axs = plt.subplots(nrow, ncol, figsize=(6.5 * ncol if ncol == 2 else 6.0 * ncol, 4.6 * nrow),
+                            layout="constrained", squeeze=False)
+    rep = d.rep
+    title = (f"{d.name}: {rep['distance_km']:.2f} km, compensation "
              f"{'on' if rep['compensation'] else 'off'}, {rep['status']}")
     if rep.get("warnings"):
         title += f" - {len(rep['warnings'])} validity warning{'s' if len(rep['warnings']) > 1 else ''} (hpsim report)"
     fig.suptitle(title)
     for a, draw in zip(axs.flat, panels):
-        draw(a)
+        draw(a, d)
         a.grid(alpha=0.3)
     for a in list(axs.flat)[n:]:
         a.remove()
-    if any(d in panels for d in (temperatures, heights)):       # one legend for the axle colours, below the panels
-        handles = [plt.Line2D([], [], color=colors[k % len(colors)]) for k in range(len(axles))]
-        fig.legend(handles, axles, loc="outside lower center", ncol=len(axles), fontsize=8, frameon=False)
+    return fig
+
+
+def dashboard(path, out: str | Path) -> Path:
+    """The dashboard of one run, a panel for each thing the run stored: strut temperatures per axle
+    vs distance (with the ambient), hull height change per axle, the change of the static wheel
+    loads over the drive with the weighing bands, dissipated power by mechanism, and, when the drive's
+    statistics rows carry them, ride comfort at the seats and the strut travel per axle against the stroke, and
+    the hull's response PSDs when the series are stored densely enough (output.interval <= 1/30 s). `path`: a
+    results file or any `vehicle.results.reader.ResultsView` (e.g. in-memory results)."""
+    fig = dashboard_figure(path)
+    out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
-    plt.close(fig)
+    pyplot().close(fig)
     return out
 
 
@@ -322,13 +386,15 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     for j, key in enumerate(tops):
         a = fig.add_subplot(grid[0, j * (6 // len(tops)):(j + 1) * (6 // len(tops))])
         for i, hh in enumerate(hist):
-            if key in hh:
-                a.plot(*hh[key], color=colors[i % len(colors)], marker="o" if len(hh[key][0]) < 30 else None, ms=3)
+            if key in hh:        # identical runs stay visible: each its own dash, the first ones wider below
+                a.plot(*hh[key], color=colors[i % len(colors)], marker="o" if len(hh[key][0]) < 30 else None, ms=3,
+                       ls=("-", "--", "-.", ":")[i % 4], lw=max(0.9, 2.6 - 0.5 * i), zorder=2 + i)
         a.axhline(0, color="k", lw=0.6)
         a.set(xlabel="distance [km]", **({"ylabel": "strut temperature rise [K]",
                                           "title": "mean strut temperature rise (all struts)"} if key == "T" else
                                          {"ylabel": "hull height change [mm]",
-                                          "title": "mean hull height change vs before-drive equilibrium (moving mean)"}))
+                                          "title": "mean hull height change vs before-drive\nequilibrium (moving mean)"}))
+        a.title.set_fontsize(10)
         a.grid(alpha=0.3)
     x = np.arange(n_ax)
     w = 0.8 / max(len(runs), 1)
@@ -346,12 +412,16 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
             panel.bar(x - 0.4 + w * (j + 0.5), y, w, color=colors[j % len(colors)])
         panel.set_xticks(x, [f"axle {k + 1}" for k in range(n_ax)])
         panel.set(ylabel=ylabel, title=title)
+        panel.title.set_fontsize(10)
         panel.axhline(0, color="k", lw=0.6)
         panel.grid(alpha=0.3, axis="y")
-    handles = [plt.Rectangle((0, 0), 1, 1, color=colors[j % len(colors)]) for j in range(len(runs))]
+    handles = [plt.Line2D([], [], color=colors[j % len(colors)], ls=("-", "--", "-.", ":")[j % 4],
+                          lw=max(0.9, 2.6 - 0.5 * j), marker="s", ms=7) for j in range(len(runs))]
     warned = [f"{lab} ({len(r['warnings'])} warning{'s' if len(r['warnings']) > 1 else ''})" if r.get("warnings") else lab
               for lab, r in zip(labels, runs)]
     fig.legend(handles, warned, loc="outside lower center", ncol=min(len(runs), 4), fontsize=8, frameon=False)
+    same = "" if len({json.dumps(r["axles"], sort_keys=True) for r in runs}) > 1 else " (identical results)"
+    fig.suptitle(f"{len(runs)} runs compared: temperatures, heights and load changes{same}")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)

@@ -101,7 +101,11 @@ SEAT_COLUMNS = (("weighted_rms_acceleration_m_s2", "a_w Wk [m/s^2]", 1.0, ".3f")
                 ("comfort", "ISO 2631-1 Annex C", None, "s"),
                 ("weighted_rms_lateral_acceleration_m_s2", "a_w Wd lat. [m/s^2]", 1.0, ".3f"),
                 ("vdv_m_s175", "VDV [m/s^1.75]", 1.0, ".3g"),
-                ("absorbed_power_W", "abs. power [W]", 1.0, ".3g"))
+                ("absorbed_power_W", "abs. power [W]", 1.0, ".3g"),
+                ("crest_factor", "crest factor", 1.0, ".2f"),
+                ("mtvv_m_s2", "MTVV [m/s^2]", 1.0, ".3f"),
+                ("sed_MPa", "Sed drive [MPa]", 1.0, ".3f"),
+                ("daily_sed_MPa", "Sed daily [MPa]", 1.0, ".3f"))
 AXLE_COLUMNS = (("dynamic_load_coefficient", "DLC", 1.0, ".3f"),
                 ("lift_off_share", "lift-off [%]", 100.0, ".2f"),
                 ("end_stop_time_s", "on stops [s]", 1.0, ".3g"),
@@ -138,6 +142,7 @@ def format_ride(ride: dict, n_axles: int) -> str:
     if ride.get("seats"):
         parts.append("ride comfort over the drive (ISO 2631-1 weighted RMS, VDV; absorbed power)")
         parts.append(_ride_table(ride["seats"], SEAT_COLUMNS, ("seat", "seat")))
+        parts += shock_notes(ride["seats"])
     rows = axle_rows(ride, [None] * n_axles)
     table = _ride_table(rows, AXLE_COLUMNS, ("axle", "axle")) if rows else ""
     if table:
@@ -151,6 +156,20 @@ def format_ride(ride: dict, n_axles: int) -> str:
                      f"pitch {hull['rms_pitch_acceleration_rad_s2']:.3g} rad/s^2, "
                      f"roll {hull['rms_roll_acceleration_rad_s2']:.3g} rad/s^2")
     return "\n".join(parts)
+
+
+def shock_notes(seats) -> list[str]:
+    """Lines on the seats' shocks: ISO 2631-1's warning when a_w understates them, ISO 2631-5's reading of Sed."""
+    lines = []
+    for s in seats:
+        if s.get("a_w_unreliable"):
+            lines.append(f"note: {s['seat']}: {', '.join(s['a_w_unreliable'])}: a_w understates the shocks "
+                         "(ISO 2631-1 §6.2.1, §6.3.3); judge by VDV and MTVV")
+        if s.get("daily_sed_MPa") is not None:
+            lines.append(f"{s['seat']}: ISO 2631-5 Sed {s['daily_sed_MPa']:.3f} MPa for "
+                         f"{s['daily_exposure_s'] / 3600:.3g} h a day of this driving: {s['sed_assessment']} "
+                         "(hull at the seat point, no cushion)")
+    return lines
 
 
 def format_psd(psd: dict) -> str:

@@ -70,6 +70,9 @@ def format_response(rep: dict) -> str:
     return "\n".join(lines)
 
 
+STYLES = ("-", "--", "-.", ":")
+
+
 def response_plot(rep: dict, out: str | Path) -> Path:
     """Magnitudes vs frequency: hull heave and pitch, seats, the excited tyre's dynamic load; one curve per
     excited axle; thin lines at the hull modes."""
@@ -95,7 +98,9 @@ def response_plot(rep: dict, out: str | Path) -> Path:
                 y = a["seat_acc_per_m"][key[1]]
             else:
                 y = a[key]
-            ax.loglog(f, y * scale, color=colors[j % len(colors)], label=f"road at axle {a['axle']}")
+            # identical curves (symmetric axles) stay apart: each axle its own dash, the first ones wider below
+            ax.loglog(f, y * scale, color=colors[j % len(colors)], ls=STYLES[j % len(STYLES)],
+                      lw=2.6 - 0.5 * min(j, 3), zorder=2 + j, label=f"road input at axle {a['axle']}")
         for m in hull_modes:
             ax.axvline(m["frequency_hz"], color="0.6", lw=0.7, ls=":")
         ax.set(xlabel="frequency [Hz]", ylabel=label)
@@ -114,7 +119,10 @@ def response_plot(rep: dict, out: str | Path) -> Path:
         ax.grid(alpha=0.3, which="both")
         for ax in spare[1:]:
             ax.set_visible(False)
-    axs.flat[0].legend(fontsize=8, loc="lower center")
+    handles, labels = axs.flat[0].get_legend_handles_labels()
+    handles.append(plt.Line2D([], [], color="0.6", lw=0.7, ls=":"))
+    labels.append("hull modes")
+    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8, frameon=False)
     modes_text = ", ".join(f"{m['name']} {m['frequency_hz']:.2f} Hz" for m in hull_modes)
     V = rep["friction_velocity_m_s"]
     fig.suptitle(f"{rep['vehicle']}: linearised road response ({modes_text}; friction "

@@ -38,7 +38,7 @@ def bands_plot(summary: dict, out: str | Path) -> Path:
     else:
         panels = [(k, f"{k} [{summary['units'].get(k, '')}]".replace(" []", ""), [k], [k]) for k in bands]
     panels = [p for p in panels if any(k in bands for k in p[2])]
-    fig, ax = plt.subplots(1, max(len(panels), 1), figsize=(4.3 * max(len(panels), 1), 4.3), constrained_layout=True,
+    fig, ax = plt.subplots(1, max(len(panels), 1), figsize=(max(7.0, 4.3 * len(panels)), 4.3), constrained_layout=True,
                            squeeze=False)
     for panel, (q, label, keys, ticks) in zip(ax[0], panels):
         x = np.arange(len(keys))
@@ -62,7 +62,7 @@ def bands_plot(summary: dict, out: str | Path) -> Path:
     extra = [f"{k}: {bands[k]['p50']:.3g} [{bands[k]['p5']:.3g}, {bands[k]['p95']:.3g}] {summary['units'].get(k, '')}"
              for k in HEADLINE if k in bands]
     fig.suptitle(f"prediction bands over the priors: {summary['done']} drives ({summary['method']})"
-                 + ("\n" + ";  ".join(extra) if extra else ""), fontsize=10)
+                 + ("\n" + "\n".join(extra) if extra else ""), fontsize=10)
     return _save(fig, Path(out))
 
 
@@ -87,8 +87,8 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
     order = np.argsort(-strength)[:30]
     n_bar = min(TOP, len(params))
     width = max(10.0, 5.5 * len(bar_outputs))
-    bar_h = 0.9 + 0.3 * n_bar
-    map_h = 1.6 + 0.22 * len(order)
+    bar_h = max(2.8, 1.2 + 0.3 * n_bar)
+    map_h = max(2.8, 1.6 + 0.22 * len(order))
     fig = plt.figure(figsize=(width, bar_h + map_h), constrained_layout=True)
     sub = fig.subfigures(2, 1, height_ratios=[bar_h, map_h])
     ax = sub[0].subplots(1, len(bar_outputs), squeeze=False)
@@ -105,7 +105,9 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
             panel.barh(y - 0.2, [r["S1"] for r in rows], 0.4, xerr=[r["S1_conf"] for r in rows], color="tab:blue",
                        label="first order S1", capsize=2)
             panel.set_xlabel("Sobol' index (whiskers: 95 % bootstrap interval)")
-            panel.set_xlim(-0.25, 1.25)
+            ends = [r[i] + sgn * r[i + "_conf"] for r in rows for i in ("S1", "ST") for sgn in (-1, 1)
+                    if _finite(r[i]) and _finite(r[i + "_conf"])]     # every whisker inside the panel
+            panel.set_xlim(min([-0.05] + ends) - 0.05, max([1.05] + ends) + 0.05)
         else:
             v = [r[value] for r in rows]
             panel.barh(y, v, 0.6, color=["tab:red" if _finite(t) and t > 0 else "tab:blue" for t in v])
@@ -116,7 +118,8 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
         panel.set_title(f"{k} [{summary['units'].get(k, '')}]".replace(" []", ""), fontsize=10)
         panel.grid(alpha=0.3, axis="x")
     if sobol:
-        ax[0][0].legend(fontsize=8, loc="lower right")
+        h, lab = ax[0][0].get_legend_handles_labels()
+        sub[0].legend(h, lab, fontsize=8, loc="outside lower center", ncol=2, frameon=False)
     hm = sub[1].subplots()
     im = hm.imshow(M[order], aspect="auto", cmap="viridis" if sobol else "RdBu_r", vmin=0 if sobol else -1, vmax=1,
                    interpolation="nearest")
@@ -124,7 +127,9 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
     hm.set_xticks(np.arange(len(outputs)), outputs, rotation=60, ha="right", fontsize=7)
     hm.set_title({"ST": "total index ST of every output", "prcc": "PRCC of every output",
                   "spearman": "Spearman correlation of every output"}[value], fontsize=9)
-    sub[1].colorbar(im, ax=hm, shrink=0.8)
+    # a colour bar as tall as the map, never a sliver: at most 15 times longer than wide
+    sub[1].colorbar(im, ax=hm, fraction=0.05, aspect=min(15, max(6, 3 * len(order))),
+                    label={"ST": "ST", "prcc": "PRCC", "spearman": "Spearman"}[value])
     what = "Sobol' indices" if sobol else "rank correlations"
     fig.suptitle(f"{what} over the priors ({summary['done']} drives, N = {summary['samples']})", fontsize=10)
     return _save(fig, Path(out))

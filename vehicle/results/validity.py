@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from struts.oil import viscosity_extrapolation_range
+from vehicle.physics import shocks
 from vehicle.physics.outputs import variable_name
 from vehicle.results.reader import open_results
 from vehicle.results.sinks import finish_file
@@ -74,11 +75,32 @@ def check(view, thresholds: Thresholds | None = None) -> list[dict]:
 
 def record(path) -> list[dict]:
     """Check a finished results file and write the warnings into it: /summary attributes
-    `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list)."""
+    `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list); with them, when the
+    series are dense enough, the seats' shock numbers (`seat_shocks_json`, `seat_shocks`)."""
     with open_results(path, check=False) as r:
         found = check(r)
-    finish_file(Path(path), {"summary": {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}})
+        shocks = seat_shocks(r)
+    attrs = {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}
+    if shocks:
+        attrs["seat_shocks_json"] = json.dumps(shocks)
+    finish_file(Path(path), {"summary": attrs})
     return found
+
+
+SHOCK_KEYS = ("crest_factor", "mtvv_m_s2", "mtvv_ratio", "dose_z_m_s2", "dose_y_m_s2", "sed_MPa", "daily_sed_MPa",
+              "daily_exposure_s", "sed_assessment", "a_w_unreliable")
+
+
+def seat_shocks(view) -> dict:
+    """{seat: the shock numbers under SHOCK_KEYS} of a results view: as the file recorded them after the run
+    (/summary attribute seat_shocks_json), else computed from its series (vehicle.physics.shocks; {} when
+    they are too sparse)."""
+    stored = view.summary_attrs().get("seat_shocks_json")
+    if stored:
+        return json.loads(str(stored))
+    resolved = json.loads(view.scenario_attrs["resolved_json"])
+    found = shocks.drive_shocks(view, resolved.get("vehicle", {}).get("seats", []))
+    return {name: {k: v[k] for k in SHOCK_KEYS if k in v} for name, v in found.items()}
 
 
 def format_warnings(warnings: list[dict]) -> list[str]:

@@ -27,7 +27,6 @@ from pydantic import Field, StrictBool, StrictInt, ValidationInfo, field_validat
 
 from hpsim.config import Model, Quantity, format_validation_error, load_yaml, parse_yaml, read_text_file
 from hpsim.errors import UserInputError
-from hpsim.stages import timed
 from hpsim.units import parse_quantity
 from hpsim.validators import in_range, quantity
 from struts.params import load_strut
@@ -477,7 +476,8 @@ class Prepared:
         needed = road_length_needed(self.scenario, self.vehicle)
         if road.length_m < needed:
             # beyond its end the road would be held flat: a drive on a road that is not there
-            raise UserInputError(f"{self.source.name}: road.csv: the profile in {self.road_spec.csv} is "
+            key = "crg" if getattr(self.road_spec, "crg", None) else "csv"
+            raise UserInputError(f"{self.source.name}: road.{key}: the profile in {getattr(self.road_spec, key)} is "
                                  f"{road.length_m:.6g} m long, the drive needs {needed:.6g} m (distance + the tyre's "
                                  "contact length + 1 m); give a longer profile or a shorter distance")
         return road
@@ -599,7 +599,7 @@ def road_spec_from(S: Scenario, vehicle, src: ScenarioSource):
         raise UserInputError("road: the terrain package (terrain.RoadSpec, terrain.build_road) is not available") from None
     data = dict(S.road)
     fields = getattr(RoadSpec, "model_fields", {})
-    if "length" in fields and data.get("length") is None and data.get("csv") is None:
+    if "length" in fields and data.get("length") is None and data.get("csv") is None and data.get("crg") is None:
         # the road must reach the last axle at the end of the drive (plus the tyre's envelope)
         wheelbase = max(a.position for a in vehicle.axles)
         data["length"] = S.distance + wheelbase + 2.0 * vehicle.max_contact_length() + 10.0
