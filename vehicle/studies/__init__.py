@@ -1,0 +1,1 @@
+"""Studies over many drives: sweeps, uncertainty quantification, calibration, validation against measurements."""
