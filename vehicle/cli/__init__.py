@@ -43,6 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     drives.register(sub)
     calibrate.register(sub)
     uq.register(sub)
+    from . import validate; validate.register(sub)  # noqa: E702
     from . import examples
 
     examples.apply(parser)
