@@ -6,7 +6,6 @@ Exit codes: 0 done, 2 user error (one line naming the file, the key and the allo
 from __future__ import annotations
 
 import argparse
-import sys
 
 EPILOG = """\
 examples:
@@ -31,8 +30,7 @@ def cmd_validate(args):
 
     from vehicle.studies.validate import format_validation, validate
 
-    log = (lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True))
-    v = validate(args.prediction, args.measured, seed=args.seed, log=log)
+    v = validate(args.prediction, args.measured, seed=args.seed)
     if args.plot:
         from vehicle.presentation.validate_plots import validation_plot
 
