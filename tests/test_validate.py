@@ -128,6 +128,13 @@ def test_example_file_through_validate_on_a_per_axle_study(work, capsys):
         lo, hi = p["predicted_band"]
         assert lo <= p["predicted_median"] <= hi and p["band"][0] <= p["reading_median"] <= p["band"][1]
     assert len(v["series"][0]["band"][0]) == 4
+    # without measurements: what the usual instruments would read, per axle
+    assert cli.main(["validate", str(study), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert [(p["instrument"], p["axle"]) for p in r["points"]] == \
+        [(i, a) for i in ("pyrometer", "photogrammetry", "scale") for a in (1, 2, 3, 4)]
+    for p in r["points"]:
+        assert p["band"][0] <= p["reading_median"] <= p["band"][1] and p["compared"] == "change"
 
 
 def _with(text: str, **repl) -> str:

@@ -200,3 +200,15 @@ def priors_table() -> list[dict]:
     """The measurement-model priors with their sources (for reports and docs)."""
     return [{"name": k, "prior": p.describe(), "per": "station" if k in STATION_PRIORS else "drive",
              "source": p.note} for k, p in PRIORS.items()]
+
+
+# standard uncertainty of one reading of the usual instruments of a mileage test, for predicted readings
+# without a measurement file (`hpsim validate PREDICTION` alone): quantity -> (instrument, value, source)
+STANDARD_INSTRUMENTS = {
+    "surface_temperature": ("pyrometer", "1 K", "assumed: handheld IR thermometer, +-1 K or +-1 % of the reading "
+                                                "(typical data sheets), read as a standard uncertainty"),
+    "height": ("photogrammetry", "3.5 mm", "REFERENCE §11: +-2-5 mm per reading (close-range photogrammetry of a "
+                                           "marked line at a few metres); the middle as a standard uncertainty"),
+    "wheel_load": ("scale", "25 daN", "REFERENCE §11: stationary overrun scale +-0.5-1 % of the wheel load (class "
+                                      "III/IIII): 0.75 % of 3300 daN"),
+}

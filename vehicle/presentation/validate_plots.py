@@ -28,6 +28,8 @@ def _panel_points(ax, pts: list[dict], study: bool) -> None:
         if p["predicted"] is not None:
             ax.plot(i, p["predicted"], marker="_", ms=22, mew=2.5, color="navy",
                     label=("nominal" if p["nominal"] is not None else "median") + " prediction" if i == 0 else None)
+        if p.get("measured") is None:
+            continue
         ax.errorbar(i + 0.12, p["measured"], yerr=ERROR_BAR_K * p["uncertainty"], fmt="o",
                     color="tab:green" if p["inside"] else "tab:red", capsize=4, ms=6,
                     label=f"measured ± {ERROR_BAR_K:g} u (green inside, red outside)" if i == 0 else None)
@@ -77,7 +79,8 @@ def validation_plot(v: dict, out: str | Path) -> Path:
         ax.set_visible(False)
     what = f"study of {v['drives']} drives" if study else "one drive"
     cov = v.get("coverage")
-    title = f"{Path(v['measurements']).name} against {Path(v['prediction']).name} ({what})"
+    title = (f"{Path(v['measurements']).name} against " if v["measurements"] else "what the instruments would read: ") \
+        + f"{Path(v['prediction']).name} ({what})"
     if cov:
         title += f": {cov['inside']} of {cov['points']} inside the 90 % band"
     fig.suptitle(title, fontsize=11)

@@ -27,7 +27,7 @@ import numpy as np
 from hpsim.errors import UserInputError
 
 from vehicle.analysis import instruments as inst
-from vehicle.analysis.measurements import QUANTITIES, MeasurementFile, Point, Series
+from vehicle.analysis.measurements import QUANTITIES, Instrument, MeasurementFile, Point, Series, uncertainty_value
 from vehicle.runs.reader import open_results
 from vehicle.runs.summary import report_from
 
@@ -235,7 +235,10 @@ def _shown(quantity: str, unit: str, compared: str):
     return (lambda v: None if v is None else float(Q(v, si).to(unit).magnitude)), unit
 
 
-def compare_points(points: list[Point], drives: list[DriveState], nominal: DriveState | None, seed: int = 0) -> list[dict]:
+def predict_points(points: list[Point], drives: list[DriveState], nominal: DriveState | None,
+                   seed: int = 0) -> list[dict]:
+    """Per point the model's prediction (nominal; over a study the 5/50/95 % percentiles) and the 5/50/95 %
+    of what its instrument would read, in the point's unit (no measured value needed)."""
     rng = np.random.default_rng(seed)
     n = max(MIN_DRAWS_PER_CASE, TOTAL_DRAWS // max(len(drives), 1))
     R = np.concatenate([readings(d, points, rng, n) for d in drives], axis=1)       # (points, drives * n)
@@ -245,22 +248,28 @@ def compare_points(points: list[Point], drives: list[DriveState], nominal: Drive
         conv, unit = _shown(p.quantity, p.unit, p.compared)
         nom = true_value(nominal, p) if nominal is not None else None
         lo, med, hi = _pct(R[j])
-        measured = p.measured
-        ref = nom if nom is not None else float(np.median(truth[j]))
         pl, pm, ph = _pct(truth[j])
-        width = hi - lo
         out.append({
             "quantity": p.quantity, "axle": p.axle, "wheel": f"{p.axle}{p.side}" if p.side else None,
             "compared": p.compared, "unit": unit, "instrument": p.instrument.name,
-            "predicted": conv(ref), "nominal": conv(nom),
+            "predicted": conv(nom if nom is not None else pm), "nominal": conv(nom),
             "predicted_median": conv(pm), "predicted_band": [conv(pl), conv(ph)],
-            "band": [conv(lo), conv(hi)], "reading_median": conv(med),
-            "measured": conv(measured), "uncertainty": _delta(p, p.measured_uncertainty, unit),
-            "difference": _delta(p, measured - ref, unit),
-            "inside": bool(lo <= measured <= hi),
-            "band_width": _delta(p, width, unit),
-            "relative_width": float(width / max(abs(measured), p.measured_uncertainty)),
-            "drives": len(drives), "source": p.source, "where": p.where})
+            "band": [conv(lo), conv(hi)], "reading_median": conv(med), "band_width": _delta(p, hi - lo, unit),
+            "drives": len(drives), "_si": (lo, hi, nom if nom is not None else pm)})
+    return out
+
+
+def compare_points(points: list[Point], drives: list[DriveState], nominal: DriveState | None, seed: int = 0) -> list[dict]:
+    """`predict_points` with the measured value, its uncertainty, the difference and whether it lies inside."""
+    out = predict_points(points, drives, nominal, seed)
+    for p, row in zip(points, out):
+        lo, hi, ref = row.pop("_si")
+        conv, unit = _shown(p.quantity, p.unit, p.compared)
+        measured = p.measured
+        row.update({"measured": conv(measured), "uncertainty": _delta(p, p.measured_uncertainty, unit),
+                    "difference": _delta(p, measured - ref, unit), "inside": bool(lo <= measured <= hi),
+                    "relative_width": float((hi - lo) / max(abs(measured), p.measured_uncertainty)),
+                    "source": p.source, "where": p.where})
     return out
 
 
@@ -358,6 +367,69 @@ def validate(prediction: str | Path, measured: str | Path, *, seed: int = 0, log
             "description": m.description, "source": m.source, "band_percentiles": list(BAND),
             "points": points, "coverage": coverage(points) if points else None, "series": series,
             "measurement_model_priors": inst.priors_table()}
+
+
+def standard_points(n_axles: int) -> list[Point]:
+    """Per axle the after-minus-before reading of the usual instruments (instruments.STANDARD_INSTRUMENTS)."""
+    out = []
+    for q, (name, u, source) in inst.STANDARD_INSTRUMENTS.items():
+        kind = QUANTITIES[q]
+        u_si = uncertainty_value(u, kind.si, kind.uncertainty_max, name)
+        device = Instrument(name=name, type=name, uncertainty=u_si, unit=u.split()[-1], source=source)
+        for a in range(1, n_axles + 1):
+            out.append(Point(where=f"{name} axle {a}", quantity=q, axle=a, side=None, before=0.0, after=0.0,
+                             unit=kind.shown, instrument=device, uncertainty=u_si, source=source))
+    return out
+
+
+def instrument_readings(prediction: str | Path, *, seed: int = 0) -> dict:
+    """Without measurements: per axle the prediction and the 5/50/95 % of what the usual instruments would read
+    after minus before the drive (pyrometer rise, photogrammetric height change, scale load change, also in %)."""
+    kind, nominal_path, files = prediction_files(prediction)
+    drives = [read_drive(f) for f in files]
+    nominal = read_drive(nominal_path) if nominal_path is not None and nominal_path not in files else \
+        (drives[files.index(nominal_path)] if nominal_path is not None else None)
+    points = standard_points(drives[0].n_axles)
+    rows = predict_points(points, drives, nominal, seed)
+    ref = nominal or drives[0]
+    for p, row in zip(points, rows):
+        row.pop("_si")
+        row["source"] = p.source
+        if p.quantity == "wheel_load":
+            N0 = float(np.mean(_station_mean(ref.N_before, p.axle, None, ref.per_axle))) / 10.0     # daN
+            row["percent_of_before"] = {k: [100.0 * x / N0 for x in row[k]] if isinstance(row[k], list) else
+                                        (None if row[k] is None else 100.0 * row[k] / N0)
+                                        for k in ("predicted", "predicted_band", "band", "reading_median")}
+    return {"prediction": str(prediction), "kind": kind, "drives": len(drives),
+            "nominal": str(nominal_path) if nominal_path else None, "measurements": None,
+            "description": "predicted readings of the usual instruments", "band_percentiles": list(BAND),
+            "points": rows, "coverage": None, "series": [], "measurement_model_priors": inst.priors_table(),
+            "instruments": {q: {"instrument": i, "uncertainty": u, "source": s}
+                            for q, (i, u, s) in inst.STANDARD_INSTRUMENTS.items()}}
+
+
+def format_readings(v: dict) -> str:
+    """The table of `instrument_readings`: per axle and instrument the prediction and the reading's 5/50/95 %."""
+    from hpsim.tables import format_table
+
+    study = v["kind"] == "study"
+    rows = []
+    for p in v["points"]:
+        pct = p.get("percent_of_before")
+        f = (lambda x, k: f"{x:+.3g}" + (f" ({pct[k]:+.2f} %)" if pct and not isinstance(pct[k], list) else "")) \
+            if p["quantity"] == "wheel_load" else (lambda x, k: f"{x:+.4g}")
+        band = lambda b, k: f"[{b[0]:+.4g}, {b[1]:+.4g}]" + (  # noqa: E731
+            f" ([{pct[k][0]:+.2f}, {pct[k][1]:+.2f}] %)" if pct else "")
+        rows.append([p["instrument"], p["axle"], p["unit"], f(p["predicted"], "predicted"),
+                     band(p["predicted_band"], "predicted_band") if study else "-",
+                     f(p["reading_median"], "reading_median"), band(p["band"], "band")])
+    head = [f"{v['prediction']} ({v['kind']}: {v['drives']} drive(s)): what the instruments would read, after minus "
+            "before the drive"]
+    head.append(format_table(["instrument", "axle", "unit", "nominal" if v["nominal"] else "median",
+                              "model 5-95 %", "reading 50 %", "reading 5-95 %"], rows))
+    for q, i in v["instruments"].items():
+        head.append(f"{i['instrument']}: {i['uncertainty']} per reading ({i['source']})")
+    return "\n".join(head)
 
 
 def format_validation(v: dict) -> str:
