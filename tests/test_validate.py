@@ -26,6 +26,7 @@ from vehicle import cli
 from vehicle.analysis import instruments as inst
 from vehicle.analysis.measurements import read_measurements
 from vehicle.runs import uq
+from vehicle.studies.validate import validate
 
 
 # the issue's example (values invented), the series shortened to the 150 m drive (27 s)
@@ -220,6 +221,27 @@ def test_bad_series_and_missing_mdf_reader(work, tmp_path):
                      " y: {channel: T1, unit: degC}}\n")
         with pytest.raises(UserInputError, match=r'pip install "hpsim\[mdf\]"'):
             read_measurements(f)
+
+
+def test_mdf4_series_by_time_and_by_distance_agree_at_constant_speed(work):
+    """An MDF4 log (asammdf) read by its time stamps and by a distance channel: at the drive's constant
+    20 km/h the two compare with the same prediction (distance = speed x time)."""
+    asammdf = pytest.importorskip("asammdf")
+    t = np.array([2.0, 10.0, 18.0, 26.0])
+    mdf = asammdf.MDF(version="4.10")
+    mdf.append([asammdf.Signal(samples=np.array([45.1, 45.6, 46.0, 46.4]), timestamps=t, name="T1", unit="degC"),
+                asammdf.Signal(samples=t * 20 / 3.6, timestamps=t, name="s", unit="m")])
+    mdf.save(str(work / "logs" / "run.mf4"), overwrite=True)
+    f = work / "mdf.yaml"
+    f.write_text("series:\n"
+                 "  - {quantity: surface_temperature, axle: 1, mdf: logs/run.mf4, uncertainty: 1 K, y: {channel: T1, unit: degC}}\n"
+                 "  - {quantity: surface_temperature, axle: 1, mdf: logs/run.mf4, uncertainty: 1 K,"
+                 " x: {channel: s, unit: m}, y: {channel: T1, unit: degC}}\n")
+    v = validate(work / "drive.h5", f)
+    by_time, by_distance = v["series"]
+    assert by_time["x_kind"] == "time" and by_distance["x_kind"] == "distance"
+    assert by_time["measured"] == pytest.approx([45.1, 45.6, 46.0, 46.4])
+    assert by_distance["predicted"] == pytest.approx(by_time["predicted"], abs=0.02)    # 1 s output sampling
 
 
 # --- measurement models ---------------------------------------------------------------------------------

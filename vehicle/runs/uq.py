@@ -74,7 +74,14 @@ OPTIONAL_AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
 VEHICLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "mean_rise_K": ("K", lambda r: r.get("mean_temperature_rise_K")),
     "load_shift_pct": ("%", lambda r: r.get("load_shift_pct")),
+    # the axle-to-axle spread (max - min over the axles) of the rise and of dN (docs/validation.md §5, §8)
+    "rise_spread_K": ("K", lambda r: _spread([a["T_end_C"] - a["T_start_C"] for a in r["axles"]])),
+    "dN_spread_pp": ("pp", lambda r: _spread([a["dN_pct"] for a in r["axles"]])),
 }
+
+
+def _spread(values: list) -> float | None:
+    return None if any(v is None for v in values) else max(values) - min(values)
 
 
 def case_outputs(rep: dict) -> dict[str, float]:
