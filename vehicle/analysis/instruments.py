@@ -1,5 +1,4 @@
-"""What an instrument would read: measurement models with priors (docs/validation.md "Comparing with
-measurements"; REFERENCE §10-11).
+"""What an instrument would read: measurement models with priors (docs/measurements.md; REFERENCE §10-11).
 
 The simulator predicts states (the mean outer skin of a strut, the oil, the hull at an axle in its frictionless
 standing equilibrium, the wheel loads there). A test reads something else: a pyrometer a visible spot of the

@@ -1,5 +1,5 @@
-"""Measurement files: what a vehicle test measured, with units, sources and uncertainties (docs/validation.md
-"Comparing with measurements"; read by `hpsim validate`).
+"""Measurement files: what a vehicle test measured, with units, sources and uncertainties (docs/measurements.md;
+read by `hpsim validate`).
 
     description: "example test, values invented"
     source: "test report 12/2026"                         # optional; else the description is the source

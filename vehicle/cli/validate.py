@@ -1,5 +1,5 @@
 """`hpsim validate PREDICTION [MEASURED.yaml] [--json] [--plot FILE]`: predictions against measurements
-(vehicle.studies.validate; docs/validation.md "Comparing with measurements").
+(vehicle.studies.validate; docs/measurements.md).
 
 Exit codes: 0 done, 2 user error (one line naming the file, the key and the allowed range).
 """
@@ -12,7 +12,7 @@ examples:
   hpsim validate results/mileage_106km.h5 test.yaml                  # one drive: its nominal prediction
   hpsim validate mileage_uq test.yaml --plot validate.png --json     # an hpsim uq study folder: 5-95 % bands
   hpsim validate mileage_uq --plot readings.png                      # no measurements: what the instruments would read
-    (test.yaml: the measurement file; its format: docs/validation.md "Comparing with measurements")"""
+    (test.yaml: the measurement file; its format: docs/measurements.md)"""
 
 
 def register(sub):

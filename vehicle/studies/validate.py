@@ -1,4 +1,4 @@
-"""Predictions against measurements (`hpsim validate`, docs/validation.md "Comparing with measurements").
+"""Predictions against measurements (`hpsim validate`, docs/measurements.md).
 
 PREDICTION is a results file (one drive: the nominal prediction) or the folder of an `hpsim uq` study (every
 finished case's results file: the median and the 5-95 % band of the prediction over the priors). For each point
@@ -399,7 +399,8 @@ def instrument_readings(prediction: str | Path, *, seed: int = 0) -> dict:
             N0 = float(np.mean(_station_mean(ref.N_before, p.axle, None, ref.per_axle))) / 10.0     # daN
             row["percent_of_before"] = {k: [100.0 * x / N0 for x in row[k]] if isinstance(row[k], list) else
                                         (None if row[k] is None else 100.0 * row[k] / N0)
-                                        for k in ("predicted", "predicted_band", "band", "reading_median")}
+                                        for k in ("predicted", "predicted_median", "predicted_band", "band",
+                                                  "reading_median")}
     return {"prediction": str(prediction), "kind": kind, "drives": len(drives),
             "nominal": str(nominal_path) if nominal_path else None, "measurements": None,
             "description": "predicted readings of the usual instruments", "band_percentiles": list(BAND),
