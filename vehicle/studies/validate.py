@@ -85,6 +85,12 @@ def _end(r, final: dict, name: str) -> np.ndarray:
     return np.asarray(v, float)
 
 
+def _tyre_stiffness(veh: dict, axle: int) -> float:
+    """The tyre stiffness [N/m] of an axle: its own tyre's (axles[k].tyre), else the vehicle's."""
+    own = veh["axles"][axle].get("tyre") or {}
+    return float(own.get("stiffness") if own.get("stiffness") is not None else veh["tyre"]["stiffness"])
+
+
 def read_drive(path: str | Path) -> DriveState:
     """The state a measurement model needs from one results file (complete drives only)."""
     with open_results(path) as r:
@@ -97,8 +103,7 @@ def read_drive(path: str | Path) -> DriveState:
         T_oil, T_wall, T_surf = (_end(r, final, n) for n in ("oil_temperature", "wall_temperature", "strut_temperature"))
         n_st = len(r.stations)
         veh = res["vehicle"]
-        k_t = np.array([((veh["axles"][i * len(veh["axles"]) // n_st].get("tyre") or veh["tyre"])["stiffness"])
-                        for i in range(n_st)], float)
+        k_t = np.array([_tyre_stiffness(veh, i * len(veh["axles"]) // n_st) for i in range(n_st)], float)
         t, s = r.series("time"), r.series("distance")
         series = {}
         for var, _ in SERIES_VARIABLES.values():
