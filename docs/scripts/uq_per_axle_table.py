@@ -112,6 +112,76 @@ def main(argv=None):
     for r in ranking:
         print(f"| {r['group']} | {r['parameters']} | {r['rise_spread_K_adj_r2']:.2f} ({r['rise_spread_K_max_abs_spearman']:.2f}) "
               f"| {r['dN_spread_pp_adj_r2']:.2f} ({r['dN_spread_pp_max_abs_spearman']:.2f}) |")
+    print_deviation_shares(study, data)
+
+
+PER_AXLE_OUTPUTS = ("rise_K", "dN_pct")
+
+
+def deviation_shares(study: Path) -> dict:
+    """What sets the differences between axles: per output (rise, dN) the deviations of each axle from the
+    drive's mean, pooled over drives and axles, regressed by least squares on each per-axle prior's deviations
+    (its draw on that axle less the mean of its draws; the road factor of axle 1 is 1) plus one constant per
+    axle (the layout: the pattern all drives share). Share of a group: beta^2 var(x) / var(deviation); the rest
+    is what the vehicle-wide priors do to the pattern (interactions) and the noise."""
+    from vehicle.runs.scenario import read_scenario
+    from vehicle.runs.uq import physical_values, scenario_parameters
+
+    summary = json.loads((study / "summary.json").read_text())
+    params, _, _ = scenario_parameters(read_scenario(summary["scenario"]))
+    with open(study / "samples.csv") as fh:
+        rows = list(csv.reader(line for line in fh if not line.startswith("#")))
+    names = rows[0][1:]
+    recs = {}
+    for line in (study / "cases.jsonl").read_text().splitlines():
+        r = json.loads(line)
+        if r.get("status") == "done" and r["case"] != "nominal":
+            recs[r["case"]] = r["outputs"]
+    cases = [(r[0], physical_values(params, dict(zip(names, map(float, r[1:]))))) for r in rows[1:] if r[0] in recs]
+    n_axles = 4
+    groups = sorted({re.sub(r"\[axle\d+\]$", "", n) for n in names if re.search(r"\[axle\d+\]$", n)})
+
+    def value(vals, g, k):
+        key = f"{g}[axle{k}]"
+        return vals[key] if key in vals else 1.0            # pass factor of axle 1: the road as generated
+
+    out = {}
+    for q in PER_AXLE_OUTPUTS:
+        y, X, D = [], [], []
+        for case, vals in cases:
+            ys = np.array([recs[case][f"axle{k}.{q}"] for k in range(1, n_axles + 1)])
+            xs = np.array([[np.log(value(vals, g, k)) if "air_speed_ratio" in g else value(vals, g, k)
+                            for g in groups] for k in range(1, n_axles + 1)])
+            y += list(ys - ys.mean())
+            X += list(xs - xs.mean(axis=0))
+            D += list(np.eye(n_axles))
+        y, X, D = np.array(y), np.array(X), np.array(D)
+        A = np.column_stack([X, D])
+        beta = np.linalg.lstsq(A, y, rcond=None)[0]
+        res = y - A @ beta
+        var = float(np.var(y))
+        shares = {g: float(beta[i] ** 2 * np.var(X[:, i]) / var) for i, g in enumerate(groups)}
+        shares["layout (axle constants)"] = float(np.var(D @ beta[len(groups):]) / var)
+        shares["rest (vehicle-wide priors x layout, noise)"] = float(np.var(res) / var)
+        out[q] = {"shares": shares, "coefficients": {g: float(beta[i]) for i, g in enumerate(groups)},
+                  "sd_deviation": float(np.sqrt(var)), "observations": len(y)}
+    return out
+
+
+def print_deviation_shares(study: Path, data: Path) -> None:
+    d = deviation_shares(study)
+    with open(data / "uq_per_axle_differences.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["output", "group", "share_of_variance", "coefficient"])
+        for q, v in d.items():
+            for g, s in v["shares"].items():
+                w.writerow([q, g, f"{s:.4g}", f"{v['coefficients'].get(g, float('nan')):.4g}"])
+    groups = list(next(iter(d.values()))["shares"])
+    print(f"\n| what sets the axle's deviation from the drive's mean | rise (sd {d['rise_K']['sd_deviation']:.2g} K) "
+          f"| dN (sd {d['dN_pct']['sd_deviation']:.2g} pp) |")
+    print("|---|---|---|")
+    for g in sorted(groups, key=lambda g: -d["rise_K"]["shares"][g]):
+        print(f"| {g} | {d['rise_K']['shares'][g]:.2f} | {d['dN_pct']['shares'][g]:.2f} |")
 
 
 if __name__ == "__main__":
