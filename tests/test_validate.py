@@ -214,9 +214,9 @@ def test_bad_series_and_missing_mdf_reader(work, tmp_path):
     f.write_text(f.read_text().replace("unit: s}", "unit: degC}"))
     with pytest.raises(UserInputError, match=r"series\[0\]\.x\.unit: 'degC' is neither a time"):
         read_measurements(f)
-    try:
-        import asammdf  # noqa: F401
-    except ImportError:
+    import importlib.util
+
+    if importlib.util.find_spec("asammdf") is None:
         f.write_text("series:\n  - {quantity: oil_temperature, axle: 1, mdf: run.mf4, uncertainty: 1 K,"
                      " y: {channel: T1, unit: degC}}\n")
         with pytest.raises(UserInputError, match=r'pip install "hpsim\[mdf\]"'):
@@ -267,6 +267,25 @@ def test_tyre_lift_follows_the_ideal_gas_and_stiffness_law():
         d0 * (p + inst.ATMOSPHERE_PA) * dT / T0 / (p * 1.15), rel=1e-5)
     lifts = inst.tyre_lift_m(d0, np.array([15.0, 40.0]), T0, p, 0.15)
     assert 0 < lifts[0] < lifts[1] < d0 and 1e-3 < lifts[1] < 6e-3     # a few mm (REFERENCE §11)
+
+
+def test_a_thermocouple_read_at_once_reads_the_oil_and_later_less(work, tmp_path):
+    """delay 0: the reading is the model's oil temperature with the noise (0.1 K: the 5-95 % band is
+    +-1.645 x 0.1 K around it, sampled by 4000 draws); an hour later the strut has cooled."""
+    from vehicle.studies.validate import compare_points, read_drive
+
+    d = read_drive(work / "drive.h5")
+    f = tmp_path / "tc.yaml"
+    for delay in ("0 s", "60 min"):
+        f.write_text(f"instruments: {{tc: {{type: thermocouple, uncertainty: 0.1 K, delay: {delay}}}}}\n"
+                     "points:\n  - {quantity: oil_temperature, axle: 1, after: 40 degC, instrument: tc}\n")
+        p = compare_points(read_measurements(f).points, [d], d, seed=1)[0]
+        lo, hi = p["band"]
+        if delay == "0 s":
+            assert p["reading_median"] == pytest.approx(p["predicted"], abs=0.02)
+            assert hi - lo == pytest.approx(2 * 1.645 * 0.1, rel=0.1)
+        else:
+            assert hi < p["predicted"] - 1.0
 
 
 def test_standing_struts_cool_toward_the_ambient(work):

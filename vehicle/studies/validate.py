@@ -18,7 +18,6 @@ distance): the nominal prediction (and the study's 5-95 % band) at the measured 
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
