@@ -15,6 +15,14 @@ Distributions (the arguments accept units like the value; bare numbers are SI):
 `shared: NAME` inside `prior` ties several values to one draw (e.g. the unsprung mass of every
 axle: the same hardware); tied priors must be identical.
 
+`per: axle` (or `per: station`) inside `prior` draws the value once per axle (station) where the
+study knows a per-axle form of it (vehicle.studies.uq: a heat-environment key goes to
+`axles[k].heat`, a road pass factor to each following axle's pass, ...); the draws are independent,
+or with `correlation: r` (0 <= r < 1) equally rank-correlated between every pair of axles: a Gaussian
+copula whose normal correlation 2 sin(pi r / 6) gives the Spearman rank correlation r (Pearson r
+for uniform priors; Kruskal 1958), drawn through independent standard normals (one common, one
+per axle: `correlated_quantile`), so a Saltelli design and Sobol' indices by group stay valid.
+
 `collect_priors(data, source)` walks a loaded YAML mapping and returns every prior with its key
 path (`axles.0.unsprung_mass`), in SI; errors name the file and the key path. The loaders of
 parameter files ignore `prior` (hpsim.config), so a file with priors runs at its `value`s.
@@ -36,7 +44,8 @@ DISTRIBUTIONS = {
     "lognormal": ("median", "factor"),
     "triangular": ("low", "mode", "high"),
 }
-PRIOR_KEYS = set(DISTRIBUTIONS) | {"shared"}
+PRIOR_KEYS = set(DISTRIBUTIONS) | {"shared", "per", "correlation"}
+PER = ("axle", "station")
 
 
 @dataclass(frozen=True)
@@ -52,6 +61,8 @@ class Prior:
     shared: str | None = None     # label tying several values to one draw
     source: str = ""              # the file, for messages
     note: str = ""                # the value's `source` text (the reasoning)
+    per: str | None = None        # "axle" / "station": one draw per axle / station
+    correlation: float = 0.0      # Spearman rank correlation between the per-axle draws
 
     @property
     def where(self) -> str:
@@ -86,6 +97,19 @@ class Prior:
         lo, mode, hi = self.args
         return stats.triang.ppf(q, (mode - lo) / (hi - lo), loc=lo, scale=hi - lo)
 
+    def cdf(self, x):
+        """Cumulative distribution function at x [SI] (the inverse of `ppf`)."""
+        from scipy import stats
+
+        if self.kind == "uniform":
+            return stats.uniform.cdf(x, loc=self.args[0], scale=self.args[1] - self.args[0])
+        if self.kind == "normal":
+            return stats.norm.cdf(x, loc=self.args[0], scale=self.args[1])
+        if self.kind == "lognormal":
+            return stats.norm.cdf(math.log(x / self.args[0]) / math.log(self.args[1]))
+        lo, mode, hi = self.args
+        return stats.triang.cdf(x, (mode - lo) / (hi - lo), loc=lo, scale=hi - lo)
+
     def to_unit(self, x_si: float) -> float:
         """A value in SI expressed in the file's unit (e.g. kg*m^2 -> kg*m^2, K -> degC)."""
         if not self.unit:
@@ -103,15 +127,20 @@ class Prior:
         """The distribution in the file's unit, e.g. 'uniform 350 .. 550 kg'."""
         u = f" {self.unit}" if self.unit else ""
         if self.kind == "uniform":
-            return f"uniform {self.to_unit(self.args[0]):.4g} .. {self.to_unit(self.args[1]):.4g}{u}"
+            return f"uniform {self.to_unit(self.args[0]):.4g} .. {self.to_unit(self.args[1]):.4g}{u}" + self._per()
         if self.kind == "triangular":
             lo, mode, hi = (self.to_unit(a) for a in self.args)
-            return f"triangular {lo:.4g} .. {hi:.4g}{u}, mode {mode:.4g}"
+            return f"triangular {lo:.4g} .. {hi:.4g}{u}, mode {mode:.4g}" + self._per()
         if self.kind == "normal":
             mean, sd = self.args
             sd_unit = self.to_unit(mean + sd) - self.to_unit(mean)     # a difference (degC -> K scale)
-            return f"normal mean {self.to_unit(mean):.4g}{u}, sd {sd_unit:.4g}{u}"
-        return f"lognormal median {self.to_unit(self.args[0]):.4g}{u}, factor {self.args[1]:.4g}"
+            return f"normal mean {self.to_unit(mean):.4g}{u}, sd {sd_unit:.4g}{u}" + self._per()
+        return f"lognormal median {self.to_unit(self.args[0]):.4g}{u}, factor {self.args[1]:.4g}" + self._per()
+
+    def _per(self) -> str:
+        if not self.per:
+            return ""
+        return f", per {self.per}" + (f", rank correlation {self.correlation:g}" if self.correlation else "")
 
 
 def _unit_of(value: Any, where: str) -> tuple[str, str] | None:
@@ -186,9 +215,39 @@ def parse_prior(node: dict, path: str, source: str = "") -> Prior:
         else:
             args.append(q(a, w))
     _check(kind, args, x0, unit, si_unit, here)
+    per, rho = _per_axle(prior, here, shared)
     note = node.get("source", "")
     return Prior(path=path, kind=kind, args=tuple(args), value=x0, unit=unit, si_unit=si_unit,
-                 shared=shared.strip() if shared else None, source=source, note=str(note) if note else "")
+                 shared=shared.strip() if shared else None, source=source, note=str(note) if note else "",
+                 per=per, correlation=rho)
+
+
+def _per_axle(prior: dict, here: str, shared) -> tuple[str | None, float]:
+    """(per, correlation) of a prior mapping, checked."""
+    per = prior.get("per")
+    if per is not None and per not in PER:
+        raise UserInputError(f"{here}.prior.per: {per!r}; allowed: {', '.join(PER)}")
+    if per is not None and shared is not None:
+        raise UserInputError(f"{here}.prior: give shared (one draw for several values) or per (one draw per "
+                             "axle or station), not both")
+    rho = prior.get("correlation", 0.0)
+    if "correlation" in prior and per is None:
+        raise UserInputError(f"{here}.prior.correlation: needs per: axle or per: station (a correlation between "
+                             "the per-axle draws)")
+    if isinstance(rho, bool) or not isinstance(rho, (int, float)) or not 0.0 <= rho < 1.0:
+        raise UserInputError(f"{here}.prior.correlation: expected a number in [0, 1) (a rank correlation; 1 is "
+                             f"one shared draw), got {rho!r}")
+    return per, float(rho)
+
+
+def correlated_quantile(z_common, z_own, rank_correlation: float):
+    """The quantile (0..1) of one per-axle draw from independent standard normals: the common one, shared by
+    every axle, and the axle's own. The normal correlation 2 sin(pi r / 6) gives the rank correlation r
+    between any two axles' draws (Gaussian copula; Kruskal 1958)."""
+    from scipy import stats
+
+    rho = 2.0 * math.sin(math.pi * rank_correlation / 6.0)
+    return stats.norm.cdf(math.sqrt(rho) * z_common + math.sqrt(1.0 - rho) * z_own)
 
 
 def _check(kind: str, args: list[float], x0: float, unit: str, si_unit: str, here: str) -> None:
@@ -266,3 +325,15 @@ def tie_shared(priors: list[Prior]) -> list[tuple[str, list[Prior]]]:
             raise UserInputError(f"{p.where}: the key path is also used as a shared name")
         groups.setdefault(key, []).append(p)
     return list(groups.items())
+
+
+def values_only(data: Any, skip: tuple[str, ...] = ()) -> Any:
+    """A copy of a loaded YAML mapping with every {value:, prior:, ...} node replaced by its value (a scenario
+    with priors runs at its values); the top-level keys in `skip` are kept as they are."""
+    if is_prior_node(data):
+        return data["value"]
+    if isinstance(data, dict):
+        return {k: (v if k in skip else values_only(v)) for k, v in data.items()}
+    if isinstance(data, list):
+        return [values_only(v) for v in data]
+    return data

@@ -38,12 +38,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     strut.register(sub)
     road.register(sub)
-    from . import calibrate, drives, export, uq
+    from . import calibrate, drives, export, uq, validate
 
     drives.register(sub)
     calibrate.register(sub)
     uq.register(sub)
     export.register(sub)
+    validate.register(sub)
     from . import examples
 
     examples.apply(parser)

@@ -12,6 +12,7 @@ from hpsim.errors import UserInputError
 
 from vehicle.physics.outputs import variable_name
 from vehicle.analysis.psd import response_psd
+from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import equilibrium_temperature
 from vehicle.presentation.report import compare, open_results, report_from
 
@@ -207,8 +208,6 @@ def _panel_comfort(a, d):
 def _panel_travel(a, d):
     """Per axle (worst of left and right): the deflection's 1-99 % band (thick), min-max (thin) and median
     (dot) over the drive, against the stroke (0 and the stroke: the end stops)."""
-    from vehicle.analysis.ride_metrics import axle_rows
-
     colors = _colors()
     rows = axle_rows(d.rep.get("ride") or {}, d.axles)
     stations = (d.rep.get("ride") or {}).get("stations") or []

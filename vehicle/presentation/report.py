@@ -3,10 +3,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vehicle.analysis.summary import compare, open_results, report, report_from  # noqa: F401  (re-exported)
 from hpsim.tables import format_table
+
 from vehicle.results.validity import format_warnings as lines
 from vehicle.analysis.ride_metrics import axle_rows
+from vehicle.analysis.summary import compare, open_results, report, report_from  # noqa: F401  (re-exported)
 
 
 def format_report(rep: dict) -> str:
@@ -72,8 +73,6 @@ def format_report(rep: dict) -> str:
 def format_damping_over_drive(rows) -> str:
     """The struts' equivalent damping and mapped friction in the first and last statistics interval
     (vehicle.analysis.internal_drift)."""
-    from hpsim.tables import format_table
-
     def pair(r, key, fmt):
         a, b = r.get(f"{key}_first{fmt[0]}"), r.get(f"{key}_last{fmt[0]}")
         return "-" if a is None or b is None else f"{a:{fmt[1]}} -> {b:{fmt[1]}}"

@@ -6,7 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
+from hpsim.tables import format_table
+
 from vehicle.physics import linear
+from vehicle.presentation.plots import pyplot
 
 
 def response_report(lin: linear.LinearVehicle, f_hz) -> dict:
@@ -38,8 +41,6 @@ def _peak(f, y):
 
 
 def format_response(rep: dict) -> str:
-    from hpsim.tables import format_table
-
     f = rep["f_hz"]
     T = rep["temperatures_K"]
     lines = [f"{rep['vehicle']} linearised at its standing equilibrium (strut temperatures "
@@ -76,8 +77,6 @@ STYLES = ("-", "--", "-.", ":")
 def response_plot(rep: dict, out: str | Path) -> Path:
     """Magnitudes vs frequency: hull heave and pitch, seats, the excited tyre's dynamic load; one curve per
     excited axle; thin lines at the hull modes."""
-    from vehicle.presentation.plots import pyplot
-
     plt = pyplot()
     f = rep["f_hz"]
     seats = list(rep["axles"][0]["seat_acc_per_m"]) if rep["axles"] else []

@@ -27,6 +27,7 @@ from pydantic import Field, StrictBool, StrictInt, ValidationInfo, field_validat
 
 from hpsim.config import Model, Quantity, format_validation_error, load_yaml, parse_yaml, read_text_file
 from hpsim.errors import UserInputError
+from hpsim.priors import values_only
 from hpsim.units import parse_quantity
 from hpsim.validators import in_range, quantity
 from struts.params import load_strut
@@ -430,7 +431,7 @@ def validate_scenario(src: ScenarioSource) -> Scenario:
     from pydantic import ValidationError
 
     try:
-        return Scenario.model_validate(src.data)
+        return Scenario.model_validate(values_only(src.data, skip=("vehicle", "struts")))   # priors: hpsim uq
     except ValidationError as exc:
         raise UserInputError(format_validation_error(exc, src.name)) from None
 

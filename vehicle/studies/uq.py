@@ -45,13 +45,14 @@ import yaml
 
 from hpsim.config import deep_update, load_yaml
 from hpsim.errors import SimulationError, UserInputError
-from hpsim.priors import Prior, collect_priors, tie_shared
+from hpsim.priors import Prior, collect_priors, correlated_quantile, tie_shared
 from struts.params import strut_file
 
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, validate_scenario, vehicle_data
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import dask_client, execute, run_case
+from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
 
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
@@ -78,7 +79,14 @@ OPTIONAL_AXLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
 VEHICLE_OUTPUTS: dict[str, tuple[str, Callable[[dict], Any]]] = {
     "mean_rise_K": ("K", lambda r: r.get("mean_temperature_rise_K")),
     "load_shift_pct": ("%", lambda r: r.get("load_shift_pct")),
+    # the axle-to-axle spread (max - min over the axles) of the rise and of dN (docs/validation.md §5, §9)
+    "rise_spread_K": ("K", lambda r: _spread([a["T_end_C"] - a["T_start_C"] for a in r["axles"]])),
+    "dN_spread_pp": ("pp", lambda r: _spread([a["dN_pct"] for a in r["axles"]])),
 }
+
+
+def _spread(values: list) -> float | None:
+    return None if any(v is None for v in values) else max(values) - min(values)
 
 
 def case_outputs(rep: dict) -> dict[str, float]:
@@ -117,18 +125,51 @@ class Parameter:
     target: str = ""               # "vehicle", "struts" or "" (a study without scenario)
     struts: tuple[str, ...] = ()   # for "struts": the scenario keys ("all" or "axle1", ...)
     section: str = ""              # group for `--groups section`: "vehicle.tyre", "struts.all.valve"
+    # a per-axle prior with a rank correlation is drawn through independent standard normals (hpsim.priors):
+    # latent "common" (no paths) or "member" (its axle's value: prior.ppf(correlated_quantile(common, own)))
+    latent: str = ""
+    common: str = ""               # for a member: the name of the common latent
 
     def describe(self) -> dict:
         p = self.prior
-        return {"name": self.name, "paths": list(self.paths), "file": p.source, "value": p.to_unit(p.value),
-                "unit": p.unit, "prior": p.describe(), "section": self.section, "reasoning": p.note}
+        out = {"name": self.name, "paths": list(self.paths), "file": p.source, "value": p.to_unit(p.value),
+               "unit": p.unit, "prior": p.describe(), "section": self.section, "reasoning": p.note}
+        if self.latent:
+            out["drawn_as"] = f"standard normal latent ({self.latent} of a rank-correlated per-{p.per} prior)"
+        return out
+
+    def design_prior(self) -> Prior:
+        """The distribution the design draws: the prior, or a standard normal for a latent."""
+        return STANDARD_NORMAL if self.latent else self.prior
+
+    def nominal(self) -> float:
+        """The design value that gives the file's value (a latent member: common at 0, own from the cdf)."""
+        if not self.latent:
+            return self.prior.value
+        return 0.0 if self.latent == "common" else latent_nominal(self.prior)
 
 
-def parameters_from(priors: list[Prior], prefix: str = "", target: str = "", struts: tuple[str, ...] = ()) \
-        -> list[Parameter]:
-    """Independent parameters of a list of priors (tied ones become one), named prefix.path."""
+STANDARD_NORMAL = Prior(path="latent", kind="normal", args=(0.0, 1.0), value=0.0, unit="", si_unit="")
+
+
+def physical_values(params: list[Parameter], values: dict) -> dict:
+    """Design values -> the values that go into the files [SI] (latent members through the copula)."""
+    out = dict(values)
+    for p in params:
+        if p.latent == "member":
+            q = correlated_quantile(values[p.common], values[p.name], p.prior.correlation)
+            out[p.name] = float(p.prior.ppf(q))
+    return out
+
+
+def parameters_from(priors: list[Prior], prefix: str = "", target: str = "", struts: tuple[str, ...] = (),
+                    n_axles: int = 0) -> list[Parameter]:
+    """Independent parameters of a list of priors (tied ones become one; a per-axle one one per axle), named
+    prefix.path."""
     out = []
-    for label, group in tie_shared(priors):
+    for p in [p for p in priors if p.per]:
+        out += expand_per_axle(p, prefix, target, n_axles, Parameter)
+    for label, group in tie_shared([p for p in priors if not p.per]):
         name = f"{prefix}.{label}" if prefix else label
         section = f"{prefix}.{group[0].path.split('.')[0]}" if prefix else group[0].path.split(".")[0]
         out.append(Parameter(name=name, prior=group[0], paths=tuple(p.path for p in group), target=target,
@@ -154,7 +195,10 @@ def scenario_parameters(src, *, per_axle_struts: bool = False) -> tuple[list[Par
         if off:
             notes.append(f"compensation is off in this scenario: its {len(off)} priors are not drawn")
         vpriors = [p for p in vpriors if not p.path.startswith("compensation.")]
-    params = parameters_from(vpriors, "vehicle", "vehicle")
+    params = parameters_from(vpriors, "vehicle", "vehicle", n_axles=len(axles))
+    # the scenario's own priors (road passes, speed profile, start temperatures; docs/uq.md)
+    params += parameters_from(collect_priors(src.data, src.name, skip=("vehicle", "struts")), "scenario", "scenario",
+                              n_axles=len(axles))
     # struts: axles with the same file and the same priors (after overrides) share one draw
     groups: dict[tuple, list[int]] = {}
     resolved_struts = []
@@ -173,7 +217,7 @@ def scenario_parameters(src, *, per_axle_struts: bool = False) -> tuple[list[Par
     for members in groups.values():
         keys = ("all",) if len(members) == len(axles) else tuple(f"axle{k + 1}" for k in members)
         prefix = "struts." + "+".join(keys)
-        params += parameters_from(per_axle[members[0]], prefix, "struts", keys)
+        params += parameters_from(per_axle[members[0]], prefix, "struts", keys, n_axles=len(axles))
     resolved = {"scenario": src.data, "vehicle": data, "struts": resolved_struts}
     return params, notes, resolved
 
@@ -194,7 +238,7 @@ def select(params: list[Parameter], patterns: list[str] | None) -> list[Paramete
 
 
 def salib_problem(params: list[Parameter], groups: str = "none") -> dict:
-    dists, bounds = zip(*(p.prior.salib() for p in params))
+    dists, bounds = zip(*(p.design_prior().salib() for p in params))
     problem = {"num_vars": len(params), "names": [p.name for p in params], "bounds": [list(b) for b in bounds],
                "dists": list(dists)}
     if groups == "section":
@@ -324,7 +368,10 @@ def run_one(runner: Callable[[str, dict], dict], name: str, values: dict) -> dic
 def case_scenario(base: dict, params: list[Parameter], values: dict, distance: str | None = None) -> dict:
     """The scenario mapping of one case: the base scenario with the drawn values as overrides."""
     data = copy.deepcopy(base)
+    values = physical_values(params, values)
     for p in params:
+        if not p.paths:
+            continue                     # a latent without a value of its own
         value = p.prior.override(values[p.name])
         if p.target == "vehicle":
             veh = data.setdefault("vehicle", {})
@@ -338,6 +385,9 @@ def case_scenario(base: dict, params: list[Parameter], values: dict, distance: s
                 ov = choice["overrides"] = dict(choice.get("overrides") or {})
                 for path in p.paths:
                     ov[path] = value
+        elif p.target == "scenario":
+            for path in p.paths:
+                set_path(data, path, value)
         else:
             raise UserInputError(f"{p.name}: a parameter without a target cannot go into a scenario")
     if distance is not None:
@@ -393,7 +443,7 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
         log(f"{out_dir}: resuming the study in this folder")
     else:
         X = design(params, method, samples, seed, groups)
-        rows = ([(NOMINAL, np.array([p.prior.value for p in params]))] if nominal else []) + \
+        rows = ([(NOMINAL, np.array([p.nominal() for p in params]))] if nominal else []) + \
             [(f"s{i:05d}", x) for i, x in enumerate(X)]
         _write_samples(samples_csv, meta, names, rows)
         _, _, rows = _read_samples(samples_csv)      # the values every case sees, as stored
@@ -459,7 +509,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     runner = DriveRunner(src.data, src.name, str(src.base_dir), params, str((out_dir / "cases").resolve()), distance)
     # every check before any drive: the nominal case and the first draw must be valid scenarios
     nominal_case = prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
-                           data=case_scenario(src.data, params, {p.name: p.prior.value for p in params}, distance)))
+                           data=case_scenario(src.data, params, {p.name: p.nominal() for p in params}, distance)))
     model = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
