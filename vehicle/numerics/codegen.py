@@ -314,6 +314,34 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
     return len(todo)
 
 
+def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_level: str = "-O2",
+              cc: str | None = None) -> tuple[Path | None, str]:
+    """Compile hand-generated C `code` (not a CasADi function: e.g. `vehicle.numerics.lanes`) into a cached, verified
+    shared library (the same cache, records and trust model as `compile_function`): (path of the library, "") or
+    (None, why not: no compiler, the compiler's error). The caller loads it (ctypes)."""
+    cc = cc or _compiler()
+    if cc is None:
+        return None, "no C compiler found"
+    flags = [opt_level, *COMPILER_FLAGS[1:], *extra_flags]
+    code_sha = hashlib.sha256(code).hexdigest()
+    key = hashlib.sha256(code + " ".join(flags).encode() + cc.encode()).hexdigest()[:20]
+    d = cache_dir()
+    stem = f"{name}_{key}"
+    lib, record = d / f"{stem}.so", d / f"{stem}.json"
+    if not _verified(lib, record, code_sha):
+        error = _build(cc, flags, code, code_sha, d, stem)
+        if error is not None:
+            return None, error
+        evict(d, cache_limit_bytes(), keep=(stem,))
+        if not _verified(lib, record, code_sha):
+            return None, f"{lib.name} changed while it was built"
+    try:
+        os.utime(record)
+    except OSError:
+        pass
+    return lib, ""
+
+
 def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
     """Generate C for `fn`, compile it to a shared library (cached, verified) and load it.
 

@@ -290,8 +290,12 @@ class Ros2:
         return (ca.SX.sym("x", model.nx), ca.SX.sym("mem", model.n_memory), ca.SX.sym("u0", model.nu),
                 ca.SX.sym("u1", model.nu))
 
-    def _build(self, model) -> ca.Function:
-        nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
+    def step_functions(self, model) -> tuple:
+        """(step, reuse, parametric, number of lifted parameter expressions) as SX functions: one step
+        (z, u0, u1, pw) -> z_next (and the factor values when W is reused; `reuse` (z, u0, u1, pw, lu) -> z_next or
+        None), and pw = parametric(p): the parameters with the parameter-only subexpressions lifted out of the step.
+        What the block function unrolls, and what `vehicle.numerics.lanes` turns into code over many cases."""
+        nx, np_, nm = model.nx, model.np, model.n_memory
         x, mem, u0, u1 = self._step_symbols(model)
         p = ca.SX.sym("p", np_)
         z = ca.vertcat(x, mem)
@@ -324,10 +328,17 @@ class Ros2:
         if every > 1:
             reuse = ca.Function("ros2_step_reuse", [z, u0, u1, ca.vertcat(p, w), args[4]], [parts[2]])
         parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(p, *w_exprs)])
+        return step, (reuse if every > 1 else None), parametric, len(w_syms)
+
+    def _build(self, model) -> ca.Function:
+        nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
+        every = min(self.jacobian_every, self.K)
+        step, reuse, parametric, n_lifted = self.step_functions(model)
         # K steps -> one sample, unrolled by hand so that every step reads the same parameter
         # vector: neither carried through the loop's accumulator (a load and a store of every
         # parameter per step: 9.4 vs 7.8 us measured) nor copied into a (n_p, steps) matrix
-        npw = np_ + len(w_syms)
+        npw = np_ + n_lifted
+        nz = nx + nm
         zs = ca.MX.sym("z", nz)
         U0k, U1k = ca.MX.sym("u0", nu, self.K), ca.MX.sym("u1", nu, self.K)
         PW = ca.MX.sym("pw", npw)
