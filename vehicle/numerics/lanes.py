@@ -73,7 +73,9 @@ _PRELUDE = r"""
 #define VW NL
 typedef double V __attribute__((vector_size(8 * NL)));
 typedef long long VL __attribute__((vector_size(8 * NL)));
-static inline V BC(double c) { V r; for (int l = 0; l < VW; ++l) r[l] = c; return r; }
+/* a constant in every lane: a vector literal, so that the compiler folds with it as with a scalar constant (a
+   division by it becomes a product with its reciprocal under -freciprocal-math, as in the scalar engine) */
+#define BC(c) ((V){%(broadcast)s})
 static const double ONE = 1.0;
 #define ONES ((VL)BC(ONE))
 #define CMP(m) ((V)((m) & ONES))
@@ -225,7 +227,8 @@ def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: s
     np_ = parametric.size1_in(0)
     if parametric.size1_out(0) != npw or step.size1_out(0) != nz:
         raise ValueError("lanes_source: the step and the parametric function do not fit together")
-    return "\n".join([_PRELUDE % {"lanes": lanes}, emit_function(step, "step"), emit_function(parametric, "parametric"),
+    prelude = _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes)}
+    return "\n".join([prelude, emit_function(step, "step"), emit_function(parametric, "parametric"),
                       _BLOCK % {"name": name, "np": np_, "npw": npw, "nz": nz, "nu": nu}])
 
 

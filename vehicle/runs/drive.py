@@ -11,6 +11,7 @@ run that fails or is interrupted keeps what it did and can resume.
 """
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -28,6 +29,11 @@ from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.numerics.codegen import precompile
 from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
 from vehicle.runs.speed import SpeedProfile   # noqa: F401  (the drive's speed profile; re-exported)
+
+
+# the drive class `vehicle.runs.results` builds in this thread (`.cls`; None: `Drive`): a lane of an ensemble
+# (vehicle.engines.ensemble) sets its own
+THREAD_DRIVE = threading.local()
 
 
 @dataclass

@@ -83,8 +83,10 @@ def drive_class():
     """The drive class run_scenario uses: `Drive`, which has `describe()` (the keys and shapes of what it
     will hand to the sink, so the file's datasets can all be created before the drive starts: SWMR mode
     cannot create objects); a subclass adds it to a Drive without one."""
-    from vehicle.runs.drive import Drive
+    from vehicle.runs.drive import THREAD_DRIVE, Drive
 
+    if getattr(THREAD_DRIVE, "cls", None) is not None:       # a lane of an ensemble (vehicle.engines.ensemble)
+        return THREAD_DRIVE.cls
     if hasattr(Drive, "describe"):
         return Drive
 

@@ -219,7 +219,8 @@ def worker_init(parent_pid: int) -> None:
 
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
-              scheduler: str | None = None, log: Callable[[str], None] | None = None) -> dict:
+              scheduler: str | None = None, log: Callable[[str], None] | None = None,
+              ensemble: int | None = None) -> dict:
     from vehicle.runs.results import results_status
 
     log = log or (lambda m: None)
@@ -259,8 +260,13 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
             for c in todo]
     resume_cmd = f"hpsim sweep {path} -o {out_dir}"
     try:
-        execute(run_case, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",
-                finished=lambda name, r: finished(by_name[name], r))
+        # --ensemble K: the full-fidelity cases K at a time in lockstep (vehicle.engines.ensemble)
+        from vehicle.engines.ensemble import eligible, grouped_jobs
+
+        fn, jobs, unpack = grouped_jobs(run_case, jobs, ensemble, [eligible(c["source"].data) for c in todo],
+                                        workers)
+        execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",
+                finished=lambda tag, r: [finished(by_name[name], rr) for name, rr in unpack(tag, r)])
     except KeyboardInterrupt:
         interrupted = True
     else:

@@ -374,7 +374,8 @@ class DriveRunner:
 def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[str, dict], dict], *,
               method: str = "sobol", samples: int = 16, seed: int = 0, groups: str = "none",
               workers: int | None = None, scheduler: str | None = None, model: str = "",
-              log: Callable[[str], None] | None = None, nominal: bool = True, label: str = "") -> dict:
+              log: Callable[[str], None] | None = None, nominal: bool = True, label: str = "",
+              ensemble: int | None = 1) -> dict:
     """Sample, run (resuming), analyse. `runner(case, {parameter name: SI value}) -> {output: value}`
     must be picklable for more than one worker. `model` identifies what the runner computes (a
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
@@ -425,9 +426,14 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
                 log(f"[{done}/{len(todo)}] {case}: FAILED: {r['error']}")
 
         jobs = [(name, (runner, name, dict(zip(names, map(float, x))))) for name, x in todo]
+        # --ensemble K: the drives K at a time in lockstep (vehicle.engines.ensemble)
+        from vehicle.engines.ensemble import eligible, grouped_jobs
+
+        can_join = [isinstance(runner, DriveRunner) and eligible(runner.base)] * len(jobs)
+        fn, jobs, unpack = grouped_jobs(run_one, jobs, ensemble, can_join, workers)
         try:
-            execute(run_one, jobs, workers=workers, client=client, finished=finished,
-                    key_prefix=f"hpsim-uq-{out_dir.resolve().name}")
+            execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-uq-{out_dir.resolve().name}",
+                    finished=lambda tag, r: [finished(case, rr) for case, rr in unpack(tag, r)])
         finally:
             if client is not None:
                 client.close()
@@ -442,7 +448,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        output_dir: str | Path | None = None, workers: int | None = None,
                        scheduler: str | None = None, parameters: list[str] | None = None,
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
-                       log: Callable[[str], None] | None = None) -> dict:
+                       log: Callable[[str], None] | None = None, ensemble: int | None = None) -> dict:
     """`hpsim uq`: the study of a scenario file's priors with the drive runner."""
     from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario
 
@@ -463,7 +469,8 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                            data=case_scenario(src.data, params, {p.name: p.prior.value for p in params}, distance)))
     model = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
-                        workers=workers, scheduler=scheduler, model=model, log=log, label=src.name)
+                        workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
+                        ensemble=ensemble)
     summary["scenario"] = str(scenario)
     summary["distance"] = distance
     summary["notes"] = notes
