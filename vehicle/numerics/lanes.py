@@ -17,9 +17,9 @@ writes the same statements over a lane type `V` instead of `double`:
 
 fmin/fmax are written as the C library computes them (glibc 2.36: a NaN operand gives the other one, of
 +0 and -0 the minimum is -0), so that lanes equal the scalar engine bit for bit. The library is compiled
-with the scalar engine's flags (`codegen.COMPILER_FLAGS`: no -ffast-math; -freciprocal-math as there) plus
-`-ffp-contract=off` (no fused multiply-add, which would round differently from the scalar engine's
-separate multiply and add even where the instruction set has it).
+with the scalar engine's flags (`codegen.COMPILER_FLAGS`: no value-changing flag, -ffp-contract=off: no
+fused multiply-add even where the instruction set has one); the divisions GCC's -freciprocal-math used to
+rewrite are rewritten in the graph (`solvers.explicit_reciprocals`), the same for scalar and lanes.
 
 `LaneStepper` is the block function over NL lanes: (z0 (nz, NL), U (K M + 1, nu, NL), P (np, NL)) ->
 states at the M samples (M, nz, NL); `vehicle.engines.ensemble` steps K cases of one model structure with it.
@@ -39,7 +39,7 @@ from vehicle.numerics.codegen import compile_c
 # instruction sets the lane library can be built for: extra compiler flags, doubles per hardware vector
 ISAS = {"sse2": ((), 2), "avx2": (("-mavx2",), 4), "avx512": (("-mavx512f",), 8)}
 ISA_ENV = "HPSIM_LANES_ISA"
-EXTRA_FLAGS = ("-ffp-contract=off",)
+EXTRA_FLAGS = ()        # codegen.COMPILER_FLAGS has -ffp-contract=off
 
 _BINARY = {ca.OP_ADD: "({0}+{1})", ca.OP_SUB: "({0}-{1})", ca.OP_MUL: "({0}*{1})", ca.OP_DIV: "({0}/{1})",
            ca.OP_LT: "CMP({0}<{1})", ca.OP_LE: "CMP({0}<={1})", ca.OP_EQ: "CMP({0}=={1})",

@@ -149,6 +149,52 @@ def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.
     return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
 
 
+def explicit_reciprocals(fn: ca.Function, threshold: int = 3) -> ca.Function:
+    """Same SX function, with the divisions the C compiler's -freciprocal-math would rewrite rewritten here:
+    a / c -> a * (1/c) for a constant c, and a / d -> a * r with r = 1/d computed once for a divisor d of at
+    least `threshold` divisions (GCC's rule). The code is then compiled without -freciprocal-math: every
+    statement rounds as IEEE arithmetic says, whatever the compiler's choice of instructions, so the scalar
+    engine and the vector lanes (vehicle.numerics.lanes) give the same bits (with -freciprocal-math GCC rewrote
+    other divisions in vector code than in scalar code: 1 ulp, grown to 0.1 mm of strut travel in 2 s).
+    Replays the function's instructions (values, not registers: CasADi reuses registers)."""
+    count: dict[int, int] = {}
+    value_of: dict[int, int] = {}               # register -> id of the value it holds (the defining instruction)
+    for k in range(fn.n_instructions()):
+        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_DIV:
+            d = value_of[i_in[1]]
+            count[d] = count.get(d, 0) + 1
+        if op != ca.OP_OUTPUT:
+            value_of[i_out[0]] = k
+    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
+    work, value_of, const, recip = {}, {}, {}, {}
+    for k in range(fn.n_instructions()):
+        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_INPUT:
+            value = inputs[i_in[0]].nz[i_in[1]]
+        elif op == ca.OP_OUTPUT:
+            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
+            continue
+        elif op == ca.OP_CONST:
+            value = ca.SX(fn.instruction_constant(k))
+            const[k] = fn.instruction_constant(k)
+        elif op == ca.OP_DIV and (value_of[i_in[1]] in const or count[value_of[i_in[1]]] >= threshold):
+            d = value_of[i_in[1]]
+            if d not in recip:
+                recip[d] = ca.SX(1.0 / const[d]) if d in const else 1.0 / work[i_in[1]]
+            value = work[i_in[0]] * recip[d]
+        elif len(i_in) == 2:
+            value = ca.SX.binary(op, work[i_in[0]], work[i_in[1]])
+        else:
+            value = ca.SX.unary(op, work[i_in[0]])
+        work[i_out[0]] = value
+        value_of[i_out[0]] = k
+    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
+            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
+    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
+
+
 class Ros2:
     """The production solver: compiled fixed-step ROS2 over blocks of steps (see the module docstring).
 
@@ -328,6 +374,9 @@ class Ros2:
         if every > 1:
             reuse = ca.Function("ros2_step_reuse", [z, u0, u1, ca.vertcat(p, w), args[4]], [parts[2]])
         parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(p, *w_exprs)])
+        step, parametric = explicit_reciprocals(step), explicit_reciprocals(parametric)
+        if every > 1:
+            reuse = explicit_reciprocals(reuse)
         return step, (reuse if every > 1 else None), parametric, len(w_syms)
 
     def _build(self, model) -> ca.Function:
