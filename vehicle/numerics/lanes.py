@@ -257,18 +257,29 @@ class LaneStepper:
                  cc: str | None = None):
         if getattr(solver, "jacobian_every", 1) != 1 or getattr(solver, "engine", "current") != "current":
             raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
+        solver.K = getattr(solver, "K", 1)
+        step, _, parametric, _ = solver.step_functions(model)
+        self._load(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}", isa, scalar, cc)
+
+    @classmethod
+    def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
+                       isa: str | None = None, scalar: bool = False, cc: str | None = None) -> "LaneStepper":
+        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX)."""
+        self = cls.__new__(cls)
+        self._load(step, parametric, lanes, name, isa, scalar, cc)
+        return self
+
+    def _load(self, step, parametric, lanes, name, isa, scalar, cc) -> None:
         self.lanes = int(lanes)
         if self.lanes < 1:
             raise ValueError(f"LaneStepper: lanes must be >= 1, got {lanes}")
         self.isa = isa or default_isa()
-        solver.K = getattr(solver, "K", 1)
-        step, _, parametric, _ = solver.step_functions(model)
         self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
-        self.name = f"hpsim_lanes_{model.structure}_{self.lanes}"
+        self.npw = parametric.size1_out(0)
+        self.name = name
         self.source = lanes_source(step, parametric, self.lanes, self.name)
-        flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
-        self.flags = flags
-        lib, error = compile_c(self.source.encode(), self.name, flags, cc=cc)
+        self.flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
+        lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=cc)
         if lib is None:
             raise RuntimeError(f"the lane library could not be compiled ({error})")
         self.library = lib
@@ -282,7 +293,6 @@ class LaneStepper:
         self._step.argtypes = [ptr] * 5
         self._parametric = getattr(self._lib, f"{self.name}_parametric")
         self._parametric.argtypes = [ptr] * 2
-        self.npw = parametric.size1_out(0)
 
     def step(self, z, u0, u1, pw) -> np.ndarray:
         """One step of every lane: z (nz, lanes), u0 and u1 (nu, lanes), pw (the parametric part, (npw, lanes))."""
