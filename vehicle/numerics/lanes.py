@@ -112,8 +112,19 @@ typedef double V;
 #define LANE2(f, x, y) f(x, y)
 #define SQRT(x) sqrt(x)
 #define SIGN(x) ((x) < 0 ? -1. : (x) > 0 ? 1. : (x))
-#define FMIN(x, y) fmin(x, y)
-#define FMAX(x, y) fmax(x, y)
+/* glibc's fmin/fmax written out (a compiler may inline its own, e.g. clang's minnum, with another zero) */
+static inline double FMIN(double x, double y) {
+  union { double d; unsigned long long u; } a = {x}, b = {y};
+  if (x < y || y != y) return x;
+  if (y < x || x != x) return y;
+  a.u |= b.u; return a.d;
+}
+static inline double FMAX(double x, double y) {
+  union { double d; unsigned long long u; } a = {x}, b = {y};
+  if (x > y || y != y) return x;
+  if (y > x || x != x) return y;
+  a.u &= b.u; return a.d;
+}
 #endif
 static inline void load(V* dst, const double* src, int n, int g) {
   for (int i = 0; i < n; ++i) memcpy(&dst[i], src + (long)i * NL + g * VW, sizeof(V));
