@@ -25,6 +25,7 @@ import signal
 import threading
 import time
 import traceback
+import warnings
 from typing import Callable
 
 import numpy as np
@@ -40,7 +41,8 @@ _STEPPERS_LOCK = threading.Lock()
 
 def lane_stepper(model, dt: float, lanes: int, isa: str | None = None) -> LaneStepper:
     """The compiled lane block function for this model structure (built once per process, cached on disk)."""
-    key = (model.structure, float(dt), int(lanes), isa)
+    lanes = 1 << max(0, int(lanes) - 1).bit_length()      # a vector holds a power of two: 3 cases -> 4 lanes
+    key = (model.structure, float(dt), lanes, isa)
     with _STEPPERS_LOCK:
         if key not in _STEPPERS:
             _STEPPERS[key] = LaneStepper(Ros2(dt), model, lanes, isa=isa)
@@ -78,7 +80,12 @@ class LockstepGroup:
         if not same:
             self.leave(slot)
             return False
-        stepper = lane_stepper(model, dt, self.lanes, self.isa)      # compiled outside the group's lock
+        try:
+            stepper = lane_stepper(model, dt, self.lanes, self.isa)      # compiled outside the group's lock
+        except RuntimeError as exc:          # no compiler, or it failed: this lane runs on the scalar engine
+            warnings.warn(f"ensemble: {exc}; the drive runs on the scalar engine")
+            self.leave(slot)
+            return False
         with self.cond:
             self.stepper = stepper
         return True
@@ -118,7 +125,7 @@ class LockstepGroup:
         _, dt, K, M = self.key
         slots = sorted(self.pending)
         filler = self.pending[slots[0]]
-        blocks = [self.pending.get(s, filler) for s in range(self.lanes)]     # absent lanes: masked copies
+        blocks = [self.pending.get(s, filler) for s in range(self.stepper.lanes)]   # absent lanes: masked copies
         try:
             t0 = time.perf_counter()
             Z = self.stepper.advance(np.stack([b[0] for b in blocks], 1), np.stack([b[1].T for b in blocks], 2),

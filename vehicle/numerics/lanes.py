@@ -282,8 +282,8 @@ class LaneStepper:
 
     def _load(self, step, parametric, lanes, name, isa, scalar, cc) -> None:
         self.lanes = int(lanes)
-        if self.lanes < 1:
-            raise ValueError(f"LaneStepper: lanes must be >= 1, got {lanes}")
+        if self.lanes < 1 or self.lanes & (self.lanes - 1):
+            raise ValueError(f"LaneStepper: lanes must be a power of two (a vector's length), got {lanes}")
         self.isa = isa or default_isa()
         self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
         self.npw = parametric.size1_out(0)
