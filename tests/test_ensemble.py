@@ -17,7 +17,7 @@ import yaml
 
 from vehicle.engines.ensemble import eligible, group_size, grouped_jobs, run_lockstep
 from vehicle.numerics.codegen import compile_function
-from vehicle.numerics.lanes import LaneStepper
+from vehicle.numerics.lanes import LaneStepper, default_lanes
 from vehicle.runs.drive import THREAD_DRIVE
 from vehicle.runs.summary import report
 from vehicle.runs.sweep import run_case
@@ -205,11 +205,14 @@ def test_lane_code_compiles_and_equals_casadi(compiler, scalar):
 
 
 def test_groups_and_eligibility():
-    """Only plain full-fidelity drives join; groups: K given, else 4 lanes when there are more drives than workers
-    (groups as full as the cases allow with every worker busy), else off."""
+    """Only plain full-fidelity drives join; groups: K given, else one vector's lanes when there are more drives
+    than workers (groups as full as the cases allow with every worker busy), else off."""
     assert eligible({"solver": {"dt": "4 ms"}}) and not eligible({"solver": {"mode": "multiscale"}})
     assert not eligible({"solver": {"time_parallel": 2}})
-    assert group_size(None, 2, 2) == (1, 1) and group_size(None, 5, 2) == (4, 3) and group_size(None, 64, 2) == (4, 4)
+    L = default_lanes()
+    assert L in (2, 4, 8)
+    assert group_size(None, 2, 2) == (1, 1) and group_size(None, 5, 2) == (L, min(L, 3))
+    assert group_size(None, 64, 2) == (L, L)
     assert group_size(3, 2, 2) == (3, 3)
     jobs = [(f"c{i}", (i,)) for i in range(6)]
     fn, grouped, unpack = grouped_jobs(lambda i: {"status": "done", "i": i}, jobs, 4, [True] * 5 + [False])

@@ -65,7 +65,7 @@ def register(sub):
                     help="run the cases on an existing Dask distributed cluster (needs the 'dask' extra)")
     ps.add_argument("--ensemble", type=int, default=None, metavar="K",
                     help="step K full-fidelity drives in lockstep in one vector engine (1: off; default: "
-                         "4 when there are more drives than workers)")
+                         "one vector's lanes (8 with AVX-512, 4 with AVX2) when there are more drives than workers)")
     ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
     ps.set_defaults(func=cmd_sweep)
 

@@ -44,7 +44,7 @@ def register(sub):
                    help="run the drives on an existing Dask distributed cluster (needs the 'dask' extra)")
     p.add_argument("--ensemble", type=int, default=None, metavar="K",
                    help="step K full-fidelity drives in lockstep in one vector engine (1: off; default: "
-                        "4 when there are more drives than workers)")
+                        "one vector's lanes (8 with AVX-512, 4 with AVX2) when there are more drives than workers)")
     p.add_argument("--list", action="store_true", help="list the priors and the number of drives, run nothing")
     p.add_argument("--json", action="store_true", help="print the summary as JSON only")
     p.set_defaults(func=cmd_uq)

@@ -30,11 +30,10 @@ from typing import Callable
 
 import numpy as np
 
-from vehicle.numerics.lanes import LaneStepper
+from vehicle.numerics.lanes import LaneStepper, default_lanes
 from vehicle.numerics.solvers import Ros2
 from vehicle.runs.drive import THREAD_DRIVE, Drive
 
-DEFAULT_LANES = 4            # benchmarks/ensemble.py: 4 lanes of AVX2 (docs/performance.md, "Ensemble engine")
 _STEPPERS: dict = {}         # compiled lane block functions of this process by (structure, dt, lanes, isa)
 _STEPPERS_LOCK = threading.Lock()
 
@@ -207,7 +206,7 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
     """Run fn(*args) for every (tag, args) of `items` (at most `lanes`), each in a thread whose drive is a lane of
     one `LockstepGroup`. Returns {"status": "done", "cases": {tag: fn's result}, "lanes", "calls", "lane_blocks"}.
     A Ctrl-C (in the main thread) stops every lane at its next block (their files stay resumable)."""
-    lanes = int(lanes or DEFAULT_LANES)
+    lanes = int(lanes or default_lanes(isa))
     if len(items) > lanes:
         raise ValueError(f"run_lockstep: {len(items)} cases for {lanes} lanes")
     group = LockstepGroup(lanes, isa=isa)
@@ -241,18 +240,20 @@ def eligible(scenario_data: dict) -> bool:
 
 def group_size(lanes: int | None, n_cases: int, workers: int | None) -> tuple[int, int]:
     """(lanes of the compiled library, cases per group) for `--ensemble` (None: chosen): given K, K and K; by
-    default DEFAULT_LANES lanes when there are more cases than workers, the groups as full as the cases allow
+    default one vector's lanes when there are more cases than workers, the groups as full as the cases allow
     with every worker busy (a group of fewer cases than lanes leaves lanes masked: they cost as much as used
-    ones), else 1 (each case on its own, the scalar engine)."""
+    ones), else 1 (each case on its own, the scalar engine). Lanes: one hardware vector (`default_lanes`: 8 with
+    AVX-512, 4 with AVX2; benchmarks/ensemble.py)."""
     if lanes is not None:
         return int(lanes), int(lanes)
     import os
 
+    n_lanes = default_lanes()
     w = max(1, workers or os.cpu_count() or 1)
     per_worker = -(-n_cases // w)
     if per_worker <= 1:
         return 1, 1
-    return DEFAULT_LANES, min(DEFAULT_LANES, per_worker)
+    return n_lanes, min(n_lanes, per_worker)
 
 
 def grouped_jobs(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], lanes: int | None, can_join: list[bool],

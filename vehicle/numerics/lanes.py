@@ -244,8 +244,10 @@ def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: s
 
 
 def default_isa() -> str:
-    """The instruction set for the lane library: $HPSIM_LANES_ISA, else AVX2 where the processor has it, else
-    SSE2 (AVX-512 only on request: valgrind cannot run it, and it gave no more than AVX2 here, docs/performance)."""
+    """The instruction set for the lane library: $HPSIM_LANES_ISA, else the widest the processor has (AVX-512,
+    AVX2, SSE2). Measured (benchmarks/ensemble.py, docs/validation.md §7): 8 lanes of AVX-512 2.04 us per
+    lane-step, 4 of AVX2 2.55 us, 8 of AVX2 (two registers per value) 5.15 us, the scalar engine 7.3 us. Valgrind
+    cannot run AVX-512: HPSIM_LANES_ISA=avx2 for instruction counts."""
     asked = os.environ.get(ISA_ENV, "").strip().lower()
     if asked:
         if asked not in ISAS:
@@ -255,7 +257,12 @@ def default_isa() -> str:
         flags = set(re.findall(r"\w+", Path("/proc/cpuinfo").read_text().split("flags", 1)[1].split("\n", 1)[0]))
     except (OSError, IndexError):
         return "sse2"
-    return "avx2" if "avx2" in flags else "sse2"
+    return "avx512" if "avx512f" in flags else "avx2" if "avx2" in flags else "sse2"
+
+
+def default_lanes(isa: str | None = None) -> int:
+    """Lanes of one hardware vector of doubles for `isa` (default: `default_isa()`): the ensemble's group size."""
+    return ISAS[isa or default_isa()][1]
 
 
 class LaneStepper:
