@@ -246,7 +246,8 @@ def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: s
 def default_isa() -> str:
     """The instruction set for the lane library: $HPSIM_LANES_ISA, else the widest the processor has (AVX-512,
     AVX2, SSE2). Measured (benchmarks/ensemble.py, docs/validation.md §7): 8 lanes of AVX-512 2.04 us per
-    lane-step, 4 of AVX2 2.55 us, 8 of AVX2 (two registers per value) 5.15 us, the scalar engine 7.3 us. Valgrind
+    lane-step, 4 of AVX2 2.55 us, 8 of AVX2 (two registers per value) 5.15 us, 16 of AVX-512 5.85 us, the
+    scalar engine 7.3 us. Valgrind
     cannot run AVX-512: HPSIM_LANES_ISA=avx2 for instruction counts."""
     asked = os.environ.get(ISA_ENV, "").strip().lower()
     if asked:
