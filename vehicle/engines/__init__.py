@@ -3,5 +3,5 @@
     full           the full-resolution drive, block by block (Drive)
     multiscale     ride windows of the real road, slow states advanced between them
     time_parallel  the drive split in time over processes, joined by a slow-state correction
-    outputs        the one table of stored outputs (names, dimensions, units)
+    ensemble       many full drives in lockstep on one vector step (lanes across cases)
 """

@@ -100,10 +100,12 @@ def cache_limit_bytes() -> float:
     return mb * 1e6
 
 
-# -freciprocal-math turns the model's many divisions by constants into multiplications and
-# -fno-math-errno lets sqrt compile to one instruction; both change results at the last-bit level
-# only. (No -ffast-math: NaN and infinity must survive, the drive checks for them.)
-COMPILER_FLAGS = ("-O2", "-fno-math-errno", "-freciprocal-math", "-fno-trapping-math")
+# -fno-math-errno lets sqrt compile to one instruction (same result). No -ffast-math: NaN and infinity must
+# survive, the drive checks for them; no value-changing flag at all: the divisions that -freciprocal-math turned
+# into multiplications are rewritten in the SX graph instead (vehicle.numerics.solvers.explicit_reciprocals), and
+# no contraction into fused multiply-adds, so that every statement rounds as written and the vector lanes
+# (vehicle.numerics.lanes) equal the scalar engine bit for bit.
+COMPILER_FLAGS = ("-O2", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off")
 
 
 def _sha256_file(path: Path) -> str:
@@ -320,6 +322,34 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
         compile_time.record([len(t[2]) for t in todo], width, time.perf_counter() - t0, todo[0][4])
         evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
     return len(todo)
+
+
+def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_level: str = "-O2",
+              cc: str | None = None) -> tuple[Path | None, str]:
+    """Compile hand-generated C `code` (not a CasADi function: e.g. `vehicle.numerics.lanes`) into a cached, verified
+    shared library (the same cache, records and trust model as `compile_function`): (path of the library, "") or
+    (None, why not: no compiler, the compiler's error). The caller loads it (ctypes)."""
+    cc = cc or _compiler()
+    if cc is None:
+        return None, "no C compiler found"
+    flags = [opt_level, *COMPILER_FLAGS[1:], *extra_flags]
+    code_sha = hashlib.sha256(code).hexdigest()
+    key = hashlib.sha256(code + " ".join(flags).encode() + cc.encode()).hexdigest()[:20]
+    d = cache_dir()
+    stem = f"{name}_{key}"
+    lib, record = d / f"{stem}.so", d / f"{stem}.json"
+    if not _verified(lib, record, code_sha):
+        error = _build(cc, flags, code, code_sha, d, stem)
+        if error is not None:
+            return None, error
+        evict(d, cache_limit_bytes(), keep=(stem,))
+        if not _verified(lib, record, code_sha):
+            return None, f"{lib.name} changed while it was built"
+    try:
+        os.utime(record)
+    except OSError:
+        pass
+    return lib, ""
 
 
 def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:

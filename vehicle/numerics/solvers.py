@@ -150,6 +150,52 @@ def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.
     return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
 
 
+def explicit_reciprocals(fn: ca.Function, threshold: int = 3) -> ca.Function:
+    """Same SX function, with the divisions the C compiler's -freciprocal-math would rewrite rewritten here:
+    a / c -> a * (1/c) for a constant c, and a / d -> a * r with r = 1/d computed once for a divisor d of at
+    least `threshold` divisions (GCC's rule). The code is then compiled without -freciprocal-math: every
+    statement rounds as IEEE arithmetic says, whatever the compiler's choice of instructions, so the scalar
+    engine and the vector lanes (vehicle.numerics.lanes) give the same bits (with -freciprocal-math GCC rewrote
+    other divisions in vector code than in scalar code: 1 ulp, grown to 0.1 mm of strut travel in 2 s).
+    Replays the function's instructions (values, not registers: CasADi reuses registers)."""
+    count: dict[int, int] = {}
+    value_of: dict[int, int] = {}               # register -> id of the value it holds (the defining instruction)
+    for k in range(fn.n_instructions()):
+        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_DIV:
+            d = value_of[i_in[1]]
+            count[d] = count.get(d, 0) + 1
+        if op != ca.OP_OUTPUT:
+            value_of[i_out[0]] = k
+    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
+    work, value_of, const, recip = {}, {}, {}, {}
+    for k in range(fn.n_instructions()):
+        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_INPUT:
+            value = inputs[i_in[0]].nz[i_in[1]]
+        elif op == ca.OP_OUTPUT:
+            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
+            continue
+        elif op == ca.OP_CONST:
+            value = ca.SX(fn.instruction_constant(k))
+            const[k] = fn.instruction_constant(k)
+        elif op == ca.OP_DIV and (value_of[i_in[1]] in const or count[value_of[i_in[1]]] >= threshold):
+            d = value_of[i_in[1]]
+            if d not in recip:
+                recip[d] = ca.SX(1.0 / const[d]) if d in const else 1.0 / work[i_in[1]]
+            value = work[i_in[0]] * recip[d]
+        elif len(i_in) == 2:
+            value = ca.SX.binary(op, work[i_in[0]], work[i_in[1]])
+        else:
+            value = ca.SX.unary(op, work[i_in[0]])
+        work[i_out[0]] = value
+        value_of[i_out[0]] = k
+    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
+            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
+    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
+
+
 class Ros2:
     """The production solver: compiled fixed-step ROS2 over blocks of steps (see the module docstring).
 
@@ -193,6 +239,7 @@ class Ros2:
         self.engine = engine
         self.memory = None
         self.build_s = 0.0
+        self.K, self.M = 1, 1              # steps per sample, samples per call: set by `bind`
 
     @property
     def capabilities(self) -> SolverCapabilities:
@@ -227,13 +274,6 @@ class Ros2:
             self.K, self.M = K, M
             _GRAPHS[key] = self._graph(model)
         return _GRAPHS[key]
-
-    def step_functions(self, model) -> tuple[ca.Function, ca.Function]:
-        """(step (z, u0, u1, pw) -> z, parametric p -> pw): one step of this solver (a fresh W) and what it reads of
-        the parameters (p and the subexpressions of p alone, computed once): what an FMU wraps (vehicle.fmu)."""
-        self.K, self.M = 1, 1
-        step, _, parametric, _ = self._step_functions(model)
-        return step, parametric
 
     def _graph(self, model) -> ca.Function:
         """The uncompiled block function of this engine for (self.K, self.M)."""
@@ -300,9 +340,13 @@ class Ros2:
         return (ca.SX.sym("x", model.nx), ca.SX.sym("mem", model.n_memory), ca.SX.sym("u0", model.nu),
                 ca.SX.sym("u1", model.nu))
 
-    def _step_functions(self, model):
-        """(step, reuse or None, parametric, every): one step (z, u0, u1, pw) -> z (with a fresh W; with every > 1
-        also its factor values), the step reusing factors, and p -> pw (p and what depends on it alone)."""
+    def step_functions(self, model) -> tuple:
+        """(step, reuse or None, parametric, every) as SX functions: one step (z, u0, u1, pw) -> z_next (with a fresh
+        W; with every > 1 also its factor values), the step reusing factors ((z, u0, u1, pw, lu) -> z_next), and
+        pw = parametric(p): the parameters with the parameter-only subexpressions lifted out of the step. Divisions
+        are explicit reciprocals in the graph (`explicit_reciprocals`), so scalar and vector code round alike. What
+        the block function unrolls, what an FMU wraps (vehicle.fmu) and what `vehicle.numerics.lanes` turns into code
+        over many cases; an unbound solver takes one step per sample."""
         x, mem, u0, u1 = self._step_symbols(model)
         p = ca.SX.sym("p", model.np)
         z = ca.vertcat(x, mem)
@@ -334,11 +378,14 @@ class Ros2:
         if every > 1:
             reuse = ca.Function("ros2_step_reuse", [z, u0, u1, ca.vertcat(p, w), args[4]], [parts[2]])
         parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(p, *w_exprs)])
+        step, parametric = explicit_reciprocals(step), explicit_reciprocals(parametric)
+        if every > 1:
+            reuse = explicit_reciprocals(reuse)
         return step, (reuse if every > 1 else None), parametric, every
 
     def _build(self, model) -> ca.Function:
         nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
-        step, reuse, parametric, every = self._step_functions(model)
+        step, reuse, parametric, every = self.step_functions(model)
         nz = nx + nm
         # K steps -> one sample, unrolled by hand so that every step reads the same parameter
         # vector: neither carried through the loop's accumulator (a load and a store of every

@@ -39,6 +39,7 @@ from vehicle.results.sinks import add_checkpoint_hook
 from vehicle.results.validity import summary_cell
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import report
+from vehicle.engines.ensemble import eligible, grouped_jobs
 
 
 class SweepSpec(Model):
@@ -204,7 +205,7 @@ def worker_init(parent_pid: int) -> None:
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
               scheduler: str | None = None, log: Callable[[str], None] | None = None,
-              before_start: Callable[[list], None] | None = None) -> dict:
+              before_start: Callable[[list], None] | None = None, ensemble: int | None = None) -> dict:
     """before_start(the cases to run, prepared): called before any runs (the cost preview may stop it)."""
     log = log or (lambda m: None)
     path = Path(path)
@@ -245,8 +246,12 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
             for c in todo]
     resume_cmd = f"hpsim sweep {path} -o {out_dir}"
     try:
-        execute(run_case, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",
-                finished=lambda name, r: finished(by_name[name], r))
+        # --ensemble K: the full-fidelity cases K at a time in lockstep (vehicle.engines.ensemble)
+
+        fn, jobs, unpack = grouped_jobs(run_case, jobs, ensemble, [eligible(c["source"].data) for c in todo],
+                                        workers)
+        execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",
+                finished=lambda tag, r: [finished(by_name[name], rr) for name, rr in unpack(tag, r)])
     except KeyboardInterrupt:
         interrupted = True
     else:

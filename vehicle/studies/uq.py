@@ -52,7 +52,9 @@ from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, vali
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import dask_client, execute, run_case
+from vehicle.studies.uq_tables import json_safe, write_bands, write_ranking, write_sobol
 from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
+from vehicle.engines.ensemble import eligible, grouped_jobs
 
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
@@ -423,7 +425,7 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
               method: str = "sobol", samples: int = 16, seed: int = 0, groups: str = "none",
               workers: int | None = None, scheduler: str | None = None, model: str = "",
               log: Callable[[str], None] | None = None, nominal: bool = True, label: str = "",
-              before_start: Callable[[int], None] | None = None) -> dict:
+              before_start: Callable[[int], None] | None = None, ensemble: int | None = 1) -> dict:
     """Sample, run (resuming), analyse. `runner(case, {parameter name: SI value}) -> {output: value}`
     must be picklable for more than one worker. `model` identifies what the runner computes (a
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
@@ -474,16 +476,20 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
                 log(f"[{done}/{len(todo)}] {case}: FAILED: {r['error']}")
 
         jobs = [(name, (runner, name, dict(zip(names, map(float, x))))) for name, x in todo]
+        # --ensemble K: the drives K at a time in lockstep (vehicle.engines.ensemble)
+
+        can_join = [isinstance(runner, DriveRunner) and eligible(runner.base)] * len(jobs)
+        fn, jobs, unpack = grouped_jobs(run_one, jobs, ensemble, can_join, workers)
         try:
-            execute(run_one, jobs, workers=workers, client=client, finished=finished,
-                    key_prefix=f"hpsim-uq-{out_dir.resolve().name}")
+            execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-uq-{out_dir.resolve().name}",
+                    finished=lambda tag, r: [finished(case, rr) for case, rr in unpack(tag, r)])
         finally:
             if client is not None:
                 client.close()
     summary = analyse(out_dir, params, rows, records, method=method, samples=samples, seed=seed, groups=groups)
     summary["wall_s"] = time.perf_counter() - t0
     summary["ran_now"] = done
-    (out_dir / "summary.json").write_text(json.dumps(_json_safe(summary), indent=1) + "\n")
+    (out_dir / "summary.json").write_text(json.dumps(json_safe(summary), indent=1) + "\n")
     return summary
 
 
@@ -492,7 +498,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        scheduler: str | None = None, parameters: list[str] | None = None,
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
                        log: Callable[[str], None] | None = None,
-                       before_start: Callable[[object, int], None] | None = None) -> dict:
+                       before_start: Callable[[object, int], None] | None = None, ensemble: int | None = None) -> dict:
     """`hpsim uq`: the study of a scenario file's priors with the drive runner. before_start(the nominal case
     prepared, drives to run) is called before any drive."""
     log = log or (lambda m: None)
@@ -513,11 +519,12 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     model = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
-                        before_start=None if before_start is None else (lambda n: before_start(nominal_case, n)))
+                        before_start=None if before_start is None else (lambda n: before_start(nominal_case, n)),
+                        ensemble=ensemble)
     summary["scenario"] = str(scenario)
     summary["distance"] = distance
     summary["notes"] = notes
-    (out_dir / "summary.json").write_text(json.dumps(_json_safe(summary), indent=1) + "\n")
+    (out_dir / "summary.json").write_text(json.dumps(json_safe(summary), indent=1) + "\n")
     return summary
 
 
@@ -644,55 +651,3 @@ def most_influential(summary: dict, top: int = 5) -> dict:
     table = summary.get("sobol") or summary.get("ranking") or {}
     return {k: [r["parameter"] for r in sorted(v["rows"], key=_influence, reverse=True)[:top]]
             for k, v in table.items() if not v["constant"]}
-
-
-def _split(name: str) -> tuple[str, str]:
-    m = re.fullmatch(r"axle(\d+)\.(.+)", name)
-    return (m.group(1), m.group(2)) if m else ("", name)
-
-
-def write_bands(path: Path, summary: dict) -> Path:
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["output", "axle", "quantity", "unit", "p5", "p50", "p95", "nominal", "mean", "sd", "min", "max", "n"])
-        for k, b in summary["bands"].items():
-            axle, q = _split(k)
-            w.writerow([k, axle, q, summary["units"].get(k, ""), *(_fmt(b[c]) for c in
-                        ("p5", "p50", "p95", "nominal", "mean", "sd", "min", "max")), b["n"]])
-    return path
-
-
-def write_sobol(path: Path, table: dict) -> Path:
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["output", "parameter", "S1", "S1_conf", "ST", "ST_conf"])
-        for k, v in table.items():
-            for r in v["rows"]:
-                w.writerow([k, r["parameter"], *(_fmt(r[c]) for c in ("S1", "S1_conf", "ST", "ST_conf"))])
-    return path
-
-
-def write_ranking(path: Path, table: dict) -> Path:
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["output", "parameter", "spearman", "prcc"])
-        for k, v in table.items():
-            for r in v["rows"]:
-                w.writerow([k, r["parameter"], _fmt(r["spearman"]), _fmt(r["prcc"])])
-    return path
-
-
-def _fmt(v) -> str:
-    return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.6g}"
-
-
-def _json_safe(obj):
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, np.generic):
-        return _json_safe(obj.item())
-    return obj

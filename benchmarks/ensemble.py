@@ -1,0 +1,268 @@
+"""The ensemble engine (vector lanes across cases) against the scalar engine, side by side in one run (issue 26).
+
+    python benchmarks/ensemble.py [--distance 2km] [--lanes 4] [--isa avx2] [--no-callgrind] [--json]
+
+The drive: the mileage scenario's settings (apc_8x8, ISO class D, 4 ms step, output every 1 s, statistics every
+1 km) over --distance, in `lanes` cases that differ in speed (18-24 km/h), initial temperature and road seed.
+Printed, for the scalar engine (`Ros2`, each case on its own) and the ensemble (`vehicle.engines.ensemble`, the
+cases in lockstep through `vehicle.numerics.lanes`):
+  instructions per lane-step   callgrind's count of the block function alone on one block of 250 steps (the
+                               scalar engine's block for one case, the lanes' block for all lanes, divided by the
+                               lanes): independent of the machine's load (valgrind runs AVX2, not AVX-512);
+  us per lane-step             CPU time of the same block call, repeated and interleaved (minimum of --repeats);
+  drive CPU s / wall s         the drives themselves (run_case into HDF5 files: set-up, integration, outputs,
+                               statistics, files), the scalar cases one after the other, then the ensemble;
+                               CPU time of this process (all threads), wall time;
+  drives per hour              study throughput on this machine's 2 workers, from the drives' CPU time per case
+                               for the 106 km mileage drive: a fixed part per case plus a part per km, fitted
+                               to the drives over --distance and over a quarter of it;
+  largest difference           of every time series and statistics row of each lane's file against the scalar
+                               run of the same case (relative; 0 = bit for bit).
+The machine is shared: wall times are noisy, the instruction counts are not; ratios measured in one run only.
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+MILEAGE_KM = 106.0
+
+
+def scenario_text(i: int, distance: str) -> str:
+    import yaml
+
+    return yaml.safe_dump({"description": f"ensemble benchmark case {i}", "vehicle": {"name": "apc_8x8"},
+                           "road": {"iso_class": "D", "seed": i}, "speed": f"{18 + 2 * (i % 4)} km/h",
+                           "distance": distance, "ambient_temperature": "25 degC",
+                           "initial_temperatures": f"{25 + 3 * i} degC", "solver": {"dt": "4 ms"},
+                           "output": {"interval": "1 s", "stats_interval": "1 km"}})
+
+
+def block_inputs(lanes: int):
+    """One block (250 steps x 10 samples) of inputs for `lanes` cases: (model, scalar Ros2 bound, z0, U, P) with
+    z0 (nz, lanes), U (nu, n+1, lanes), P (np, lanes)."""
+    from terrain import RoadSpec, build_road
+    from vehicle.numerics.solvers import Ros2
+    from vehicle.physics.model import VehicleModel
+    from vehicle.physics.params import load_vehicle
+    from vehicle.engines.full import Drive
+    from vehicle.scenario.settings import DriveSettings
+    from vehicle.scenario.speed import SpeedProfile
+
+    model = VehicleModel(load_vehicle("apc_8x8"))
+    road = build_road(RoadSpec(iso_class="D", length=600.0, seed=0))
+    z0, U, P, drive = [], [], [], None
+    for i in range(lanes):
+        s = DriveSettings(distance_m=500.0, speed=SpeedProfile.constant((18 + 2 * (i % 4)) / 3.6),
+                          initial_temperatures_K=298.15 + 3 * i, error_check_every=0)
+        drive = Drive(model, road, s, solver=Ros2(0.004))
+        st = drive.initial_state()
+        z0.append(np.concatenate([st.x, drive.solver.memory]))
+        U.append(drive.inputs(0.004 * np.arange(drive.K * drive.M + 1)))
+        P.append(drive.p)
+    return model, drive.solver, np.stack(z0, 1), np.stack(U, 2), np.stack(P, 1)
+
+
+def per_step(model, solver, z0, U, P, lanes: int, isa: str, repeats: int) -> dict:
+    """CPU time per lane-step of the scalar block (one case per call) and the lanes' block (all lanes per call),
+    interleaved; and the largest difference of the states after one block."""
+    from vehicle.engines.ensemble import lane_stepper
+
+    stepper = lane_stepper(model, solver.dt, lanes, isa)
+    K, M = solver.K, solver.M
+    Ul = np.ascontiguousarray(U.transpose(1, 0, 2))
+    best = {"scalar": np.inf, "lanes": np.inf}
+    for _ in range(repeats):
+        t0 = time.process_time()
+        Zs = [np.asarray(solver.fn(z0[:, i], U[:, :, i], P[:, i])) for i in range(lanes)]
+        best["scalar"] = min(best["scalar"], (time.process_time() - t0) / (lanes * K * M))
+        t0 = time.process_time()
+        Zl = stepper.advance(z0, Ul, P, K, M)
+        best["lanes"] = min(best["lanes"], (time.process_time() - t0) / (lanes * K * M))
+    diff = max(float(np.max(np.abs(Zl[:, :, i].T - Zs[i]))) for i in range(lanes))
+    return {"scalar_us": best["scalar"] * 1e6, "lanes_us": best["lanes"] * 1e6, "block_max_abs_difference": diff,
+            "library": str(stepper.library), "scalar_name": solver.fn.name(), "lanes_name": stepper.name,
+            "K": K, "M": M, "vector_width": stepper.vector_width}
+
+
+def callgrind_child(argv) -> None:
+    """(Under valgrind.) Load one library and call its block function once on the saved inputs."""
+    kind, lib, name, data = argv
+    d = np.load(data)
+    if kind == "scalar":
+        import casadi as ca
+
+        fn = ca.external(name, lib)
+        fn(d["z0"][:, 0], d["U"][:, :, 0], d["P"][:, 0])
+    else:
+        f = getattr(ctypes.CDLL(lib), name)
+        z0, U, P = (np.ascontiguousarray(d[k]) for k in ("z0", "Ul", "P"))
+        Z = np.empty((int(d["M"]), z0.shape[0], z0.shape[1]))
+        f(*(a.ctypes.data_as(ctypes.c_void_p) for a in (z0, U, P, Z)), ctypes.c_int(int(d["M"])),
+          ctypes.c_int(int(d["K"])))
+
+
+def callgrind(kind: str, lib: str, name: str, data: Path) -> int | None:
+    """Instructions executed inside `name` and what it calls (its inclusive count) in one block call, by
+    callgrind (everything collected, the function's line read from callgrind_annotate); None without valgrind."""
+    out = data.with_suffix(f".{kind}.callgrind")
+    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable, __file__,
+           "--callgrind-child", kind, lib, name, str(data)]
+    try:
+        subprocess.run(cmd, check=True, capture_output=True, timeout=1800)
+        text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)], check=True,
+                              capture_output=True, text=True, timeout=600).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    # the lanes' exported block function does not show under its name (its frames are attributed to the step it
+    # calls): its count is that of the foreign-function call into it (ctypes' own instructions: a few hundred)
+    target = name if kind == "scalar" else "ffi_call"
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) >= 3 and parts[2].endswith(f":{target}"):
+            return int(parts[0].replace(",", ""))
+    return None
+
+
+def drives(distance: str, lanes: int, isa: str, folder: Path) -> dict:
+    """The cases on the scalar engine one after the other, then in one ensemble: CPU and wall seconds, per-case
+    results, the largest relative difference of the files."""
+    from vehicle.engines.ensemble import run_lockstep
+    from vehicle.studies.sweep import run_case
+
+    base = str(Path(__file__).resolve().parents[1] / "scenarios")
+    items = {kind: [(f"{kind}{i}", (scenario_text(i, distance), f"case {i}", base, str(folder / f"{kind}{i}.h5")))
+                    for i in range(lanes)] for kind in ("s", "e")}
+    out = {}
+    c0, w0 = time.process_time(), time.perf_counter()
+    res = [run_case(*args) for _, args in items["s"]]
+    out["scalar"] = {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
+                     "status": [r["status"] for r in res]}
+    c0, w0 = time.process_time(), time.perf_counter()
+    r = run_lockstep(run_case, items["e"], lanes, isa=isa)
+    out["ensemble"] = {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
+                       "integration_s": r["integration_s"], "status": [v["status"] for v in r["cases"].values()]}
+    out["largest_relative_difference"] = max(_file_difference(folder / f"s{i}.h5", folder / f"e{i}.h5")
+                                             for i in range(lanes))
+    return out
+
+
+def _file_difference(a: Path, b: Path) -> float:
+    import h5py
+
+    worst = 0.0
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        def visit(name, obj):
+            nonlocal worst
+            if isinstance(obj, h5py.Dataset) and obj.dtype.kind == "f" and name.split("/")[0] in ("timeseries", "stats"):
+                x, y = obj[()], fb[name][()]
+                if x.shape != y.shape:
+                    worst = np.inf
+                    return
+                differ = ~((x == y) | (np.isnan(x) & np.isnan(y)))
+                if np.any(differ):
+                    worst = max(worst, float(np.max(np.abs(x - y)[differ] / np.maximum(np.abs(x)[differ], 1e-300))))
+        fa.visititems(visit)
+    return worst
+
+
+def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--callgrind-child":
+        callgrind_child(sys.argv[2:])
+        return
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--distance", default="2 km")
+    ap.add_argument("--lanes", type=int, default=None, help="default: one vector of --isa (8 with AVX-512, 4 with AVX2)")
+    ap.add_argument("--isa", default=None, help="sse2, avx2 or avx512 (default: vehicle.numerics.lanes.default_isa)")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--workers", type=int, default=2, help="workers of the throughput figure (default 2)")
+    ap.add_argument("--no-callgrind", action="store_true")
+    ap.add_argument("--no-drives", action="store_true")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    from hpsim.units import parse_quantity
+    from vehicle.numerics.lanes import default_isa, default_lanes
+
+    isa = args.isa or default_isa()
+    L = args.lanes or default_lanes(isa)
+    model, solver, z0, U, P = block_inputs(L)
+    res = {"lanes": L, "isa": isa, "per_step": per_step(model, solver, z0, U, P, L, isa, args.repeats)}
+    ps = res["per_step"]
+    with tempfile.TemporaryDirectory(prefix="hpsim-ens-bench-") as tmp:
+        tmp = Path(tmp)
+        if not args.no_callgrind:
+            data = tmp / "block.npz"
+            np.savez(data, z0=z0, U=U, Ul=np.ascontiguousarray(U.transpose(1, 0, 2)), P=P, K=ps["K"], M=ps["M"])
+            from vehicle.numerics.codegen import cache_dir
+
+            scalar_lib = next(iter(sorted(cache_dir().glob(f"{ps['scalar_name']}_*.so"),
+                                          key=lambda p: p.stat().st_mtime, reverse=True)), None)
+            n_steps = ps["K"] * ps["M"]
+            ir_s = callgrind("scalar", str(scalar_lib), ps["scalar_name"], data) if scalar_lib else None
+            # valgrind cannot run AVX-512: the counts of the AVX2 library of 4 lanes then
+            cg_lanes, lib, lname = L, ps["library"], ps["lanes_name"]
+            if isa == "avx512":
+                from vehicle.engines.ensemble import lane_stepper
+
+                cg_lanes = 4
+                st4 = lane_stepper(model, solver.dt, cg_lanes, "avx2")
+                lib, lname = str(st4.library), st4.name
+                np.savez(data, z0=z0[:, :4], U=U[:, :, :4], Ul=np.ascontiguousarray(U[:, :, :4].transpose(1, 0, 2)),
+                         P=P[:, :4], K=ps["K"], M=ps["M"])
+            ir_l = callgrind("lanes", lib, lname, data)
+            res["instructions_per_lane_step"] = {"scalar": ir_s / n_steps if ir_s else None,
+                                                 "lanes": ir_l / (n_steps * cg_lanes) if ir_l else None,
+                                                 "lanes_isa": "avx2" if isa == "avx512" else isa, "lanes_n": cg_lanes}
+        if not args.no_drives:
+            km = parse_quantity(args.distance, "m", where="--distance") / 1e3
+            (tmp / "short").mkdir()
+            res["drives"] = drives(args.distance, L, isa, tmp)
+            res["drives_short"] = drives(f"{km / 4} km", L, isa, tmp / "short")
+    if "drives" in res:
+        # per case: a fixed part (set-up, model, equilibria, files) and a part per km, from the two distances
+        d, d4 = res["drives"], res["drives_short"]
+        res["drives_per_hour"], res["per_case_106km_cpu_s"] = {}, {}
+        for k in ("scalar", "ensemble"):
+            per_km = (d[k]["cpu_s"] - d4[k]["cpu_s"]) / L / (0.75 * km)
+            fixed = max(d[k]["cpu_s"] / L - per_km * km, 0.0)
+            res["per_case_106km_cpu_s"][k] = {"fixed_s": fixed, "per_km_s": per_km,
+                                              "total_s": fixed + per_km * MILEAGE_KM}
+            res["drives_per_hour"][k] = args.workers * 3600.0 / (fixed + per_km * MILEAGE_KM)
+    if args.json:
+        print(json.dumps(res, indent=1, default=float))
+        return
+    print(f"ensemble of {L} lanes ({isa}, vector width {ps['vector_width']}) against the scalar engine, one run")
+    print(f"  us per lane-step (CPU, min of {args.repeats}):  scalar {ps['scalar_us']:.2f}  lanes {ps['lanes_us']:.2f}"
+          f"  ratio {ps['scalar_us'] / ps['lanes_us']:.2f}x")
+    ir = res.get("instructions_per_lane_step")
+    if ir and ir["scalar"] and ir["lanes"]:
+        print(f"  instructions per lane-step (callgrind; lanes: {ir['lanes_n']} of {ir['lanes_isa']}):  scalar "
+              f"{ir['scalar']:.0f}  lanes {ir['lanes']:.0f}  ratio {ir['scalar'] / ir['lanes']:.2f}x")
+    print(f"  one block, largest state difference lanes vs scalar: {ps['block_max_abs_difference']:.3g}")
+    if "drives" in res:
+        d = res["drives"]
+        print(f"  {L} drives of {args.distance}: scalar CPU {d['scalar']['cpu_s']:.1f} s (wall {d['scalar']['wall_s']:.1f})"
+              f", ensemble CPU {d['ensemble']['cpu_s']:.1f} s (wall {d['ensemble']['wall_s']:.1f}, integration "
+              f"{d['ensemble']['integration_s']:.1f}); ratio {d['scalar']['cpu_s'] / d['ensemble']['cpu_s']:.2f}x")
+        dph, pc = res["drives_per_hour"], res["per_case_106km_cpu_s"]
+        for k in ("scalar", "ensemble"):
+            print(f"  {k}: per case {pc[k]['fixed_s']:.2f} s fixed + {pc[k]['per_km_s']:.3f} s per km (CPU; from "
+                  f"{args.distance} and a quarter of it) -> {pc[k]['total_s']:.1f} s per 106 km drive")
+        print(f"  106 km drives per hour on {args.workers} workers (CPU time, {args.workers} busy workers): scalar "
+              f"{dph['scalar']:.0f}, ensemble {dph['ensemble']:.0f} ({dph['ensemble'] / dph['scalar']:.2f}x)")
+        print(f"  largest relative difference of the files (every series and statistics row): "
+              f"{d['largest_relative_difference']:.3g}  status {d['scalar']['status']} {d['ensemble']['status']}")
+
+
+if __name__ == "__main__":
+    main()

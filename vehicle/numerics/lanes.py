@@ -1,0 +1,339 @@
+"""The compiled ROS2 step over many cases at once: one instruction, several lanes (issue 26, "lanes across cases").
+
+`Ros2.step_functions` gives the step as an SX function, the straight-line list of operations CasADi's C
+generator walks to write one statement per operation (``a5=(a3*a4);``). This module walks the same list and
+writes the same statements over a lane type `V` instead of `double`:
+
+- with GCC or Clang, `V` is a vector of NL doubles (``__attribute__((vector_size(8 * NL)))``, structure of
+  arrays: work variable a5 holds lane l's value in a5[l]); + - * / and the comparisons are the vector
+  extension's element-wise operations, sqrt a per-lane loop (one `sqrtpd`), the transcendental functions
+  (exp, log, tanh, pow) the C library's scalar function per lane (a vector math library would round
+  differently), CasADi's conditionals (`c ? b : 0`, `x <= y` as 1.0 / 0.0) bit masks. Every lane computes
+  every operation: the step has no branch (the sparse LU of W is symbolic, without pivoting, and the
+  valves' Newton iterations are a fixed count), so nothing needs masking inside it: a lane gone non-finite
+  stays in its own lane;
+- elsewhere (no vector extension, or `-DHPSIM_LANES_SCALAR`) `V` is `double` and the block runs the
+  lanes one after the other: the scalar step, the same statements as CasADi's.
+
+fmin/fmax are written as the C library computes them (glibc 2.36: a NaN operand gives the other one, of
++0 and -0 the minimum is -0), so that lanes equal the scalar engine bit for bit. The library is compiled
+with the scalar engine's flags (`codegen.COMPILER_FLAGS`: no value-changing flag, -ffp-contract=off: no
+fused multiply-add even where the instruction set has one); the divisions GCC's -freciprocal-math used to
+rewrite are rewritten in the graph (`solvers.explicit_reciprocals`), the same for scalar and lanes.
+
+`LaneStepper` is the block function over NL lanes: (z0 (nz, NL), U (K M + 1, nu, NL), P (np, NL)) ->
+states at the M samples (M, nz, NL); `vehicle.engines.ensemble` steps K cases of one model structure with it.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import re
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from vehicle.numerics.codegen import compile_c
+
+# instruction sets the lane library can be built for: extra compiler flags, doubles per hardware vector
+ISAS = {"sse2": ((), 2), "avx2": (("-mavx2",), 4), "avx512": (("-mavx512f",), 8)}
+ISA_ENV = "HPSIM_LANES_ISA"
+EXTRA_FLAGS = ()        # codegen.COMPILER_FLAGS has -ffp-contract=off
+
+_BINARY = {ca.OP_ADD: "({0}+{1})", ca.OP_SUB: "({0}-{1})", ca.OP_MUL: "({0}*{1})", ca.OP_DIV: "({0}/{1})",
+           ca.OP_LT: "CMP({0}<{1})", ca.OP_LE: "CMP({0}<={1})", ca.OP_EQ: "CMP({0}=={1})",
+           ca.OP_NE: "CMP({0}!={1})", ca.OP_AND: "AND({0},{1})", ca.OP_OR: "OR({0},{1})",
+           ca.OP_IF_ELSE_ZERO: "IFZ({0},{1})", ca.OP_FMIN: "FMIN({0},{1})", ca.OP_FMAX: "FMAX({0},{1})",
+           ca.OP_POW: "LANE2(pow,{0},{1})", ca.OP_CONSTPOW: "LANE2(pow,{0},{1})",
+           ca.OP_ATAN2: "LANE2(atan2,{0},{1})", ca.OP_COPYSIGN: "LANE2(copysign,{0},{1})",
+           ca.OP_FMOD: "LANE2(fmod,{0},{1})", ca.OP_HYPOT: "LANE2(hypot,{0},{1})"}
+_UNARY = {ca.OP_NEG: "(-{0})", ca.OP_TWICE: "(2.*{0})", ca.OP_SQ: "({0}*{0})", ca.OP_INV: "(1./{0})",
+          ca.OP_ASSIGN: "{0}", ca.OP_NOT: "NOT({0})", ca.OP_SQRT: "SQRT({0})", ca.OP_FABS: "FABS({0})",
+          ca.OP_SIGN: "SIGN({0})"}
+_LIBM = {"EXP": "exp", "LOG": "log", "TANH": "tanh", "SIN": "sin", "COS": "cos", "TAN": "tan", "ASIN": "asin",
+         "ACOS": "acos", "ATAN": "atan", "SINH": "sinh", "COSH": "cosh", "ASINH": "asinh", "ACOSH": "acosh",
+         "ATANH": "atanh", "FLOOR": "floor", "CEIL": "ceil", "ERF": "erf", "LOG1P": "log1p", "EXPM1": "expm1"}
+_UNARY.update({getattr(ca, f"OP_{k}"): f"LANE1({v},{{0}})" for k, v in _LIBM.items()})
+
+_PRELUDE = r"""
+#include <math.h>
+#include <string.h>
+#define NL %(lanes)d
+/* the step compiled on its own, as CasADi's (no knowledge of its callers' pointers: the same code as there) */
+#if defined(__GNUC__) && !defined(__clang__)
+#define NOIPA __attribute__((noipa))
+#elif defined(__GNUC__)
+#define NOIPA __attribute__((noinline))
+#else
+#define NOIPA
+#endif
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(HPSIM_LANES_SCALAR)
+/* NL lanes in one vector: structure of arrays */
+#define VW NL
+typedef double V __attribute__((vector_size(8 * NL)));
+typedef long long VL __attribute__((vector_size(8 * NL)));
+/* a constant in every lane: a vector literal, so that the compiler folds with it as with a scalar constant (a
+   division by it becomes a product with its reciprocal under -freciprocal-math, as in the scalar engine) */
+#define BC(c) ((V){%(broadcast)s})
+static const double ONE = 1.0;
+#define ONES ((VL)BC(ONE))
+#define CMP(m) ((V)((m) & ONES))
+#define NOT(x) CMP((x) == 0.)
+#define AND(x, y) ((V)(((x) != 0.) & ((y) != 0.) & ONES))
+#define OR(x, y) ((V)((((x) != 0.) | ((y) != 0.)) & ONES))
+#define IFZ(c, b) ((V)((VL)(b) & ((c) != 0.)))
+#define FABS(x) ((V)((VL)(x) & (VL)BC(-0.) ^ (VL)(x)))
+#define LANE1(f, x) ({ V r_ = (x); for (int l = 0; l < VW; ++l) r_[l] = f(r_[l]); r_; })
+#define LANE2(f, x, y) ({ V r_ = (x), s_ = (y); for (int l = 0; l < VW; ++l) r_[l] = f(r_[l], s_[l]); r_; })
+#define SQRT(x) LANE1(sqrt, x)
+#define SIGN(x) ({ V s_ = (x); V r_ = CMP(s_ > 0.) - CMP(s_ < 0.); (V)((VL)r_ | ((VL)s_ & ((s_ == 0.) | (s_ != s_)))); })
+/* glibc's fmin/fmax: a NaN operand gives the other operand; of equal operands (+0 and -0) the OR / AND of the bits */
+static inline V FMIN(V x, V y) {
+  VL tx = (x < y) | (y != y), ty = (y < x) | (x != x);
+  return (V)(((VL)x & tx) | ((VL)y & ty & ~tx) | (((VL)x | (VL)y) & ~(tx | ty)));
+}
+static inline V FMAX(V x, V y) {
+  VL tx = (x > y) | (y != y), ty = (y > x) | (x != x);
+  return (V)(((VL)x & tx) | ((VL)y & ty & ~tx) | (((VL)x & (VL)y) & ~(tx | ty)));
+}
+#else
+/* no vector extension: the lanes one after the other, CasADi's scalar statements */
+#define VW 1
+typedef double V;
+#define BC(c) (c)
+#define CMP(m) ((double)(m))
+#define NOT(x) ((double)(!(x)))
+#define AND(x, y) ((double)((x) && (y)))
+#define OR(x, y) ((double)((x) || (y)))
+#define IFZ(c, b) ((c) ? (b) : 0)
+#define FABS(x) fabs(x)
+#define LANE1(f, x) f(x)
+#define LANE2(f, x, y) f(x, y)
+#define SQRT(x) sqrt(x)
+#define SIGN(x) ((x) < 0 ? -1. : (x) > 0 ? 1. : (x))
+/* glibc's fmin/fmax written out (a compiler may inline its own, e.g. clang's minnum, with another zero) */
+static inline double FMIN(double x, double y) {
+  union { double d; unsigned long long u; } a = {x}, b = {y};
+  if (x < y || y != y) return x;
+  if (y < x || x != x) return y;
+  a.u |= b.u; return a.d;
+}
+static inline double FMAX(double x, double y) {
+  union { double d; unsigned long long u; } a = {x}, b = {y};
+  if (x > y || y != y) return x;
+  if (y > x || x != x) return y;
+  a.u &= b.u; return a.d;
+}
+#endif
+static inline void load(V* dst, const double* src, int n, int g) {
+  for (int i = 0; i < n; ++i) memcpy(&dst[i], src + (long)i * NL + g * VW, sizeof(V));
+}
+static inline void store(double* dst, const V* src, int n, int g) {
+  for (int i = 0; i < n; ++i) memcpy(dst + (long)i * NL + g * VW, &src[i], sizeof(V));
+}
+"""
+
+_BLOCK = r"""
+/* the block: M samples of K steps from z0 (nz x NL), inputs U ((K M + 1) x nu x NL), parameters P (np x NL);
+   the states at the samples into Z (M x nz x NL). Lanes are independent: groups of VW lanes one after the other. */
+int %(name)s(const double* z0, const double* U, const double* P, double* Z, int M, int K) {
+  for (int g = 0; g < NL / VW; ++g) {
+    V p[%(np)d], pw[%(npw)d], za[%(nz)d], zb[%(nz)d], u0[%(nu)d], u1[%(nu)d];
+    V *z = za, *zn = zb, *t;
+    load(p, P, %(np)d, g);
+    parametric(p, pw);
+    load(z, z0, %(nz)d, g);
+    load(u1, U, %(nu)d, g);
+    for (int m = 0; m < M; ++m) {
+      for (int k = 0; k < K; ++k) {
+        memcpy(u0, u1, sizeof(u0));
+        load(u1, U + ((long)m * K + k + 1) * %(nu)d * NL, %(nu)d, g);
+        step(z, u0, u1, pw, zn);
+        t = z; z = zn; zn = t;
+      }
+      store(Z + (long)m * %(nz)d * NL, z, %(nz)d, g);
+    }
+  }
+  return 0;
+}
+/* one step and the parametric part alone (same layouts: [i][NL]): for tests and instruction counts */
+int %(name)s_step(const double* z, const double* u0, const double* u1, const double* pw, double* out) {
+  for (int g = 0; g < NL / VW; ++g) {
+    V za[%(nz)d], zb[%(nz)d], a[%(nu)d], b[%(nu)d], w[%(npw)d];
+    load(za, z, %(nz)d, g); load(a, u0, %(nu)d, g); load(b, u1, %(nu)d, g); load(w, pw, %(npw)d, g);
+    step(za, a, b, w, zb);
+    store(out, zb, %(nz)d, g);
+  }
+  return 0;
+}
+int %(name)s_parametric(const double* P, double* pw) {
+  for (int g = 0; g < NL / VW; ++g) {
+    V p[%(np)d], w[%(npw)d];
+    load(p, P, %(np)d, g);
+    parametric(p, w);
+    store(pw, w, %(npw)d, g);
+  }
+  return 0;
+}
+int %(name)s_lanes(void) { return NL; }
+int %(name)s_vector_width(void) { return VW; }
+"""
+
+
+def _constant(v: float) -> str:
+    if np.isnan(v):
+        return "NAN"
+    if np.isinf(v):
+        return "INFINITY" if v > 0 else "(-INFINITY)"
+    return repr(float(v))
+
+
+def emit_function(fn: ca.Function, cname: str) -> str:
+    """C of an SX function over lanes: `static void cname(const V* in0, ..., V* out0, ...)`, one statement per
+    instruction of `fn` (its work registers a0, a1, ... as CasADi's C generator numbers them). Inputs are read and
+    outputs written under the same null-pointer tests as in CasADi's C: they split the code into the same basic
+    blocks, and the compiler's -freciprocal-math (one reciprocal for several divisions by one divisor) works per
+    block: without them it rewrites other divisions than in the scalar engine (3e-10 relative after 100 steps)."""
+    if not isinstance(fn, ca.Function) or not fn.is_a("SXFunction"):
+        raise TypeError("emit_function: expected an SX function")
+    n_in, n_out = fn.n_in(), fn.n_out()
+    args = [f"const V* restrict i{k}" for k in range(n_in)] + [f"V* restrict o{k}" for k in range(n_out)]
+    lines = [f"NOIPA static void {cname}({', '.join(args)}) {{"]
+    n_work = fn.sz_w()
+    if n_work:
+        names = ", ".join(f"a{j}" for j in range(n_work))
+        lines.append(f"  V {names};")
+    rows_out = [fn.sparsity_out(k).row() for k in range(n_out)]
+    for k in range(n_out):
+        sp = fn.sparsity_out(k)
+        if sp.nnz() != sp.numel():                       # structural zeros: written as 0
+            lines.append(f"  for (int i = 0; i < {sp.numel()}; ++i) o{k}[i] = BC(0.);")
+    for dense_in in range(n_in):
+        sp = fn.sparsity_in(dense_in)
+        if sp.nnz() != sp.numel():
+            raise ValueError(f"emit_function: input {dense_in} of {fn.name()} is sparse")
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_INPUT:
+            lines.append(f"  a{i_out[0]}=i{i_in[0]} ? i{i_in[0]}[{i_in[1]}] : BC(0.);")
+        elif op == ca.OP_OUTPUT:
+            lines.append(f"  if (o{i_out[0]}!=0) o{i_out[0]}[{rows_out[i_out[0]][i_out[1]]}]=a{i_in[0]};")
+        elif op == ca.OP_CONST:
+            lines.append(f"  a{i_out[0]}=BC({_constant(fn.instruction_constant(k))});")
+        elif op in _BINARY:
+            lines.append(f"  a{i_out[0]}=" + _BINARY[op].format(f"a{i_in[0]}", f"a{i_in[1]}") + ";")
+        elif op in _UNARY:
+            lines.append(f"  a{i_out[0]}=" + _UNARY[op].format(f"a{i_in[0]}") + ";")
+        else:
+            raise NotImplementedError(f"emit_function: operation {op} of {fn.name()} has no lane form")
+    lines.append("}")
+    return "\n".join(lines)
+
+
+def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: str) -> str:
+    """The C of the lane block function `name` (see the module docstring) for NL = `lanes`."""
+    nz, nu, npw = step.size1_in(0), step.size1_in(1), step.size1_in(3)
+    np_ = parametric.size1_in(0)
+    if parametric.size1_out(0) != npw or step.size1_out(0) != nz:
+        raise ValueError("lanes_source: the step and the parametric function do not fit together")
+    prelude = _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes)}
+    return "\n".join([prelude, emit_function(step, "step"), emit_function(parametric, "parametric"),
+                      _BLOCK % {"name": name, "np": np_, "npw": npw, "nz": nz, "nu": nu}])
+
+
+def default_isa() -> str:
+    """The instruction set for the lane library: $HPSIM_LANES_ISA, else the widest the processor has (AVX-512,
+    AVX2, SSE2). Measured (benchmarks/ensemble.py, docs/validation.md §7): 8 lanes of AVX-512 2.04 us per
+    lane-step, 4 of AVX2 2.55 us, 8 of AVX2 (two registers per value) 5.15 us, 16 of AVX-512 5.85 us, the
+    scalar engine 7.3 us. Valgrind
+    cannot run AVX-512: HPSIM_LANES_ISA=avx2 for instruction counts."""
+    asked = os.environ.get(ISA_ENV, "").strip().lower()
+    if asked:
+        if asked not in ISAS:
+            raise ValueError(f"{ISA_ENV}: {asked!r}, expected one of {sorted(ISAS)}")
+        return asked
+    try:
+        flags = set(re.findall(r"\w+", Path("/proc/cpuinfo").read_text().split("flags", 1)[1].split("\n", 1)[0]))
+    except (OSError, IndexError):
+        return "sse2"
+    return "avx512" if "avx512f" in flags else "avx2" if "avx2" in flags else "sse2"
+
+
+def default_lanes(isa: str | None = None) -> int:
+    """Lanes of one hardware vector of doubles for `isa` (default: `default_isa()`): the ensemble's group size."""
+    return ISAS[isa or default_isa()][1]
+
+
+class LaneStepper:
+    """The ROS2 block function of `solver` (a bound-able `Ros2`, W at every step) over `lanes` cases of `model`'s
+    structure, compiled (cached like every library) and loaded: `advance(z0, U, P, K, M)`.
+
+    scalar=True builds the fallback (lanes one after the other, no vector extension) on any compiler."""
+
+    def __init__(self, solver, model, lanes: int, *, isa: str | None = None, scalar: bool = False,
+                 cc: str | None = None):
+        if solver.jacobian_every != 1 or solver.engine != "current":
+            raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
+        step, _, parametric, _ = solver.step_functions(model)
+        self._load(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}", isa, scalar, cc)
+
+    @classmethod
+    def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
+                       isa: str | None = None, scalar: bool = False, cc: str | None = None) -> "LaneStepper":
+        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX)."""
+        self = cls.__new__(cls)
+        self._load(step, parametric, lanes, name, isa, scalar, cc)
+        return self
+
+    def _load(self, step, parametric, lanes, name, isa, scalar, cc) -> None:
+        self.lanes = int(lanes)
+        if self.lanes < 1 or self.lanes & (self.lanes - 1):
+            raise ValueError(f"LaneStepper: lanes must be a power of two (a vector's length), got {lanes}")
+        self.isa = isa or default_isa()
+        self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
+        self.npw = parametric.size1_out(0)
+        self.name = name
+        self.source = lanes_source(step, parametric, self.lanes, self.name)
+        self.flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
+        lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=cc)
+        if lib is None:
+            raise RuntimeError(f"the lane library could not be compiled ({error})")
+        self.library = lib
+        self._lib = ctypes.CDLL(str(lib))
+        self._fn = getattr(self._lib, self.name)
+        ptr = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
+        self._fn.argtypes = [ptr, ptr, ptr, ptr, ctypes.c_int, ctypes.c_int]
+        self._fn.restype = ctypes.c_int
+        self.vector_width = int(getattr(self._lib, f"{self.name}_vector_width")())
+        self._step = getattr(self._lib, f"{self.name}_step")
+        self._step.argtypes = [ptr] * 5
+        self._parametric = getattr(self._lib, f"{self.name}_parametric")
+        self._parametric.argtypes = [ptr] * 2
+
+    def step(self, z, u0, u1, pw) -> np.ndarray:
+        """One step of every lane: z (nz, lanes), u0 and u1 (nu, lanes), pw (the parametric part, (npw, lanes))."""
+        out = np.empty((self.nz, self.lanes))
+        self._step(*(np.ascontiguousarray(a, dtype=np.float64) for a in (z, u0, u1, pw)), out)
+        return out
+
+    def parametric(self, P) -> np.ndarray:
+        """The parameters with their lifted subexpressions (npw, lanes) from P (np, lanes)."""
+        pw = np.empty((self.npw, self.lanes))
+        self._parametric(np.ascontiguousarray(P, dtype=np.float64), pw)
+        return pw
+
+    def advance(self, z0: np.ndarray, U: np.ndarray, P: np.ndarray, K: int, M: int) -> np.ndarray:
+        """States at the M samples (M, nz, lanes) from z0 (nz, lanes), the inputs U (K M + 1, nu, lanes) at every
+        step and the parameters P (np, lanes)."""
+        L = self.lanes
+        z0 = np.ascontiguousarray(z0, dtype=np.float64)
+        U = np.ascontiguousarray(U, dtype=np.float64)
+        P = np.ascontiguousarray(P, dtype=np.float64)
+        if z0.shape != (self.nz, L) or U.shape != (K * M + 1, self.nu, L) or P.shape != (self.np, L):
+            raise ValueError(f"LaneStepper.advance: shapes {z0.shape}, {U.shape}, {P.shape}; expected "
+                             f"{(self.nz, L)}, {(K * M + 1, self.nu, L)}, {(self.np, L)}")
+        Z = np.empty((M, self.nz, L))
+        self._fn(z0, U, P, Z, int(M), int(K))
+        return Z
