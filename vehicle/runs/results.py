@@ -48,6 +48,7 @@ import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
 
+from vehicle.results import provenance
 from vehicle.runs.reader import (FORMAT, FORMAT_VERSION, DamagedResults, ResultsFile, open_read,  # noqa: F401
                                  open_results)
 from vehicle.runs.scenario import ScenarioSource, prepare, read_scenario, read_scenario_text
@@ -116,6 +117,8 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
                   "history": f"{_now()}: hpsim run {src.name} (started)"},
         "scenario": {"yaml": src.text, "source": src.name, "base_dir": str(src.base_dir),
                      "resolved_json": json.dumps(resolved, indent=1, default=float),
+                     # the hashes of the input files and of the definition, compared by --resume
+                     "inputs_json": json.dumps(provenance.fingerprint(prep)),
                      "hpsim_version": code_version(), "created": _now(), "stations": stations, "axles": axles,
                      "distance_m": float(prep.scenario.distance), "total_time_s": float(drive.total_time_s),
                      **({"seats": list(model.seat_names)} if getattr(model, "seat_names", None) else {})},
@@ -174,6 +177,7 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     """Run a scenario into memory: a MemorySink holding what the HDF5 file would (same variables)."""
     src = scenario if isinstance(scenario, ScenarioSource) else read_scenario(scenario)
     prep = prepare(src)
+    prep.in_memory = True                          # the work limits of a run kept in memory
     model, drive = prep.drive(drive_class())
     sink = MemorySink(src.name)
     sink.start(run_info(src, prep, model, drive, drive.initial_equilibrium()))
@@ -309,8 +313,13 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     """
     log = log or (lambda msg: None)
     out = Path(out)
+    if resume and overwrite:
+        raise UserInputError(f"{out}: --resume and --overwrite together: --resume continues the run in the file, "
+                             "--overwrite throws it away; give one of them")
     src = scenario if isinstance(scenario, ScenarioSource) else (
         read_scenario(scenario) if scenario is not None else None)
+    if src is not None:
+        provenance.output_is_input(out, src)          # never replace one of the run's own inputs
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():
@@ -340,6 +349,8 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         model, drive = prep.drive(drive_class())
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
+        if prep.work.get("announce"):
+            log(prep.work["announce"])               # a long run says so up front (vehicle.scenario.work_limits)
         tmp = out.with_name(out.name + ".partial")
         try:
             create_file(tmp, info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
@@ -397,14 +408,18 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
         stored = read_scenario_text(str(sc["yaml"]), str(sc.get("source", out)),
                                     str(sc.get("base_dir", out.resolve().parent)))
         stored_version = str(sc.get("hpsim_version", ""))
-        if r.status() == "complete":
-            log(f"{out}: already complete, nothing to do")
-            return {k: (v.item() if hasattr(v, "item") else v) for k, v in r.summary_attrs().items()}
-        ck = r._checkpoint()
+        stored_inputs = sc.get("inputs_json")
+        complete = r.status() == "complete"
+        summary = {k: (v.item() if hasattr(v, "item") else v) for k, v in r.summary_attrs().items()}
+        ck = None if complete else r._checkpoint()
     if src is not None and src.text != stored.text:
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
     prep = prepare(stored)
+    provenance.compare(None if stored_inputs is None else str(stored_inputs), prep, out)   # no input file changed
+    if complete:
+        log(f"{out}: already complete, nothing to do")
+        return summary
     if stored_version and stored_version != code_version():
         log(f"{out}: warning: the run started with hpsim {stored_version}, resuming with {code_version()}; "
             "if the model changed in between, the result differs from an uninterrupted run")

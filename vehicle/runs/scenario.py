@@ -451,6 +451,8 @@ class Prepared:
     road_spec: Any               # terrain.RoadSpec
     initial_temperatures_K: np.ndarray
     speed_profile: Any = None    # vehicle.runs.speed.SpeedTable (built and checked in prepare())
+    in_memory: bool = False      # the drive's results are kept in memory (a lower work limit)
+    work: dict = field(default_factory=dict)   # the work estimate (vehicle.scenario.work_limits), set by drive()
 
     def settings(self):
         from vehicle.runs.drive import DriveSettings
@@ -492,6 +494,14 @@ class Prepared:
         """(model, Drive) ready to run."""
         from vehicle.runs.drive import Drive
 
+        from vehicle.scenario.work_limits import check_interval, check_scenario, drive_duration_s, segments_for
+
+        S = self.scenario
+        settings = self.settings()
+        duration = drive_duration_s(settings.speed, S.distance)
+        # the work size, before anything is compiled: refused beyond the limits, announced when long
+        check_interval(S.output.interval, duration, S.distance, self.source.name)
+        self.work = check_scenario(S, duration, len(self.vehicle.station_names()), self.source.name, self.in_memory)
         model = self.model()
         road = self.road()
         cls = drive_class or Drive
@@ -502,10 +512,13 @@ class Prepared:
                 return model, MultiscaleDrive(model, road, self.settings(), self.scenario.solver.multiscale_settings())
             from vehicle.runs.time_parallel import TimeParallelDrive, resolve_segments
 
-            P = resolve_segments(self.scenario.solver.time_parallel)
+            from vehicle.runs.time_parallel import MIN_SEGMENT_S
+
+            tp = self.scenario.solver.time_parallel
+            P = segments_for(resolve_segments(tp), tp == "auto", duration, MIN_SEGMENT_S)   # auto: 1 on a short drive
             if P > 1:
-                return model, TimeParallelDrive(model, road, self.settings(), P)
-            return model, cls(model, road, self.settings())
+                return model, TimeParallelDrive(model, road, settings, P)
+            return model, cls(model, road, settings)
         except UserInputError as exc:
             raise UserInputError(f"{self.source.name}: {exc}") from None
 

@@ -47,6 +47,9 @@ from hpsim.config import deep_update, load_yaml
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.priors import Prior, collect_priors, tie_shared
 
+from vehicle.results import provenance
+from vehicle.studies.study_folder import StudyLock, check_case_count
+
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
 BANDS = (5.0, 50.0, 95.0)
@@ -231,6 +234,14 @@ def check_settings(method: str, samples: int, groups: str, n_params: int) -> Non
                              f"(use {lo} or {2 * lo})")
     if method == "lhs" and groups != "none":
         raise UserInputError("--groups: grouped indices need --method sobol (a Latin hypercube ranks each parameter)")
+    check_case_count(n_cases(method, samples, n_params) + 1, "--samples", f"drives ({method} design of {samples})",
+                     "a smaller --samples or fewer --parameters")
+
+
+def check_seed(seed) -> None:
+    """--seed: an integer in [0, 2**32 - 1] (what the samplers accept)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**32:
+        raise UserInputError(f"--seed: must be an integer in [0, {2**32 - 1}], got {seed!r}")
 
 
 def n_cases(method: str, samples: int, n_draws: int) -> int:
@@ -270,7 +281,28 @@ def _read_samples(path: Path) -> tuple[dict, list[str], list[tuple[str, np.ndarr
     if meta is None or not rows or rows[0][0] != "case":
         raise UserInputError(f"{path}: not a sample matrix written by hpsim uq (remove the folder to start again)")
     names = rows[0][1:]
-    return meta, names, [(r[0], np.array([float(v) for v in r[1:]])) for r in rows[1:]]
+    return meta, names, _sample_rows(path, rows[1:], len(names))
+
+
+def _sample_rows(path: Path, rows: list[list[str]], n: int) -> list[tuple[str, np.ndarray]]:
+    """The cases of samples.csv; a damaged row is a one-line error naming the file and line (nothing is changed)."""
+    out = []
+    lineno = {}
+    with open(path, newline="") as fh:             # the file's line of each case (for the message)
+        for k, line in enumerate(fh, start=1):
+            lineno.setdefault(line.split(",", 1)[0].strip(), k)
+    for r in rows:
+        case = r[0] if r else ""
+        where = f"{path}:{lineno.get(case, '?')}"
+        try:
+            values = np.array([float(v) for v in r[1:]])
+        except ValueError:
+            values = None
+        if values is None or values.size != n or not np.all(np.isfinite(values)):
+            raise UserInputError(f"{where}: case {case!r}: expected {n} finite numbers; the sample matrix is damaged "
+                                 "(the study folder was left as it is): restore it, or start again in another folder (-o)")
+        out.append((case, values))
+    return out
 
 
 def _differences(stored: dict, asked: dict) -> list[str]:
@@ -283,7 +315,7 @@ def _differences(stored: dict, asked: dict) -> list[str]:
         what = sorted(a ^ b)
         out.append(f"parameters or priors ({len(what)} differ, e.g. {what[0]!r})" if what else "parameter order")
     if stored.get("model") != asked.get("model"):
-        out.append("the scenario, its parameter files or --distance")
+        out.append("the scenario, its input files (vehicle, struts, road or speed CSV) or --distance")
     return out
 
 
@@ -378,12 +410,20 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
     """Sample, run (resuming), analyse. `runner(case, {parameter name: SI value}) -> {output: value}`
     must be picklable for more than one worker. `model` identifies what the runner computes (a
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
-    from vehicle.runs.sweep import _dask_client, execute
-
     log = log or (lambda m: None)
     check_settings(method, samples, groups, len(params))
+    check_seed(seed)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    with StudyLock(out_dir):                       # one study writing into a folder at a time
+        return _run_study(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model, log,
+                          nominal, label)
+
+
+def _run_study(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model, log, nominal,
+               label) -> dict:
+    from vehicle.runs.sweep import _dask_client, execute
+
     names = [p.name for p in params]
     meta = _fingerprint(params, method, samples, seed, groups, model)
     samples_csv = out_dir / "samples.csv"
@@ -454,6 +494,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     all_params, notes, resolved = scenario_parameters(src, per_axle_struts=per_axle_struts)
     params = select(all_params, parameters)
     check_settings(method, samples, groups, len(params))
+    check_seed(seed)
     for n in notes:
         log(f"{src.name}: {n}")
     out_dir = Path(output_dir) if output_dir else Path(f"{Path(scenario).stem}_uq")
@@ -461,7 +502,11 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     # every check before any drive: the nominal case and the first draw must be valid scenarios
     prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
                            data=case_scenario(src.data, params, {p.name: p.prior.value for p in params}, distance)))
-    model = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    # what the drives are made from: the resolved priors and the hashes of every input file (a changed road CSV
+    # is another study: its finished cases are not reused, vehicle.results.provenance)
+    files = provenance.fingerprint(prepare(ScenarioSource(text=src.text, name=str(scenario), base_dir=src.base_dir,
+                                                          data=src.data)))["files"]
+    model = hashlib.sha256(json.dumps([resolved, files], sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name)
     summary["scenario"] = str(scenario)

@@ -1,0 +1,1 @@
+"""Studies: many runs of one definition (sweeps, uncertainty quantification) in one folder."""
