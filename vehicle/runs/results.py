@@ -491,13 +491,15 @@ LOCKED_RETRY_S = 10.0          # how long a run waits for a reader (hpsim report
 
 
 def open_for_append(out: Path, wait_s: float = LOCKED_RETRY_S) -> h5py.File:
-    """The results file opened for the drive to write into. A reader that opened the file (not SWMR) between its
-    creation and this moment holds HDF5's file lock: wait for it to close (up to wait_s) rather than fail the run;
-    once the writer is in SWMR mode readers no longer block it."""
+    """The results file opened for the drive to write into, without HDF5's file lock: a reader that opened the file
+    (not SWMR) between its creation and this moment must not stop the run (issue 27). A lock error (a file system
+    that insists) is retried for up to wait_s."""
     t_end = time.monotonic() + wait_s
     while True:
         try:
-            return h5py.File(out, "r+", libver=LIBVER)
+            # no HDF5 file lock: a plain reader (h5py.File(path, "r"), xarray) holding the file must not stop the
+            # run; the one writer is the output's lock file (OutputLock), readers read in SWMR mode (docs/hdf5.md)
+            return h5py.File(out, "r+", libver=LIBVER, locking=False)
         except OSError as exc:
             if "unable to lock file" not in str(exc) or time.monotonic() > t_end:
                 raise
