@@ -204,3 +204,33 @@ def test_work_beyond_the_limit_is_refused_with_its_figures():
     est = estimate(900.0, 0.004, 0.004, 8, 8 * 26)
     line = check(est, "s.yaml")
     assert line and "MB of results" in line and "s of computing" in line
+
+
+# --- what a speed profile asks of the vehicle ----------------------------------------------------------------
+@pytest.mark.parametrize("speed,says", [
+    ("{profile: [[0 m, 5 km/h], [30 m, 5 km/h], [30.1 m, 150 km/h]]}", "g) at 30"),
+    ("{random: {mean: 40 km/h, spread: 10 km/h, correlation_length: 1 m}}", "correlation_length"),
+])
+def test_profiles_beyond_1_g_are_refused_with_the_figure(case_dir, speed, says):
+    """A step 5 -> 150 km/h within 0.1 m asks for v dv/ds = 41.7 m/s * 40.3 m/s / 0.1 m = 1.7e4 m/s^2 (1700 g); a
+    random profile of 10 km/h spread over a 1 m correlation length some g. Both refused before anything runs."""
+    (case_dir / "in" / "s.yaml").write_text(SCENARIO.replace("speed: 20 km/h", f"speed: {speed}"))
+    res = run_case(case_dir, ["run", case_dir / "in" / "s.yaml", "-o", case_dir / "work" / "o.h5", "--no-progress"],
+                   timeout=20)
+    check_user_error(res, must_say=("longitudinal acceleration", "max_acceleration", says))
+
+
+def test_the_acceleration_limit_is_exact_and_the_scenario_may_raise_it():
+    """A constant-acceleration ramp v^2 = v0^2 + 2 a s (a table fine in speed, as the stop-go ramps): 1.2 g is refused
+    at the default 1 g and accepted with max_acceleration: 1.5 g; the figure is the table's (v dv/ds at a segment's
+    faster end: the ramp's 1.2 g within the table's speed steps, 11.97 m/s^2 for 11.77)."""
+    from vehicle.runs.speed import SpeedProfile
+    from vehicle.scenario.speed_limits import G_M_PER_S2, check_profile
+
+    a = 1.2 * G_M_PER_S2
+    v = np.linspace(2.0, 30.0, 400)
+    s = (v * v - v[0] ** 2) / (2 * a)
+    profile = SpeedProfile(s, v)
+    with pytest.raises(UserInputError, match=r"acceleration of 1[12]\.\d+ m/s\^2 \(1\.2\d* g\)"):
+        check_profile(profile, float(s[-1]))
+    check_profile(profile, float(s[-1]), max_acceleration=1.5 * G_M_PER_S2, max_jerk=1e4)

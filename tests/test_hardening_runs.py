@@ -50,29 +50,29 @@ def test_a_drive_ends_at_its_distance_with_a_partial_last_interval(case_dir):
         np.testing.assert_allclose(f["summary/energy_valve"][:], f["timeseries/energy_valve"][-1], rtol=1e-12)
 
 
-def test_a_long_output_interval_loops_over_pieces_instead_of_unrolling():
-    """A sample of K > 250 steps is generated as a loop over unrolled pieces (Function.fold): the graph does not grow
-    with K, and the states are those of the unrolled steps (checked in CasADi's virtual machine, K = 600 = 250 + 250 +
-    100 against three samples of 200 unrolled steps; equal to rounding)."""
+def test_a_long_output_interval_loops_over_pieces_instead_of_unrolling(monkeypatch):
+    """A sample of more than MAX_UNROLLED_STEPS steps is generated as a loop over unrolled pieces (Function.fold):
+    the graph does not grow with the steps, and the states are those of the unrolled steps. Checked in CasADi's
+    virtual machine with pieces of 4 steps (production: 250): 10 = 4 + 4 + 2 steps against two samples of 5 unrolled
+    steps (equal to rounding), and the graph of 4000 steps no larger than that of 40."""
     from vehicle.numerics import solvers
     from tests.vehicle_helpers import make_drive
 
     d = make_drive(distance_m=30.0, error_check_every=0)
     m, dt = d.model, d.settings.dt_s
-    U = d.inputs(dt * np.arange(601))
+    monkeypatch.setattr(solvers, "MAX_UNROLLED_STEPS", 4)
+    assert solvers._pieces(10, 1) == [4, 4, 2] and solvers._pieces(10, 3) == [3, 3, 3, 1]
+    U = d.inputs(dt * np.arange(11))
     x0 = d.initial_state().x
-    folded = solvers.Ros2(dt, compile=False).bind(m, 600, 1)
-    unrolled = solvers.Ros2(dt, compile=False).bind(m, 200, 3)
-    a = folded.advance(x0, U, d.p)[:, -1]
-    b = unrolled.advance(x0, U, d.p)[:, -1]
-    scale = np.maximum(np.abs(b), 1e-6)
-    assert np.max(np.abs(a - b) / scale) < 1e-9
+    a = solvers.Ros2(dt, compile=False).bind(m, 10, 1).advance(x0, U, d.p)[:, -1]
+    b = solvers.Ros2(dt, compile=False).bind(m, 5, 2).advance(x0, U, d.p)[:, -1]
+    assert np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-6)) < 1e-9
     sizes = {}
-    for K in (600, 90000):                 # 2.4 s and 6 min of output interval at 4 ms
+    for K in (40, 4000):
         s = solvers.Ros2(dt, compile=False)
         s.K, s.M = K, 1
         sizes[K] = s._graph(m).n_nodes()
-    assert sizes[90000] < 1.5 * sizes[600]
+    assert sizes[4000] < 1.5 * sizes[40]
 
 
 def test_the_step_doubling_estimate_does_not_depend_on_the_output_interval():

@@ -179,6 +179,10 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     prep = prepare(src)
     prep.in_memory = True                          # the work limits of a run kept in memory
     model, drive = prep.drive(drive_class())
+    if prep.work.get("announce"):
+        import logging
+
+        logging.getLogger("hpsim").warning(prep.work["announce"])     # a long run says so up front
     sink = MemorySink(src.name)
     sink.start(run_info(src, prep, model, drive, drive.initial_equilibrium()))
     t0 = time.perf_counter()

@@ -291,6 +291,9 @@ class Scenario(Model):
     distance: float
     ambient_temperature: float
     initial_temperatures: float | list[float] | None = None   # default: ambient
+    # what the speed profile may ask of the vehicle (vehicle.scenario.speed_limits; default 1 g and 50 m/s^3)
+    max_acceleration: float | None = None
+    max_jerk: float | None = None
     compensation: CompensationSpec = CompensationSpec()
     solver: SolverSpec = SolverSpec()
     output: OutputSpec = OutputSpec()
@@ -307,6 +310,20 @@ class Scenario(Model):
 
             return parse_speed_spec(v)
         return _in_range(_quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
+
+    @field_validator("max_acceleration", mode="before")
+    @classmethod
+    def _max_acceleration(cls, v):
+        from vehicle.scenario.speed_limits import ACCELERATION_RANGE_M_PER_S2
+
+        return None if v is None else _in_range(_quantity("m/s**2", v), *ACCELERATION_RANGE_M_PER_S2, "m/s^2")
+
+    @field_validator("max_jerk", mode="before")
+    @classmethod
+    def _max_jerk(cls, v):
+        from vehicle.scenario.speed_limits import JERK_RANGE_M_PER_S3
+
+        return None if v is None else _in_range(_quantity("m/s**3", v), *JERK_RANGE_M_PER_S3, "m/s^3")
 
     @field_validator("distance", mode="before")
     @classmethod
@@ -624,8 +641,13 @@ def prepare(src: ScenarioSource) -> Prepared:
     # speed: every form as the drive's distance -> speed table (a recorded drive is read here)
     from vehicle.runs.speed import build_speed_profile
 
+    from vehicle.scenario.speed_limits import MAX_ACCELERATION_M_PER_S2, MAX_JERK_M_PER_S3, check_profile
+
     try:
         speed = build_speed_profile(S.speed, S.distance, src.base_dir)
+        # the acceleration and jerk the profile asks of the vehicle, against the scenario's limits
+        check_profile(speed, S.distance, S.max_acceleration or MAX_ACCELERATION_M_PER_S2,
+                      S.max_jerk or MAX_JERK_M_PER_S3)
     except UserInputError as exc:
         raise UserInputError(f"{src.name}: {exc}") from None
     return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T,
