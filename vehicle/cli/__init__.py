@@ -20,7 +20,7 @@ import os
 import signal
 import sys
 
-from hpsim.errors import SimulationError, UserInputError
+from hpsim.errors import SimulationError, Terminated, UserInputError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -103,7 +103,31 @@ def _sigint_deferred():
             signal.signal(signal.SIGINT, previous)
 
 
+def _raise_terminated(signum, frame):
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_raises():
+    """SIGTERM raises hpsim.errors.Terminated inside the block (its default would end the process at once and leave
+    the compilers of a build running in their own session); the previous handler is back after it."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:          # not the main thread
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
+    with _sigterm_raises():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     # everything inside the handlers, parser and imports included: a Ctrl-C in the first second
     # is one line and exit code 130 like any other
     command = "hpsim"
@@ -138,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{command}: interrupted\n")
         return 130
+    except Terminated:
+        sys.stderr.write(f"{command}: terminated (SIGTERM)\n")
+        return 143
     except RecursionError:
         sys.stderr.write(f"{command}: error: input nested too deeply\n")
         return 2

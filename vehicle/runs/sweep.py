@@ -31,7 +31,7 @@ import yaml
 from pydantic import ValidationError
 
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
-from hpsim.errors import SimulationError, UserInputError
+from hpsim.errors import SimulationError, Terminated, UserInputError
 
 from vehicle.runs.scenario import ScenarioSource, apply_overrides, prepare, read_scenario
 from vehicle.studies.study_folder import StudyLock, case_state, check_case_count, refuse_changed, safe_names
@@ -173,7 +173,10 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     if workers == 1:
         for tag, args in jobs:
-            finished(tag, fn(*args))
+            r = fn(*args)
+            finished(tag, r)
+            if r.get("status") == "interrupted":
+                raise KeyboardInterrupt         # Ctrl-C stopped this case: the next ones do not start
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -187,17 +190,41 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
                 except Exception as exc:   # e.g. a worker killed by the OS
                     r = failed(exc)
                 finished(futs[fut], r)
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, Terminated):
             # Ctrl-C: cases not started are dropped; running ones stop at their next checkpoint (their
-            # files stay resumable), also when only this process got the signal
-            for fut in futs:
-                fut.cancel()
-            for proc in list(getattr(pool, "_processes", {}).values()):
-                try:
-                    os.kill(proc.pid, signal.SIGINT)
-                except OSError:
-                    pass
+            # files stay resumable), also when only this process got the signal; a second Ctrl-C (or
+            # SIGTERM, or no end within STOP_GRACE_S) kills them: their files stay resumable too
+            stop_workers(pool, futs)
             raise
+
+
+STOP_GRACE_S = 30.0        # how long an interrupted study waits for its running cases to checkpoint
+
+
+def stop_workers(pool, futs) -> None:
+    """Cancel what has not started, ask the workers to stop (SIGINT: at their next checkpoint), wait for them up to
+    STOP_GRACE_S, then kill them; a second Ctrl-C (or SIGTERM) kills them at once. The pool is left shut down."""
+    for fut in futs:
+        fut.cancel()
+    procs = list(getattr(pool, "_processes", {}).values())
+    for proc in procs:
+        try:
+            os.kill(proc.pid, signal.SIGINT)
+        except OSError:
+            pass
+    try:
+        deadline = time.monotonic() + STOP_GRACE_S
+        while any(p.is_alive() for p in procs) and time.monotonic() < deadline:
+            time.sleep(0.05)
+    except (KeyboardInterrupt, Terminated):
+        pass
+    finally:
+        for proc in procs:
+            if proc.is_alive():
+                proc.kill()
+        for proc in procs:
+            proc.join(timeout=5.0)
+        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def worker_init(parent_pid: int) -> None:
