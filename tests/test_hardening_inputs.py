@@ -234,3 +234,14 @@ def test_the_acceleration_limit_is_exact_and_the_scenario_may_raise_it():
     with pytest.raises(UserInputError, match=r"acceleration of 1[12]\.\d+ m/s\^2 \(1\.2\d* g\)"):
         check_profile(profile, float(s[-1]))
     check_profile(profile, float(s[-1]), max_acceleration=1.5 * G_M_PER_S2, max_jerk=1e4)
+
+
+def test_the_work_per_compiled_call_does_not_grow_with_the_interval():
+    """solver.dt 0.1 ms with 1 s output: 10000 steps per sample are 40 pieces of 250 steps in a loop, one sample per
+    call (not 10: 1e5 steps of inputs held at once); the defaults stay as they were (250 unrolled steps, 10 samples)."""
+    from vehicle.numerics.solvers import _pieces
+    from vehicle.scenario.work_limits import samples_per_call
+
+    assert _pieces(10_000, 1) == [250] * 40 and samples_per_call(10_000, 10) == 1
+    assert _pieces(250, 1) == [250] and samples_per_call(250, 10) == 10
+    assert samples_per_call(1, 10) == 10 and samples_per_call(900_000, 10) == 1

@@ -29,6 +29,8 @@ from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
 
 from vehicle.physics.params import COMPENSATION_RANGES
+from vehicle.scenario.speed_limits import PROFILE_LIMIT_RANGES, check_profile
+from vehicle.scenario.work_limits import check_interval, check_scenario, drive_duration_s, segments_for
 
 K_ = Quantity("K")
 
@@ -311,19 +313,11 @@ class Scenario(Model):
             return parse_speed_spec(v)
         return _in_range(_quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
 
-    @field_validator("max_acceleration", mode="before")
+    @field_validator("max_acceleration", "max_jerk", mode="before")
     @classmethod
-    def _max_acceleration(cls, v):
-        from vehicle.scenario.speed_limits import ACCELERATION_RANGE_M_PER_S2
-
-        return None if v is None else _in_range(_quantity("m/s**2", v), *ACCELERATION_RANGE_M_PER_S2, "m/s^2")
-
-    @field_validator("max_jerk", mode="before")
-    @classmethod
-    def _max_jerk(cls, v):
-        from vehicle.scenario.speed_limits import JERK_RANGE_M_PER_S3
-
-        return None if v is None else _in_range(_quantity("m/s**3", v), *JERK_RANGE_M_PER_S3, "m/s^3")
+    def _profile_limits(cls, v, info: ValidationInfo):
+        unit, lo, hi, shown = PROFILE_LIMIT_RANGES[info.field_name]
+        return None if v is None else _in_range(_quantity(unit, v), lo, hi, shown)
 
     @field_validator("distance", mode="before")
     @classmethod
@@ -511,10 +505,7 @@ class Prepared:
         """(model, Drive) ready to run."""
         from vehicle.runs.drive import Drive
 
-        from vehicle.scenario.work_limits import check_interval, check_scenario, drive_duration_s, segments_for
-
-        S = self.scenario
-        settings = self.settings()
+        S, settings = self.scenario, self.settings()
         duration = drive_duration_s(settings.speed, S.distance)
         # the work size, before anything is compiled: refused beyond the limits, announced when long
         check_interval(S.output.interval, duration, S.distance, self.source.name)
@@ -527,9 +518,7 @@ class Prepared:
                 from vehicle.runs.multiscale import MultiscaleDrive
 
                 return model, MultiscaleDrive(model, road, self.settings(), self.scenario.solver.multiscale_settings())
-            from vehicle.runs.time_parallel import TimeParallelDrive, resolve_segments
-
-            from vehicle.runs.time_parallel import MIN_SEGMENT_S
+            from vehicle.runs.time_parallel import MIN_SEGMENT_S, TimeParallelDrive, resolve_segments
 
             tp = self.scenario.solver.time_parallel
             P = segments_for(resolve_segments(tp), tp == "auto", duration, MIN_SEGMENT_S)   # auto: 1 on a short drive
@@ -641,13 +630,9 @@ def prepare(src: ScenarioSource) -> Prepared:
     # speed: every form as the drive's distance -> speed table (a recorded drive is read here)
     from vehicle.runs.speed import build_speed_profile
 
-    from vehicle.scenario.speed_limits import MAX_ACCELERATION_M_PER_S2, MAX_JERK_M_PER_S3, check_profile
-
     try:
         speed = build_speed_profile(S.speed, S.distance, src.base_dir)
-        # the acceleration and jerk the profile asks of the vehicle, against the scenario's limits
-        check_profile(speed, S.distance, S.max_acceleration or MAX_ACCELERATION_M_PER_S2,
-                      S.max_jerk or MAX_JERK_M_PER_S3)
+        check_profile(speed, S.distance, S.max_acceleration, S.max_jerk)     # what it asks of the vehicle
     except UserInputError as exc:
         raise UserInputError(f"{src.name}: {exc}") from None
     return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T,

@@ -234,8 +234,6 @@ def check_settings(method: str, samples: int, groups: str, n_params: int) -> Non
                              f"(use {lo} or {2 * lo})")
     if method == "lhs" and groups != "none":
         raise UserInputError("--groups: grouped indices need --method sobol (a Latin hypercube ranks each parameter)")
-    check_case_count(n_cases(method, samples, n_params) + 1, "--samples", f"drives ({method} design of {samples})",
-                     "a smaller --samples or fewer --parameters")
 
 
 def check_seed(seed) -> None:
@@ -495,6 +493,9 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     params = select(all_params, parameters)
     check_settings(method, samples, groups, len(params))
     check_seed(seed)
+    # drives: at most a study's worth (vehicle.studies.study_folder), before any sample is drawn
+    check_case_count(n_cases(method, samples, len(params)) + 1, "--samples", f"drives ({method} design of {samples})",
+                     "a smaller --samples or fewer --parameters")
     for n in notes:
         log(f"{src.name}: {n}")
     out_dir = Path(output_dir) if output_dir else Path(f"{Path(scenario).stem}_uq")
@@ -502,10 +503,11 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     # every check before any drive: the nominal case and the first draw must be valid scenarios
     prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
                            data=case_scenario(src.data, params, {p.name: p.prior.value for p in params}, distance)))
-    # what the drives are made from: the resolved priors and the hashes of every input file (a changed road CSV
-    # is another study: its finished cases are not reused, vehicle.results.provenance)
-    files = provenance.fingerprint(prepare(ScenarioSource(text=src.text, name=str(scenario), base_dir=src.base_dir,
-                                                          data=src.data)))["files"]
+    # what the drives are made from: the resolved priors and the hashes of the files the scenario reads (a changed
+    # road CSV is another study: its finished cases are not reused, vehicle.results.provenance); the scenario's own
+    # content is in `resolved` (after --distance)
+    files = provenance.fingerprint(prepare(src))["files"]
+    files.pop("scenario", None)
     model = hashlib.sha256(json.dumps([resolved, files], sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name)

@@ -24,6 +24,9 @@ MAX_ACCELERATION_M_PER_S2 = G_M_PER_S2         # default max_acceleration: 1 g
 MAX_JERK_M_PER_S3 = 50.0                       # default max_jerk
 ACCELERATION_RANGE_M_PER_S2 = (0.1, 100.0)     # what max_acceleration may be set to
 JERK_RANGE_M_PER_S3 = (0.1, 1e4)
+# the scenario keys: (unit parsed, range, unit shown)
+PROFILE_LIMIT_RANGES = {"max_acceleration": ("m/s**2", *ACCELERATION_RANGE_M_PER_S2, "m/s^2"),
+                        "max_jerk": ("m/s**3", *JERK_RANGE_M_PER_S3, "m/s^3")}
 
 
 def segment_accelerations(profile, distance_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -40,9 +43,12 @@ def segment_accelerations(profile, distance_m: float) -> tuple[np.ndarray, np.nd
     return mid[inside], a[inside], np.interp(mid[inside], s, t)
 
 
-def check_profile(profile, distance_m: float, max_acceleration: float = MAX_ACCELERATION_M_PER_S2,
-                  max_jerk: float = MAX_JERK_M_PER_S3, where: str = "speed") -> None:
-    """UserInputError when the profile's acceleration or jerk over [0, distance_m] exceeds the limits."""
+def check_profile(profile, distance_m: float, max_acceleration: float | None = None, max_jerk: float | None = None,
+                  where: str = "speed") -> None:
+    """UserInputError when the profile's acceleration or jerk over [0, distance_m] exceeds the limits (None: the
+    defaults)."""
+    max_acceleration = MAX_ACCELERATION_M_PER_S2 if max_acceleration is None else max_acceleration
+    max_jerk = MAX_JERK_M_PER_S3 if max_jerk is None else max_jerk
     mid, a, t = segment_accelerations(profile, distance_m)
     if a.size and np.max(a) > max_acceleration * (1 + 1e-9):
         k = int(np.argmax(a))
