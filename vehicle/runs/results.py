@@ -419,6 +419,9 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
     if src is not None and src.text != stored.text:
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
+    if complete and stored_inputs is None:           # written before input hashes were recorded
+        log(f"{out}: already complete, nothing to do")
+        return summary
     prep = prepare(stored)
     provenance.compare(None if stored_inputs is None else str(stored_inputs), prep, out)   # no input file changed
     if complete:
