@@ -167,7 +167,7 @@ def test_a_huge_sweep_grid_is_refused_before_it_is_expanded(case_dir):
     (case_dir / "in" / "s.yaml").write_text(SCENARIO)
     values = ", ".join(f"{20 + 0.01 * i:.2f} km/h" for i in range(100))
     (case_dir / "in" / "w.yaml").write_text(f"base: s.yaml\ngrid:\n  speed: [{values}]\n"
-                                            f"  ambient_temperature: [{', '.join(f'{t} degC' for t in range(100))}]\n")
+                                            f"  ambient_temperature: [{', '.join(f'{t - 40} degC' for t in range(100))}]\n")
     res = run_case(case_dir, ["sweep", case_dir / "in" / "w.yaml", "-o", case_dir / "work" / "sw"], timeout=15,
                    allowed=[case_dir / "work" / "sw"])
     check_user_error(res, must_say=("10000 cases", "at most"))
