@@ -204,7 +204,8 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
         gamma_bins = np.real(plr) / np.sqrt(pll * prr)
     both = 0.5 * (pll + prr)
     idx, pmean, relvar = band_average(f, both, edges, k_eff, r)
-    gamma_band = np.array([np.real(plr[j].sum()) / np.sqrt(pll[j].sum() * prr[j].sum()) for j in idx])
+    with np.errstate(invalid="ignore", divide="ignore"):          # a flat track: no coherence (NaN), no warning
+        gamma_band = np.array([np.real(plr[j].sum()) / np.sqrt(pll[j].sum() * prr[j].sum()) for j in idx])
     # averaging the two tracks halves the variance only for independent tracks: factor (1 + γ²)/2
     relvar = relvar * 0.5 * (1.0 + np.nan_to_num(gamma_band) ** 2)
     gd, w, se_gd, se_w = fit_power_law(f, idx, pmean, relvar)

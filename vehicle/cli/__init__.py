@@ -6,7 +6,8 @@
     hpsim vehicle ... / run / report / compare / sweep / plot   drives.py
     hpsim calibrate                                  calibrate.py
 
-User errors (bad argument, bad file) print one line and exit with code 2. -v / -q (before or after
+User errors (bad argument, bad file) print one line and exit with code 2; SIGTERM ends a command with
+one line and exit code 143 after stopping what it started (compilers, study workers). -v / -q (before or after
 the command) set how much is logged to stderr (`logging`, logger "hpsim"): -q only warnings and
 errors, no progress bar; -v also debug details. Output cut short by its reader (`hpsim report x.h5
 | head`) ends quietly with exit code 141, like any Unix tool killed by SIGPIPE.
