@@ -22,6 +22,7 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
 
 from .errors import UserInputError
+from .files import read_regular_bytes
 from .units import parse_quantity
 
 
@@ -159,18 +160,8 @@ def _parse_yaml_cached(text: str, name: str) -> Any:
 
 def read_text_file(path: str | Path, max_bytes: int = MAX_TEXT_FILE_BYTES) -> str:
     """The UTF-8 text of a small input file; errors name the file and never quote its content."""
-    path = Path(path)
-    try:
-        if path.is_dir():
-            raise UserInputError(f"{path}: is a directory, expected a file")
-        with path.open("rb") as fh:
-            data = fh.read(max_bytes + 1)
-    except FileNotFoundError:
-        raise UserInputError(f"{path}: file not found") from None
-    except OSError as exc:
-        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
-    if len(data) > max_bytes:
-        raise UserInputError(f"{path}: larger than {max_bytes // (1024 * 1024)} MB; expected a small text file")
+    # a regular file only: a FIFO or a device would block or never end (hpsim.files)
+    data = read_regular_bytes(path, max_bytes, "a small text file")
     return decode_text(data, str(path))
 
 

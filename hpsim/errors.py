@@ -15,3 +15,8 @@ class SimulationError(RuntimeError):
     The message says where (distance, strut, state). Whatever was already written
     stays on disk.
     """
+
+
+class Terminated(BaseException):
+    """SIGTERM (kill PID, a scheduler's time limit) turned into an exception by the CLI, so that what a command
+    started (compilers, worker processes) is stopped and open files are closed on the way out (exit code 143)."""

@@ -51,10 +51,16 @@ def _check_folder(folder: Path, where: str, path: Path, make_parents: bool) -> N
     _probe_writable(existing, where, path)
 
 
+def _not_empty(path, where: str) -> None:
+    if not str(path).strip():
+        raise UserInputError(f"{where}: empty path; give a file or folder name")
+
+
 def check_output_file(path: str | Path, where: str, *, suffixes: tuple[str, ...] | None = None,
                       make_parents: bool = False) -> Path:
     """`path` can be written as a file (created or replaced). `suffixes`: allowed file types
     (an empty suffix is allowed too); `make_parents`: the command creates missing folders."""
+    _not_empty(path, where)
     p = Path(path)
     if str(path).endswith(os.sep) or p.is_dir():
         raise UserInputError(f"{where}: {path} is a directory; give a file name"
@@ -74,6 +80,7 @@ def check_figure_file(path: str | Path, where: str, *, make_parents: bool = Fals
 
 def check_output_dir(path: str | Path, where: str) -> Path:
     """`path` is (or can be created as) a writable folder."""
+    _not_empty(path, where)
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise UserInputError(f"{where}: {path} exists and is not a folder")

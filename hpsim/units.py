@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 import re
 from typing import Any
 
@@ -79,14 +80,16 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
     `value` may be a number (taken as already in `unit`) or a string with units.
     `where` names the argument or key in error messages.
     """
-    if isinstance(value, bool):
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
         raise UserInputError(f"{where}: expected a quantity in {unit}, got {_shown(value)}")
-    if isinstance(value, (int, float)):
+    if isinstance(value, numbers.Real):          # int, float and NumPy's numbers
         out = float(value)
     elif isinstance(value, str):
         text = value.strip()
         if not text:
             raise UserInputError(f"{where}: empty value, expected a quantity in {unit}")
+        if (text, unit) in _PARSED:               # a sweep validates the same strings in every case
+            return _PARSED[(text, unit)]
         check_quantity_text(text, where, unit)
         ureg = registry()
         try:
@@ -118,7 +121,14 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
         raise UserInputError(f"{where}: expected a quantity in {unit}, got {_shown(value)}")
     if not math.isfinite(out):
         raise UserInputError(f"{where}: {_shown(value)} is not a finite number")
+    if isinstance(value, str) and len(_PARSED) < _PARSED_MAX:
+        _PARSED[(value.strip(), unit)] = out
     return out
+
+
+# successful conversions of quantity strings (pint takes ~1 ms each; validating a study's cases repeats them)
+_PARSED: dict = {}
+_PARSED_MAX = 100_000
 
 
 def parse_quantity_list(text: str, unit: str, *, where: str = "value") -> list[float]:

@@ -11,32 +11,24 @@ be any file (`road: {csv: /etc/passwd}`), and its text is not ours to print.
 """
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.files import read_csv_text
 
 CSV_COLUMNS = ("distance_m", "left_m", "right_m")
 UNIFORM_TOLERANCE = 1e-6  # relative deviation of a step from the mean step still called "uniform"
 
 
-def _header(path: Path) -> tuple[int, list[str]]:
+def _header(path: Path, lines: list[str]) -> tuple[int, list[str]]:
     """(line number of the header, lower-case column names)."""
-    try:
-        with path.open("r", newline="", encoding="utf-8") as fh:
-            for lineno, line in enumerate(fh, start=1):
-                text = line.strip()
-                if text and not text.startswith("#"):
-                    return lineno, [c.strip().lower() for c in text.split(",")]
-    except FileNotFoundError:
-        raise UserInputError(f"{path}: file not found") from None
-    except IsADirectoryError:
-        raise UserInputError(f"{path}: is a directory, expected a CSV file") from None
-    except UnicodeDecodeError:
-        raise UserInputError(f"{path}: not UTF-8 text; expected a CSV file {','.join(CSV_COLUMNS)}") from None
-    except OSError as exc:
-        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
+    for lineno, line in enumerate(lines, start=1):
+        text = line.strip()
+        if text and not text.startswith("#"):
+            return lineno, [c.strip().lower() for c in text.split(",")]
     raise UserInputError(f"{path}: empty file; expected a header {','.join(CSV_COLUMNS)} and data rows")
 
 
@@ -44,28 +36,28 @@ def _column_indices(path: Path, header_line: int, names: list[str]) -> list[int]
     out = []
     for col in CSV_COLUMNS:
         alias = col[:-2]
-        if col in names:
-            out.append(names.index(col))
-        elif alias in names:
-            out.append(names.index(alias))
-        else:
+        found = [k for k, n in enumerate(names) if n in (col, alias)]
+        if len(found) > 1:
+            raise UserInputError(f"{path}:{header_line}: column '{col}' appears {len(found)} times in the header "
+                                 "line; which one is meant is ambiguous")
+        if not found:
             raise UserInputError(f"{path}:{header_line}: missing column '{col}' in the header line ({len(names)} "
                                  f"column(s)); expected a header {','.join(CSV_COLUMNS)}")
+        out.append(found[0])
     return out
 
 
-def _data_lines(path: Path, header_line: int):
+def _data_lines(lines: list[str], header_line: int):
     """Yield (line number, stripped text) of the data lines (slow path, used for error messages)."""
-    with path.open("r", newline="", encoding="utf-8") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            text = line.strip()
-            if lineno <= header_line or not text or text.startswith("#"):
-                continue
-            yield lineno, text
+    for lineno, line in enumerate(lines, start=1):
+        text = line.strip()
+        if lineno <= header_line or not text or text.startswith("#"):
+            continue
+        yield lineno, text
 
 
-def _find_bad_line(path: Path, header_line: int, names: list[str], cols: list[int]) -> str:
-    for lineno, text in _data_lines(path, header_line):
+def _find_bad_line(path: Path, lines: list[str], header_line: int, names: list[str], cols: list[int]) -> str:
+    for lineno, text in _data_lines(lines, header_line):
         fields = [f.strip() for f in text.split(",")]
         if len(fields) <= max(cols):
             return f"{path}:{lineno}: {len(fields)} fields, expected {len(names)}"
@@ -77,37 +69,39 @@ def _find_bad_line(path: Path, header_line: int, names: list[str], cols: list[in
     return f"{path}: cannot parse the data rows"
 
 
-def _line_of_row(path: Path, header_line: int, row: int) -> int:
-    for i, (lineno, _) in enumerate(_data_lines(path, header_line)):
+def _line_of_row(lines: list[str], header_line: int, row: int) -> int:
+    for i, (lineno, _) in enumerate(_data_lines(lines, header_line)):
         if i == row:
             return lineno
     return -1
 
 
 def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(distance, left, right) [m] as read; raises UserInputError naming file and line."""
+    """(distance, left, right) [m] as read; raises UserInputError naming file and line. The file is read once,
+    as a regular file of bounded size (hpsim.files: never a FIFO or device), with an optional UTF-8 byte-order
+    mark and CRLF line ends (as spreadsheets write them)."""
     path = Path(path)
-    header_line, names = _header(path)
+    text = read_csv_text(path, what=f"a CSV file {','.join(CSV_COLUMNS)}")
+    lines = text.split("\n")
+    header_line, names = _header(path, lines)
     cols = _column_indices(path, header_line, names)
     try:
-        data = np.loadtxt(path, delimiter=",", skiprows=header_line, usecols=cols, comments="#",
-                          ndmin=2, dtype=float, encoding="utf-8")
-    except UnicodeDecodeError:
-        raise UserInputError(f"{path}: not UTF-8 text; expected a CSV file {','.join(CSV_COLUMNS)}") from None
+        data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=header_line, usecols=cols, comments="#",
+                          ndmin=2, dtype=float)
     except ValueError:
-        raise UserInputError(_find_bad_line(path, header_line, names, cols)) from None
+        raise UserInputError(_find_bad_line(path, lines, header_line, names, cols)) from None
     if data.shape[0] < 2:
         raise UserInputError(f"{path}: {data.shape[0]} data row(s); at least 2 are needed")
     bad = ~np.isfinite(data)
     if bad.any():
         row, c = np.argwhere(bad)[0]
-        line = _line_of_row(path, header_line, int(row))
+        line = _line_of_row(lines, header_line, int(row))
         raise UserInputError(f"{path}:{line}: {CSV_COLUMNS[c]} = {data[row, c]} is not a finite number")
     d = data[:, 0]
     steps = np.diff(d)
     if (steps <= 0).any():
         row = int(np.argmax(steps <= 0)) + 1
-        line = _line_of_row(path, header_line, row)
+        line = _line_of_row(lines, header_line, row)
         raise UserInputError(f"{path}:{line}: distance {d[row]:.9g} m does not increase "
                              f"(previous row {d[row - 1]:.9g} m); distance must increase strictly")
     return d, data[:, 1], data[:, 2]

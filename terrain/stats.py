@@ -27,12 +27,15 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from hpsim.errors import UserInputError
+
 from . import iso8608
 from .envelope import envelope_profile
 
 DEFAULT_FIT_BAND = (0.02, 2.0)  # cycle/m: inside the ISO band 0.011-2.83 with margin for its edges
 BANDS_PER_OCTAVE = 3
 MIN_BINS_AT_FIT_LO = 16
+MIN_PSD_POINTS = 32          # two Welch segments of the shortest (16 points)
 COHERENCE_AT = iso8608.N0_CYCLE_PER_M  # 0.1 cycle/m
 
 # IRI golden car (Sayers 1995), per unit sprung mass
@@ -181,6 +184,10 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
     """Statistics of a Road (see module docstring). Scalars first, then arrays for plots."""
     dx = road.spacing_m
     left, right = road.left_m, road.right_m
+    if road.n_points < MIN_PSD_POINTS:
+        raise UserInputError(f"road profile: {road.n_points} points ({(road.n_points - 1) * dx:.6g} m at {dx:.6g} m); "
+                             f"its spectrum needs at least {MIN_PSD_POINTS} (two Welch segments of "
+                             f"{MIN_PSD_POINTS // 2}): give a longer profile")
     nyq = 0.5 / dx
     lo, hi = fit_band
     hi = min(hi, 0.5 * nyq)
@@ -197,7 +204,8 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
         gamma_bins = np.real(plr) / np.sqrt(pll * prr)
     both = 0.5 * (pll + prr)
     idx, pmean, relvar = band_average(f, both, edges, k_eff, r)
-    gamma_band = np.array([np.real(plr[j].sum()) / np.sqrt(pll[j].sum() * prr[j].sum()) for j in idx])
+    with np.errstate(invalid="ignore", divide="ignore"):          # a flat track: no coherence (NaN), no warning
+        gamma_band = np.array([np.real(plr[j].sum()) / np.sqrt(pll[j].sum() * prr[j].sum()) for j in idx])
     # averaging the two tracks halves the variance only for independent tracks: factor (1 + γ²)/2
     relvar = relvar * 0.5 * (1.0 + np.nan_to_num(gamma_band) ** 2)
     gd, w, se_gd, se_w = fit_power_law(f, idx, pmean, relvar)

@@ -11,12 +11,26 @@
 Overrides are scenario key paths, as in sweeps (`vehicle.overrides.heat.capacity`,
 `road.iso_class`, `struts.all.overrides.valve.bleed_area`, ...). A parameter change reuses the
 compiled model of an earlier run in the same process (parameters are inputs of the compiled code).
+
+Arguments are checked as the CLI checks its files: every error is a `hpsim.errors.UserInputError` with the
+one-line message `hpsim` prints (an unknown series or group: `UnknownName`, also a `KeyError`, listing the valid
+names). Numbers may be NumPy scalars or arrays; a scenario mapping is copied when the Simulation is made (later
+changes to it do not reach the drive); relative file paths in a mapping refer to `base_dir` (default: the working
+directory when the Simulation is made).
 """
 from __future__ import annotations
 
+import numbers
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import yaml
+
+from hpsim.errors import UserInputError
+
+from vehicle.physics.outputs import VARIABLES, Split
 from vehicle.physics.params import load_vehicle, vehicle_file
 from vehicle.physics.vehicle_builder import spec_from_values, write_vehicle
 from vehicle.physics.vehicle_check import check_vehicle
@@ -26,15 +40,73 @@ from vehicle.results.run import run_in_memory, run_scenario
 from vehicle.analysis.ride_metrics import summarise
 from vehicle.analysis.summary import report_from
 
-__all__ = ["Simulation", "Results", "open_results", "Vehicle"]
+__all__ = ["Simulation", "Results", "open_results", "Vehicle", "UnknownName"]
+
+
+class UnknownName(UserInputError, KeyError):
+    """A series, statistics variable or group that the results do not hold; the message lists the valid names."""
+
+    def __str__(self) -> str:             # the message as given (KeyError would quote it)
+        return str(self.args[0]) if self.args else ""
+
+
+def plain(value: Any, where: str) -> Any:
+    """A deep copy of a scenario value as YAML holds it: NumPy scalars and arrays as Python numbers and lists, tuples
+    as lists, paths as strings; anything else is a UserInputError naming the key."""
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist(), where)
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, Mapping):
+        out = {}
+        for k, v in value.items():
+            if isinstance(k, np.generic):
+                k = k.item()
+            if not isinstance(k, (str, int)) or isinstance(k, bool):
+                raise UserInputError(f"{where}: key {k!r}: expected a string (a scenario key)")
+            out[k] = plain(v, f"{where}.{k}" if where else str(k))
+        return out
+    if isinstance(value, (list, tuple)):
+        return [plain(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    raise UserInputError(f"{where or 'scenario'}: {type(value).__name__} is not a scenario value (numbers, strings "
+                         "with units such as '20 km/h', lists and mappings)")
 
 
 class Results:
     """Results of one drive, in memory or in a file: the same reading interface either way."""
 
     def __init__(self, view, path: Path | None = None):
-        self.view = view            # vehicle.results.reader.ResultsView (MemorySink or ResultsFile)
+        self._view = view           # vehicle.results.reader.ResultsView (MemorySink or ResultsFile)
         self.path = path
+        self._closed = False
+
+    @property
+    def view(self):
+        """The results view (vehicle.results.reader.ResultsView); a closed Results says so."""
+        if self._closed:
+            again = f"vehicle.open_results({str(self.path)!r})" if self.path else "Simulation.run()"
+            raise UserInputError(f"{self.path or self._view.name}: these Results are closed; open them again with "
+                                 f"{again}")
+        return self._view
+
+    def _unknown(self, what: str, name, valid: list[str]) -> UnknownName:
+        return UnknownName(f"{self.path or self._view.name}: no {what} {name!r}; the results hold: "
+                           f"{', '.join(valid) or 'none'}")
+
+    def _names(self, reader) -> list[str]:
+        """The file names of the variables `reader` (view.series or view.stats_series) finds."""
+        names = []
+        for entry in VARIABLES.values():
+            names += [p.name for p in (entry.parts if isinstance(entry, Split) else [entry])]
+        return [n for n in dict.fromkeys(names) if reader(n) is not None]
 
     def summary(self) -> dict:
         """The per-axle numbers `hpsim report --json` prints (temperatures, dh, dN, bands, warnings, ...)."""
@@ -60,16 +132,24 @@ class Results:
     def stats(self, name: str):
         """One per-interval statistics variable by its file name (e.g. "weighted_rms_acceleration",
         "dynamic_load_coefficient", "strut_travel_histogram"): (km, ...) array."""
-        return self.view.stats_series(name)
+        value = self.view.stats_series(str(name))
+        if value is None:
+            raise self._unknown("statistics variable", name, self._names(self.view.stats_series))
+        return value
 
     def to_xarray(self, group: str | None = None):
         """All groups as an xarray.DataTree, or one group (`"timeseries"`, `"stats"`, `"equilibrium/after"`, ...)
         as an xarray.Dataset: named dimensions, coordinates and units, as xarray reads the HDF5 file."""
+        if group is not None and group not in self.view.groups():
+            raise self._unknown("group", group, self.view.groups())
         return self.view.to_xarray(group)
 
     def series(self, name: str):
         """One stored variable by its file name (e.g. "strut_temperature", "wheel_load")."""
-        return self.view.series(name)
+        value = self.view.series(str(name))
+        if value is None:
+            raise self._unknown("time series", name, self._names(self.view.series))
+        return value
 
     def plot(self, out: str | Path = "dashboard.png") -> Path:
         """The dashboard figure (PNG/PDF/SVG by extension)."""
@@ -78,7 +158,9 @@ class Results:
         return dashboard(self.view if self.path is None else self.path, out)
 
     def close(self) -> None:
-        self.view.close()
+        if not self._closed:
+            self._view.close()
+            self._closed = True
 
     def __enter__(self):
         return self
@@ -88,6 +170,8 @@ class Results:
 
     def __repr__(self) -> str:
         where = self.path or "memory"
+        if self._closed:
+            return f"<vehicle.Results {self._view.name!r} ({where}), closed>"
         return f"<vehicle.Results {self.view.name!r} ({where}), status {self.view.status()}>"
 
 
@@ -132,27 +216,40 @@ class Vehicle:
 
 
 class Simulation:
-    """A scenario (file, mapping or YAML text) with overrides, validated at construction. `vehicle` (a Vehicle,
-    a built-in name or a vehicle file) replaces the scenario's vehicle, keeping its vehicle overrides; a mapping
-    may also hold a Vehicle as its `vehicle`."""
+    """A scenario (file or mapping) with overrides, validated at construction.
 
-    def __init__(self, scenario: str | Path | dict, overrides: dict[str, Any] | None = None, *,
+    scenario: a path to a scenario file, or a mapping of scenario keys (copied now: changing it later does not change
+    this Simulation). overrides: a mapping of scenario key paths to values. base_dir: the folder relative file paths
+    of a mapping refer to (road and speed CSVs, vehicle and strut files; default: the working directory now); a
+    file's paths refer to its own folder. vehicle: a Vehicle, a built-in name or a vehicle file, replacing the
+    scenario's vehicle (keeping its vehicle overrides); a mapping may also hold a Vehicle as its `vehicle`."""
+
+    def __init__(self, scenario: str | Path | Mapping, overrides: Mapping[str, Any] | None = None, *,
                  base_dir: str | Path | None = None, vehicle: "Vehicle | str | Path | None" = None):
-        if isinstance(scenario, dict) and isinstance(scenario.get("vehicle"), Vehicle):
+        if isinstance(scenario, Mapping) and isinstance(scenario.get("vehicle"), Vehicle):
             scenario = {**scenario, "vehicle": {"file": str(scenario["vehicle"].path)}}
         if vehicle is not None:
+            if overrides is not None and not isinstance(overrides, Mapping):
+                raise UserInputError(f"overrides: expected a mapping of scenario key paths to values (e.g. "
+                                     f"{{'speed': '30 km/h'}}), got {type(overrides).__name__}")
             path = vehicle.path if isinstance(vehicle, Vehicle) else Vehicle(vehicle).path
             overrides = {**(overrides or {}), "vehicle.file": str(path), "vehicle.name": None}
-        if isinstance(scenario, dict):
-            import yaml
 
-            src = ScenarioSource(text=yaml.safe_dump(scenario, sort_keys=False), name="<scenario dict>",
-                                 base_dir=Path(base_dir or ".").resolve(), data=scenario)
-        else:
+        if overrides is not None and not isinstance(overrides, Mapping):
+            raise UserInputError(f"overrides: expected a mapping of scenario key paths to values (e.g. "
+                                 f"{{'speed': '30 km/h'}}), got {type(overrides).__name__}")
+        if isinstance(scenario, Mapping):
+            data = plain(scenario, "")
+            base = Path(base_dir if base_dir is not None else Path.cwd()).resolve()
+            src = ScenarioSource(text=yaml.safe_dump(data, sort_keys=False), name=f"<scenario mapping, paths from {base}>",
+                                 base_dir=base, data=data)
+        elif isinstance(scenario, (str, Path)):
             src = read_scenario(scenario)
+        else:
+            raise UserInputError(f"scenario: expected a scenario file path or a mapping of scenario keys, got "
+                                 f"{type(scenario).__name__}")
         if overrides:
-            import yaml
-
+            overrides = plain(overrides, "overrides")
             data = apply_overrides(src.data, overrides)
             text = f"# {src.name} with overrides {overrides}\n" + yaml.safe_dump(data, sort_keys=False)
             src = ScenarioSource(text=text, name=f"{src.name} (with overrides)", base_dir=src.base_dir, data=data)

@@ -6,7 +6,8 @@
     hpsim vehicle ... / run / report / compare / sweep / plot   drives.py
     hpsim calibrate                                  calibrate.py
 
-User errors (bad argument, bad file) print one line and exit with code 2. -v / -q (before or after
+User errors (bad argument, bad file) print one line and exit with code 2; SIGTERM ends a command with
+one line and exit code 143 after stopping what it started (compilers, study workers). -v / -q (before or after
 the command) set how much is logged to stderr (`logging`, logger "hpsim"): -q only warnings and
 errors, no progress bar; -v also debug details. Output cut short by its reader (`hpsim report x.h5
 | head`) ends quietly with exit code 141, like any Unix tool killed by SIGPIPE.
@@ -20,7 +21,7 @@ import os
 import signal
 import sys
 
-from hpsim.errors import SimulationError, UserInputError
+from hpsim.errors import SimulationError, Terminated, UserInputError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -105,7 +106,31 @@ def _sigint_deferred():
             signal.signal(signal.SIGINT, previous)
 
 
+def _raise_terminated(signum, frame):
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_raises():
+    """SIGTERM raises hpsim.errors.Terminated inside the block (its default would end the process at once and leave
+    the compilers of a build running in their own session); the previous handler is back after it."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:          # not the main thread
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
+    with _sigterm_raises():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     # everything inside the handlers, parser and imports included: a Ctrl-C in the first second
     # is one line and exit code 130 like any other
     command = "hpsim"
@@ -140,6 +165,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{command}: interrupted\n")
         return 130
+    except Terminated:
+        sys.stderr.write(f"{command}: terminated (SIGTERM)\n")
+        return 143
     except RecursionError:
         sys.stderr.write(f"{command}: error: input nested too deeply\n")
         return 2

@@ -75,6 +75,9 @@ def register(sub):
     ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
     ps.add_argument("--yes", action="store_true",
                     help="start without asking (at a terminal a sweep estimated above 5 min asks first)")
+    ps.add_argument("--overwrite", action="store_true",
+                    help="run again the cases whose results were made from another definition (changed overrides, "
+                         "base scenario or input files); without it such a sweep is refused")
     ps.set_defaults(func=cmd_sweep)
 
     pa = sub.add_parser("animate", help="side-view movie of a drive (hull, wheels and struts over the road)")
@@ -123,8 +126,8 @@ def cmd_run(args):
     from vehicle.results.run import RunInterrupted, run_scenario
 
     scen = Path(args.scenario)
-    out = Path(args.output) if args.output else Path(scen.stem + ".h5")
-    check_output_file(out, "-o/--output", make_parents=True)      # before any work
+    out = Path(args.output) if args.output is not None else Path(scen.stem + ".h5")
+    check_output_file(out if args.output is None else args.output, "-o/--output", make_parents=True)  # before any work
     if args.resume and not scen.exists() and out.exists():
         scen_arg = None        # resume from the scenario stored in the file
     else:
@@ -243,8 +246,8 @@ def cmd_compare(args):
 def cmd_plot(args):
     from vehicle.presentation.plots import dashboard
 
-    out = Path(args.output) if args.output else Path(args.results).with_suffix(".png")
-    check_figure_file(out, "-o/--output", make_parents=True)
+    out = Path(args.output) if args.output is not None else Path(args.results).with_suffix(".png")
+    check_figure_file(out if args.output is None else args.output, "-o/--output", make_parents=True)
     dashboard(args.results, out)
     print(f"wrote {out}")
     return 0
@@ -284,13 +287,13 @@ def cmd_sweep(args):
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
-    check_output_dir(args.output_dir or Path(args.sweep).stem,
-                     "-o/--output-dir" if args.output_dir else "output folder (the sweep file's name)")
+    check_output_dir(Path(args.sweep).stem if args.output_dir is None else args.output_dir,
+                     "-o/--output-dir" if args.output_dir is not None else "output folder (the sweep file's name)")
     if args.ensemble is not None and args.ensemble < 1:
         raise UserInputError(f"--ensemble: must be >= 1, got {args.ensemble}")
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        ensemble=args.ensemble, log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
-                       before_start=lambda prepared: _sweep_preview(args, prepared))
+                       before_start=lambda prepared: _sweep_preview(args, prepared), overwrite=args.overwrite)
     if result["finished_files"]:
         result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
                                                 labels=result["finished_labels"])))

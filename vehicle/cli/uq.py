@@ -61,7 +61,15 @@ def cmd_uq(args):
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
     if args.ensemble is not None and args.ensemble < 1:
         raise UserInputError(f"--ensemble: must be >= 1, got {args.ensemble}")
-    patterns = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters else None
+    patterns = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters is not None else None
+    if patterns == []:
+        raise UserInputError(f"--parameters: {args.parameters!r} names no prior; give names, endings or globs "
+                             "(see --list)")
+    if args.output_dir is not None and not args.output_dir.strip():
+        raise UserInputError("-o/--output-dir: empty path; give a folder name")
+    from vehicle.studies.uq import check_seed
+
+    check_seed(args.seed)
     if args.distance is not None:
         from hpsim.units import parse_quantity
 

@@ -11,10 +11,11 @@ from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
 from vehicle.scenario.settings import resolve_segments
+from vehicle.scenario.work_limits import segments_for
 from vehicle.engines.contract import Engine
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
-from vehicle.engines.time_parallel import TimeParallelDrive
+from vehicle.engines.time_parallel import MIN_SEGMENT_S, TimeParallelDrive
 
 
 # the solver of full drives built in this thread (None: the compiled ROS2): a lane of an ensemble
@@ -48,8 +49,14 @@ def _multiscale(model, road, prepared) -> Engine:
     return MultiscaleDrive(model, road, prepared.settings(), prepared.scenario.solver.multiscale_settings())
 
 
+def _segments(prepared) -> int:
+    """solver.time_parallel resolved: "auto" takes one segment per CPU, at most one per MIN_SEGMENT_S of drive."""
+    tp = prepared.scenario.solver.time_parallel
+    return segments_for(resolve_segments(tp), tp == "auto", prepared.duration_s(), MIN_SEGMENT_S)
+
+
 def _time_parallel(model, road, prepared) -> Engine:
-    return TimeParallelDrive(model, road, prepared.settings(), resolve_segments(prepared.scenario.solver.time_parallel))
+    return TimeParallelDrive(model, road, prepared.settings(), _segments(prepared))
 
 
 # engine name -> builder(model, road, prepared)
@@ -58,14 +65,15 @@ ENGINES = {"full": _full, "multiscale": _multiscale, "time_parallel": _time_para
 
 def engine_name(prepared) -> str:
     """The engine a scenario asks for: its solver.mode, "time_parallel" for a full drive in P > 1 segments."""
-    solver = prepared.scenario.solver
-    if solver.mode == "full" and resolve_segments(solver.time_parallel) > 1:
+    if prepared.scenario.solver.mode == "full" and _segments(prepared) > 1:
         return "time_parallel"
-    return solver.mode
+    return prepared.scenario.solver.mode
 
 
 def build_engine(prepared) -> tuple[object, Engine]:
-    """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run."""
+    """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run: its work size checked
+    first (refused beyond the limits, before anything is compiled)."""
+    prepared.check_work()
     model = timed("build: model", prepared.model)
     prepared.check_vehicle(model)          # the quiet `hpsim vehicle check`: warnings logged, errors refuse the drive
     road = timed("road", prepared.road)

@@ -24,10 +24,11 @@ from vehicle.physics import thermal
 from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
-from vehicle.numerics.error_estimate import StepDoublingEstimate
+from vehicle.numerics.error_estimate import StepDoublingEstimate, check_spacing_s, window_steps
 from vehicle.numerics.codegen import precompile
 from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
 from vehicle.scenario.settings import DriveSettings
+from vehicle.scenario.work_limits import samples_per_call
 from vehicle.engines.contract import BlockObserver, DriveResult, DriveSink, DriveState
 from vehicle.engines.state_index import StateIndex
 
@@ -39,7 +40,14 @@ class Drive:
 
     mode = "full"
 
-    def __init__(self, model: VehicleModel, road, settings: DriveSettings, *, gas_masses=None, solver=None):
+    # the drive ends at its distance: after the last whole output interval, a partial one (the steps left, one
+    # sample at the end); False: at the last whole interval (the multiscale and time-parallel engines)
+    partial_last_sample = True
+
+    def __init__(self, model: VehicleModel, road, settings: DriveSettings, *, gas_masses=None, solver=None,
+                 partial_last_sample: bool | None = None):
+        if partial_last_sample is not None:
+            self.partial_last_sample = partial_last_sample
         if solver is not None:
             settings.dt_s = solver.dt
         settings.validate()
@@ -59,26 +67,33 @@ class Drive:
         self.equilibrium_solver = EquilibriumSolver(model)
         self.p = model.run_parameters(self.gas_masses, settings.compensation)
         self.K = int(round(settings.output_interval_s / settings.dt_s))
-        self.M = int(settings.samples_per_block)
+        self.M = samples_per_call(self.K, settings.samples_per_block)   # a long interval: fewer samples per call
         solver = solver or Ros2(settings.dt_s)
         # the block outputs in one compiled call per block (the samples of a full block); the baseline engine of
         # the benchmarks (capabilities.compiled_outputs False) and an uncompiled solver keep CasADi's virtual machine
-        caps = solver.capabilities
+        caps = self._caps = solver.capabilities
         outputs_compiled = caps.compiled_outputs
+        self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
+        self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
         estimate = settings.error_check_every > 0 and caps.step_doubling
+        # the step-doubling window: ERROR_WINDOW_S of drive whatever the output interval (an estimate of the step's
+        # error must not depend on how often results are stored)
+        self.error_steps = window_steps(settings.dt_s)
         if caps.compiled:
             # the libraries this drive needs, compiled together (one compiler each) when not in the cache yet
             graphs = [solver.block_graph(model, self.K, self.M)]
             if estimate:
-                graphs.append(solver.refined_solver(2).block_graph(model, 2 * self.K, 1))
+                graphs.append(solver.refined_solver(2).block_graph(model, 2 * self.error_steps, 1))
+                if self._coarse_sample() is None:
+                    graphs.append(solver.refined_solver(1).block_graph(model, self.error_steps, 1))
+            if self._tail_steps():
+                graphs.append(solver.refined_solver(1).block_graph(model, 1, 1))
             if outputs_compiled:
                 graphs.append(outputs_graph(model, self.M))
             precompile([g for g in graphs if g is not None])
         self.solver = solver.bind(model, self.K, self.M)
         self.outputs = model.output_function_ode()
         self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
-        self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
-        self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
         # continues (vehicle.engines.time_parallel) leaves it open
         self.close_last_interval = True
@@ -153,9 +168,16 @@ class Drive:
 
     # --- error estimate -------------------------------------------------------------------------
     def _probe(self, factor: int):
+        """The solver at dt/factor bound for one window of error_steps * factor steps (factor 1: the coarse run,
+        when the window is not one of the block's samples)."""
         if factor not in self._probes:
-            self._probes[factor] = self.solver.refined(self.model, factor)
+            self._probes[factor] = self.solver.refined_solver(factor).bind(self.model, self.error_steps * factor, 1)
         return self._probes[factor]
+
+    def _coarse_sample(self) -> int | None:
+        """The column of a block's samples that ends the error window (None: the window is integrated again)."""
+        j, rest = divmod(self.error_steps, self.K)
+        return j - 1 if rest == 0 and 1 <= j <= self.M else None
 
     def _heat(self, x) -> np.ndarray:
         """Energy each strut has dissipated (valve, friction, gas, end stops) [J] in state(s) x."""
@@ -166,12 +188,19 @@ class Drive:
         dt/4 once the estimate exceeds the tolerance) and add the differences to the estimate."""
         est = self.error_estimate
         factors = (2, 4) if est.exceeded() else (2,)
-        probes = [self._probe(f) for f in factors]        # a first dt/4 probe compiles here: not counted as cost
+        j = self._coarse_sample()
+        probes = [self._probe(f) for f in ((1,) if j is None else ()) + factors]   # a first compile: not counted
         t0 = time.perf_counter()
-        dt, K = self.settings.dt_s, self.K
+        dt, W = self.settings.dt_s, self.error_steps
+        if j is None:                      # the window again at dt (it is not a sample of the block)
+            coarse = probes.pop(0)
+            coarse.set_state(st.solver_memory)
+            x_coarse = coarse.advance(st.x, self.inputs(st.t_s + dt * np.arange(W + 1)), self.p)[:, -1]
+        else:
+            x_coarse = x_coarse[:, j]
         levels = [(1, x_coarse)]
         for factor, probe in zip(factors, probes):
-            t_cols = st.t_s + (dt / factor) * np.arange(K * factor + 1)
+            t_cols = st.t_s + (dt / factor) * np.arange(W * factor + 1)
             probe.set_state(st.solver_memory)
             x = probe.advance(st.x, self.inputs(t_cols), self.p)[:, -1]
             if not np.all(np.isfinite(x)):
@@ -194,7 +223,10 @@ class Drive:
         integ_s = 0.0
         blocks = 0
         sample_dt = self.K * dt
-        # the drive ends at the last output sample within the distance
+        # error windows every error_check_every blocks of at least check_spacing_s (the first block is left out)
+        spacing = check_spacing_s(self.K * self.M * dt)
+        next_check = st.t_s + spacing
+        # whole output samples within the distance, then the partial last one (_tail)
         while st.t_s + sample_dt <= self.total_time_s + 1e-9:
             t_cols = st.t_s + dt * np.arange(self.K * self.M + 1)
             U = self.inputs(t_cols)
@@ -203,9 +235,9 @@ class Drive:
             memory = self.solver.memory_samples
             integ_s += time.perf_counter() - ti
             # (the first block is left out: the start from rest is a transient unlike the drive, with little of its heat)
-            if self.error_estimate is not None and blocks >= 1 \
-                    and (blocks - 1) % self.settings.error_check_every == 0 and np.all(np.isfinite(X[:, 0])):
-                self._check_error(st, X[:, 0])
+            if self.error_estimate is not None and st.t_s >= next_check - 1e-9 and np.all(np.isfinite(X[:, 0])):
+                self._check_error(st, X)
+                next_check = st.t_s + spacing * self.settings.error_check_every
             t_samples = st.t_s + dt * self.K * np.arange(1, self.M + 1)
             s_samples = self.distance_at(t_samples)
             self._check(X, t_samples, s_samples, st.x)
@@ -235,12 +267,64 @@ class Drive:
                 progress(st.s_m, float(S.speed.speed(st.s_m)), st.t_s)
             if not np.all(keep):
                 break
+        if self._tail_steps(st.t_s):
+            ti = time.perf_counter()
+            st = self._tail(st, sink, observer, progress)
+            integ_s += time.perf_counter() - ti
         wall = time.perf_counter() - wall0
         final_T = st.x[self.T_oil_index]
         V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
         after = self.equilibrium_solver.solve(final_T, self.gas_masses, V_oil)
         error = None if self.error_estimate is None else self.error_estimate.summary(integ_s)
         return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s, solver_error=error)
+
+    def _tail_steps(self, t_s: float | None = None) -> int:
+        """Steps of the partial last output interval from t_s (default: the last whole sample) to the drive's end
+        (0: the drive ends on a whole sample, or the engine keeps whole intervals)."""
+        if not self.partial_last_sample or not self._caps.step_doubling:    # the one-step solver is a refined one
+            return 0
+        dt = self.settings.dt_s
+        sample_dt = self.K * dt
+        if t_s is None:
+            t_s = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
+        rest = self.total_time_s - t_s
+        return int(np.ceil(rest / dt - 1e-6)) if rest > 1e-6 * dt else 0
+
+    def _tail(self, st: "DriveState", sink, observer, progress) -> "DriveState":
+        """The partial last output interval: its steps one by one (a one-step compiled function), one sample at the
+        drive's end (within a step of it), its statistics row closed, a checkpoint."""
+        n = self._tail_steps(st.t_s)
+        dt = self.settings.dt_s
+        if "tail" not in self._probes:
+            self._probes["tail"] = self.solver.refined_solver(1).bind(self.model, 1, 1)
+        one = self._probes["tail"]
+        one.set_state(st.solver_memory)
+        t_cols = st.t_s + dt * np.arange(n + 1)
+        U = self.inputs(t_cols)
+        x = st.x
+        for k in range(n):
+            x = one.advance(x, U[:, k:k + 2], self.p)[:, -1]
+        X, memory = x[:, None], one.memory_samples
+        t_samples = t_cols[-1:]
+        s_samples = self.distance_at(t_samples)
+        self._check(X, t_samples, s_samples, st.x)
+        block = self._block_outputs(X, U[:, -1:], t_samples, s_samples, memory)
+        intervals = self._stats_intervals(st, X, t_samples, s_samples, final=True)
+        if observer is not None:
+            observer.block(X, U[:, -1:], memory, block)
+            observer.intervals(intervals)
+        st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=x.copy(), next_stats_m=st.next_stats_m,
+                        last_stats=st.last_stats, sample_index=st.sample_index + 1,
+                        solver_memory=memory[:, -1].copy())
+        if sink is not None:
+            sink.samples(block)
+            rows = [self._stats_row(*interval) for interval in intervals]
+            if rows:
+                sink.stats(rows)
+            sink.checkpoint(st.as_dict())
+        if progress is not None:
+            progress(st.s_m, float(self.settings.speed.speed(st.s_m)), st.t_s)
+        return st
 
     # a state this far outside physics means the integration has failed, whatever the solver says
     PHYSICAL_TEMPERATURE_K = (150.0, 273.15 + 400.0)
@@ -332,7 +416,7 @@ class Drive:
                 raise ValueError(f"output table: {key!r} has an unknown series kind {f.kind!r}")
         return block
 
-    def _stats_intervals(self, st: DriveState, X, t, s) -> list[tuple]:
+    def _stats_intervals(self, st: DriveState, X, t, s, final: bool = False) -> list[tuple]:
         """Every statistics interval ended in this block, as the arguments of `_stats_row` (distance at the end,
         duration, quadrature differences, state at the end, interval mean gas temperature); the last partial
         one at the drive's end if `close_last_interval`. Advances st.next_stats_m and st.last_stats."""
@@ -357,8 +441,8 @@ class Drive:
                 g_sum, g_n = np.zeros(self.model.n), 0
                 st.next_stats_m += self.settings.stats_interval_m
             s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
-        if self.close_last_interval and t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 \
-                and t[-1] > t_last + 1e-9:
+        last = final or (t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 and not self._tail_steps())
+        if self.close_last_interval and last and t[-1] > t_last + 1e-9:
             rows.append((s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1], g_sum / g_n if g_n else Tg[:, -1]))
             t_last, q_last = t[-1], q[:, -1]
             g_sum, g_n = np.zeros(self.model.n), 0

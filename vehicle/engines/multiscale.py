@@ -25,6 +25,7 @@ MODE = "multiscale"
 class MultiscaleDrive(Drive):
     """A Drive that integrates windows of the road with the full model and the slow states between them."""
 
+    partial_last_sample = False       # windows end on whole output intervals
     mode = MODE
     MIN_CV_WINDOWS = 5      # the control variate needs a few residual degrees of freedom (windows less 3)
 

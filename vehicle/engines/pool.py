@@ -12,10 +12,14 @@ import multiprocessing as mp
 import os
 import signal
 import sys
+import time
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
+from hpsim.errors import Terminated
+
 _INHERITED = None                  # what the forked workers of the open pool inherit from the parent
+STOP_GRACE_S = 30.0                # how long an interrupted study waits for its running cases to checkpoint
 
 
 def die_with_parent(parent_pid: int) -> None:
@@ -61,11 +65,38 @@ def inherited():
     return _INHERITED
 
 
+def worker_processes(pool: ProcessPoolExecutor) -> list:
+    """The live worker processes of a pool (ProcessPoolExecutor keeps them in `_processes`, its one way to reach
+    them; None once it is shut down)."""
+    return list(pool._processes.values()) if pool._processes else []
+
+
 def signal_workers(pool: ProcessPoolExecutor, signum: int) -> None:
-    """Send a signal to every live worker process of a pool (ProcessPoolExecutor keeps them in `_processes`, its
-    one way to reach them)."""
-    for proc in list(pool._processes.values() if pool._processes else ()):
+    """Send a signal to every live worker process of a pool."""
+    for proc in worker_processes(pool):
         try:
             os.kill(proc.pid, signum)
         except OSError:
             pass
+
+
+def stop_workers(pool: ProcessPoolExecutor, futs) -> None:
+    """Cancel what has not started, ask the workers to stop (SIGINT: at their next checkpoint), wait for them up to
+    STOP_GRACE_S, then kill them; a second Ctrl-C (or SIGTERM) kills them at once. The pool is left shut down."""
+    for fut in futs:
+        fut.cancel()
+    procs = worker_processes(pool)
+    signal_workers(pool, signal.SIGINT)
+    try:
+        deadline = time.monotonic() + STOP_GRACE_S
+        while any(p.is_alive() for p in procs) and time.monotonic() < deadline:
+            time.sleep(0.05)
+    except (KeyboardInterrupt, Terminated):
+        pass
+    finally:
+        for proc in procs:
+            if proc.is_alive():
+                proc.kill()
+        for proc in procs:
+            proc.join(timeout=5.0)
+        pool.shutdown(wait=False, cancel_futures=True)

@@ -163,7 +163,7 @@ class TimeParallelDrive:
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
-        self.fine = Drive(model, road, settings)
+        self.fine = Drive(model, road, settings, partial_last_sample=False)   # segments end on whole intervals
         self.coarse = MultiscaleDrive(model, road, settings,
                                       coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M),
                                       gas_masses=self.fine.gas_masses)

@@ -172,8 +172,7 @@ def _finish_build(proc, job) -> str | None:
         try:
             _, stderr = proc.communicate()
         except BaseException:
-            proc.kill()
-            proc.wait()
+            _kill(proc)
             raise
         if proc.returncode == -signal.SIGINT:
             raise KeyboardInterrupt
@@ -209,10 +208,19 @@ def _interrupts_held():
 def _abort(started) -> None:
     """Stop started compilers and remove their build folders (for any of them, finished or not)."""
     for proc, job in started:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        _kill(proc)
         shutil.rmtree(job[-1], ignore_errors=True)
+
+
+def _kill(proc) -> None:
+    """Kill a compiler and what it started (cc1, as: its process group, the session it leads), and reap it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait()
 
 
 def _run_builds(jobs, width: int) -> list[str | None]:

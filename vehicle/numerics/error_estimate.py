@@ -1,9 +1,10 @@
 """A posteriori error estimate of the fixed-step solver: step doubling on a sample of blocks.
 
-The drive integrates in blocks of output samples. On its first block and then on every `every`-th
-one, the first output sample (K steps of dt) is integrated a second time from the same start state
-and solver memory with half the step (a second compiled block function: 2K steps of dt/2, one
-sample). ROS2 is of order q = 2, so by Richardson extrapolation the error of the dt result is
+The drive integrates in blocks of output samples. At the start of its second block and then every
+`every` blocks (a block counted as at least ERROR_WINDOW_S of drive), a window of ERROR_WINDOW_S (W steps of dt,
+whatever the output interval) is integrated a second time from the same start state and solver
+memory with half the step (a second compiled function: 2W steps of dt/2); the run at dt over the window
+is the block's own samples when the window ends on one of them, else a third run of W steps of dt. ROS2 is of order q = 2, so by Richardson extrapolation the error of the dt result is
 
     y_dt - y  ~  (y_dt - y_dt/2) * 2^q / (2^q - 1) = 4/3 (y_dt - y_dt/2)
 
@@ -21,8 +22,8 @@ which estimates the error of a run at dt/2 the same way. The advice names the la
 the estimates say meets the tolerance (dt/2 when its own estimate does, else the order-2
 extrapolation from dt/2), rounded down to a step that divides the output interval.
 
-Cost: 2K half steps per checked block of K*M steps, i.e. 2/(M * every) of the integration (2 % for
-M = 10 samples per block, every 10th block), plus the dt/4 windows (4/(M * every)) only in a run
+Cost: 2W half steps (plus W steps when the window is not a sample) per `every` blocks (of at least one
+window), i.e. 2 % for the default 1 s output at 4 ms (W = K, M = 10, every 10th block), plus the dt/4 windows (4/(M * every)) only in a run
 that fails its tolerance; the half-step function is compiled once per structure (cached on disk).
 Beyond the asymptotic range (a step that under-resolves a fast relaxation) the 4/3 factor is not
 exact, but the difference of the two runs still measures the error of the coarse one as long as the
@@ -36,6 +37,21 @@ import numpy as np
 
 ORDER = 2
 RICHARDSON = 2 ** ORDER / (2 ** ORDER - 1)          # 4/3 for order 2
+# the window integrated again: this much drive, whatever the output interval (a window of one 4 ms output sample
+# measured the error of a single step against its own tiny heat: 0.16 where a 1 s window says 0.005), started every
+# error_check_every blocks, a block counted as at least one window long
+ERROR_WINDOW_S = 1.0
+
+
+def window_steps(dt_s: float) -> int:
+    """Steps of dt_s in one error window (ERROR_WINDOW_S, at least one step)."""
+    return max(1, int(round(ERROR_WINDOW_S / dt_s)))
+
+
+def check_spacing_s(block_s: float) -> float:
+    """Drive time between two windows when error_check_every is 1: one block, at least one window."""
+    return max(block_s, ERROR_WINDOW_S)
+
 
 # candidate steps of the advice [s] (the largest that meets the tolerance and divides the output interval)
 NICE_STEPS_S = (0.02, 0.01, 0.008, 0.005, 0.004, 0.0025, 0.002, 0.001, 0.0008, 0.0005, 0.0004, 0.00025,

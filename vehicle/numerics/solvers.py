@@ -196,6 +196,42 @@ def explicit_reciprocals(fn: ca.Function, threshold: int = 3) -> ca.Function:
     return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
 
 
+# the most steps of one output sample generated as straight-line code; longer samples loop over pieces of this
+# many steps (the default 1 s at 4 ms is 250 steps: unrolled as before)
+MAX_UNROLLED_STEPS = 250
+
+
+def _pieces(K: int, every: int) -> list[int]:
+    """How a sample of K steps is generated: [K] (unrolled) or [n] * (K // n) + [K % n] with n <= MAX_UNROLLED_STEPS
+    a multiple of `every` (so each piece starts with a fresh Jacobian, as the sample does)."""
+    if K <= MAX_UNROLLED_STEPS:
+        return [K]
+    n = max(every, MAX_UNROLLED_STEPS - MAX_UNROLLED_STEPS % every)
+    R, rest = divmod(K, n)
+    return [n] * R + ([rest] if rest else [])
+
+
+def _steps(step, reuse, every: int, z, U0, U1, PW):
+    """The state after the steps with inputs U0, U1 (one column per step) from z, unrolled; a fresh W every `every`
+    steps (reuse: the step that solves with an earlier W)."""
+    zk, lu = z, None
+    for k, (u0, u1) in enumerate(zip(ca.horzsplit(U0), ca.horzsplit(U1))):
+        if every == 1:
+            zk = step(zk, u0, u1, PW)
+        elif k % every == 0:
+            zk, lu = step(zk, u0, u1, PW)
+        else:
+            zk = reuse(zk, u0, u1, PW, lu)
+    return zk
+
+
+def _unrolled_steps(step, reuse, every: int, n: int, nz: int, nu: int, npw: int) -> ca.Function:
+    """n steps unrolled as a function (z, u0 (nu, n), u1 (nu, n), pw) -> z (see _steps)."""
+    zs, PW = ca.MX.sym("z", nz), ca.MX.sym("pw", npw)
+    U0k, U1k = ca.MX.sym("u0", nu, n), ca.MX.sym("u1", nu, n)
+    return ca.Function(f"ros2_steps_{n}", [zs, U0k, U1k, PW], [_steps(step, reuse, every, zs, U0k, U1k, PW)])
+
+
 class Ros2:
     """The production solver: compiled fixed-step ROS2 over blocks of steps (see the module docstring).
 
@@ -389,21 +425,28 @@ class Ros2:
         nz = nx + nm
         # K steps -> one sample, unrolled by hand so that every step reads the same parameter
         # vector: neither carried through the loop's accumulator (a load and a store of every
-        # parameter per step: 9.4 vs 7.8 us measured) nor copied into a (n_p, steps) matrix
+        # parameter per step: 9.4 vs 7.8 us measured) nor copied into a (n_p, steps) matrix. A long output
+        # interval (K > MAX_UNROLLED_STEPS) is a loop over unrolled pieces: the generated code stays the size of
+        # one piece whatever the interval (an hour at 4 ms unrolled would be 900k steps of C)
         npw = parametric.size1_out(0)
+        reuse_fn = reuse if every > 1 else None
         zs = ca.MX.sym("z", nz)
         U0k, U1k = ca.MX.sym("u0", nu, self.K), ca.MX.sym("u1", nu, self.K)
         PW = ca.MX.sym("pw", npw)
-        u0_cols, u1_cols = ca.horzsplit(U0k), ca.horzsplit(U1k)
-        zk = zs
-        lu = None
-        for k in range(self.K):
-            if every == 1:
-                zk = step(zk, u0_cols[k], u1_cols[k], PW)
-            elif k % every == 0:
-                zk, lu = step(zk, u0_cols[k], u1_cols[k], PW)
-            else:
-                zk = reuse(zk, u0_cols[k], u1_cols[k], PW, lu)
+        pieces = _pieces(self.K, every)
+        if len(pieces) == 1:
+            zk = _steps(step, reuse_fn, every, zs, U0k, U1k, PW)
+        else:
+            units = {n: _unrolled_steps(step, reuse_fn, every, n, nz, nu, npw) for n in set(pieces)}
+            zk, k0, rest = zs, 0, pieces
+            n_long, R = pieces[0], pieces.count(pieces[0])
+            if R > 1:
+                # R pieces of n_long steps in a loop (Function.fold: the C code holds one piece), then the remainder
+                zk = units[n_long].fold(R)(zk, U0k[:, :R * n_long], U1k[:, :R * n_long], ca.repmat(PW, 1, R))
+                k0, rest = R * n_long, pieces[R:]
+            for n in rest:
+                zk = units[n](zk, U0k[:, k0:k0 + n], U1k[:, k0:k0 + n], PW)
+                k0 += n
         sample = ca.Function("ros2_sample", [zs, U0k, U1k, PW], [zk])
         # then M samples per call (the parameter vector repeated M times: once per sample, not per step)
         block = sample.mapaccum("ros2_block", self.M)

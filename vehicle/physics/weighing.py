@@ -338,7 +338,7 @@ BAND_DATASETS = {"wheel_loads": "wheel_loads", "axle_loads": "axle_loads", "stat
 
 
 # the edges written to files; "std_uniform" is also in every band (add it here and to the results
-# variables table, vehicle.engines.outputs, to store it: difference_bands then adds dN_std_pct, dh_std_mm)
+# variables table, vehicle.physics.outputs, to store it: difference_bands then adds dN_std_pct, dh_std_mm)
 BAND_EDGES = ("nominal", "low", "high")
 
 

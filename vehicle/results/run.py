@@ -35,6 +35,7 @@ from __future__ import annotations
 import datetime as _dt
 import functools
 import json
+import logging
 import os
 import signal
 import socket
@@ -55,7 +56,7 @@ from vehicle.physics.weighing import band_datasets, weighing_bands
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
 from vehicle.engines.build import build_engine
 from vehicle.engines.contract import DriveState
-from vehicle.results import sinks
+from vehicle.results import provenance, sinks
 from vehicle.results.reader import FORMAT, FORMAT_VERSION, open_read, open_results
 from vehicle.results.checkpoint import Checkpoint
 from vehicle.results.sinks import (LIBVER, H5Sink, MemorySink, clone_group, create_file, create_h5, finish_file, is_disk_full,
@@ -63,6 +64,7 @@ from vehicle.results.sinks import (LIBVER, H5Sink, MemorySink, clone_group, crea
 from vehicle.results.validity import check, record, summary_cell
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
+LOG = logging.getLogger("hpsim")
 
 
 @functools.lru_cache(maxsize=1)
@@ -99,6 +101,8 @@ def run_info(src: ScenarioSource, prep, model, drive, before) -> dict:
                   "history": f"{_now()}: hpsim run {src.name} (started)"},
         "scenario": {"yaml": src.text, "source": src.name, "base_dir": str(src.base_dir),
                      "resolved_json": json.dumps(resolved, indent=1, default=float),
+                     # the hashes of the input files and of the definition, compared by --resume
+                     "inputs_json": json.dumps(provenance.fingerprint(prep)),
                      "hpsim_version": code_version(), "created": _now(), "stations": stations, "axles": axles,
                      "distance_m": float(prep.scenario.distance), "total_time_s": float(drive.total_time_s),
                      **({"seats": list(model.seat_names)} if model.seat_names else {})},
@@ -148,7 +152,10 @@ def run_in_memory(scenario: str | Path | ScenarioSource, *, progress=None) -> Me
     """Run a scenario into memory: a MemorySink holding what the HDF5 file would (same variables)."""
     src = scenario if isinstance(scenario, ScenarioSource) else read_scenario(scenario)
     prep = prepare(src)
+    prep.in_memory = True                          # the work limits of a run kept in memory
     model, drive = build_engine(prep)
+    if prep.work.get("announce"):
+        LOG.warning(prep.work["announce"])         # a long run says so up front
     sink = MemorySink(src.name)
     sink.start(run_info(src, prep, model, drive, drive.initial_equilibrium()))
     t0 = time.perf_counter()
@@ -283,8 +290,13 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     log = log or (lambda msg: None)
     t_start = time.perf_counter()
     out = Path(out)
+    if resume and overwrite:
+        raise UserInputError(f"{out}: --resume and --overwrite together: --resume continues the run in the file, "
+                             "--overwrite throws it away; give one of them")
     src = scenario if isinstance(scenario, ScenarioSource) else (
         timed("reading", read_scenario, scenario) if scenario is not None else None)
+    if src is not None:
+        provenance.output_is_input(out, src)          # never replace one of the run's own inputs
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():
@@ -314,6 +326,8 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         model, drive = build_engine(prep)
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
+        if prep.work.get("announce"):
+            log(prep.work["announce"])               # a long run says so up front (vehicle.scenario.work_limits)
         tmp = out.with_name(out.name + ".partial")
         try:
             create_file(tmp, info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
@@ -373,14 +387,21 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
         stored = read_scenario_text(str(sc["yaml"]), str(sc.get("source", out)),
                                     str(sc.get("base_dir", out.resolve().parent)))
         stored_version = str(sc.get("hpsim_version", ""))
-        if r.status() == "complete":
-            log(f"{out}: already complete, nothing to do")
-            return {k: (v.item() if hasattr(v, "item") else v) for k, v in r.summary_attrs().items()}
-        ck = r._checkpoint()
+        stored_inputs = sc.get("inputs_json")
+        complete = r.status() == "complete"
+        summary = {k: (v.item() if hasattr(v, "item") else v) for k, v in r.summary_attrs().items()}
+        ck = None if complete else r._checkpoint()
     if src is not None and src.text != stored.text:
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
+    if complete and stored_inputs is None:           # written before input hashes were recorded
+        log(f"{out}: already complete, nothing to do")
+        return summary
     prep = prepare(stored)
+    provenance.compare(None if stored_inputs is None else str(stored_inputs), prep, out)   # no input file changed
+    if complete:
+        log(f"{out}: already complete, nothing to do")
+        return summary
     if stored_version and stored_version != code_version():
         log(f"{out}: warning: the run started with hpsim {stored_version}, resuming with {code_version()}; "
             "if the model changed in between, the result differs from an uninterrupted run")
@@ -452,13 +473,15 @@ LOCKED_RETRY_S = 10.0          # how long a run waits for a reader (hpsim report
 
 
 def open_for_append(out: Path, wait_s: float = LOCKED_RETRY_S) -> h5py.File:
-    """The results file opened for the drive to write into. A reader that opened the file (not SWMR) between its
-    creation and this moment holds HDF5's file lock: wait for it to close (up to wait_s) rather than fail the run;
-    once the writer is in SWMR mode readers no longer block it."""
+    """The results file opened for the drive to write into, without HDF5's file lock: a reader that opened the file
+    (not SWMR) between its creation and this moment must not stop the run (issue 27). A lock error (a file system
+    that insists) is retried for up to wait_s."""
     t_end = time.monotonic() + wait_s
     while True:
         try:
-            return h5py.File(out, "r+", libver=LIBVER)
+            # no HDF5 file lock: a plain reader (h5py.File(path, "r"), xarray) holding the file must not stop the
+            # run; the one writer is the output's lock file (OutputLock), readers read in SWMR mode (docs/hdf5.md)
+            return h5py.File(out, "r+", libver=LIBVER, locking=False)
         except OSError as exc:
             if "unable to lock file" not in str(exc) or time.monotonic() > t_end:
                 raise

@@ -39,6 +39,8 @@ from vehicle.physics.params import COMPENSATION_RANGES, VehicleParams, strut_ref
 from vehicle.physics.vehicle_check import pre_drive_check
 from vehicle.scenario.settings import DT_RANGE_S, SEGMENTS_RANGE, DriveSettings, MultiscaleSettings
 from vehicle.scenario.speed import build_speed_profile, parse_speed_spec
+from vehicle.scenario.speed_limits import PROFILE_LIMIT_RANGES, check_profile
+from vehicle.scenario.work_limits import check_interval, check_scenario, drive_duration_s
 
 K_ = Quantity("K")
 
@@ -287,6 +289,9 @@ class Scenario(Model):
     distance: float
     ambient_temperature: float
     initial_temperatures: float | list[float] | None = None   # default: ambient
+    # what the speed profile may ask of the vehicle (vehicle.scenario.speed_limits; default 1 g and 50 m/s^3)
+    max_acceleration: float | None = None
+    max_jerk: float | None = None
     compensation: CompensationSpec = CompensationSpec()
     solver: SolverSpec = SolverSpec()
     output: OutputSpec = OutputSpec()
@@ -301,6 +306,12 @@ class Scenario(Model):
                 return _speed_profile(v)
             return parse_speed_spec(v)
         return in_range(quantity("m/s", v), *SPEED_RANGE_M_PER_S, "km/h", 3.6)
+
+    @field_validator("max_acceleration", "max_jerk", mode="before")
+    @classmethod
+    def _profile_limits(cls, v, info: ValidationInfo):
+        unit, lo, hi, shown = PROFILE_LIMIT_RANGES[info.field_name]
+        return None if v is None else in_range(quantity(unit, v), lo, hi, shown)
 
     @field_validator("distance", mode="before")
     @classmethod
@@ -445,6 +456,8 @@ class Prepared:
     road_spec: Any               # terrain.RoadSpec
     initial_temperatures_K: np.ndarray
     speed_profile: Any = None    # vehicle.scenario.speed.SpeedTable (built and checked in prepare())
+    in_memory: bool = False      # the drive's results are kept in memory (a lower work limit)
+    work: dict = field(default_factory=dict)   # the work estimate (vehicle.scenario.work_limits), set by check_work()
 
     def settings(self):
         S = self.scenario
@@ -483,6 +496,18 @@ class Prepared:
                                  "contact length + 1 m); give a longer profile or a shorter distance")
         return road
 
+    def duration_s(self) -> float:
+        """The drive's duration [s] at the scenario's speed profile, as the drive computes it."""
+        return drive_duration_s(self.settings().speed, self.scenario.distance)
+
+    def check_work(self) -> dict:
+        """The work size, before anything is compiled (vehicle.scenario.work_limits): refused beyond the limits; the
+        estimate kept in `work` ("announce": a line saying a long run will take long, or None)."""
+        S, duration = self.scenario, self.duration_s()
+        check_interval(S.output.interval, duration, S.distance, self.source.name)
+        self.work = check_scenario(S, duration, len(self.vehicle.station_names()), self.source.name, self.in_memory)
+        return self.work
+
     def resolved(self) -> dict:
         """Every parameter in SI after defaults and overrides: stored with the results."""
         struts = {}
@@ -506,7 +531,7 @@ def _dump(obj) -> Any:
     return json.loads(json.dumps(obj, default=str))
 
 
-def _resolve_path(p: str, base_dir: Path) -> str:
+def resolve_path(p: str, base_dir: Path) -> str:
     q = Path(p).expanduser()
     return str(q if q.is_absolute() else (base_dir / q))
 
@@ -514,7 +539,7 @@ def _resolve_path(p: str, base_dir: Path) -> str:
 def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
     """The vehicle's parameter mapping with the scenario's overrides, struts and compensation applied."""
     if S.vehicle.file is not None:
-        path = vehicle_file(_resolve_path(S.vehicle.file, src.base_dir))
+        path = vehicle_file(resolve_path(S.vehicle.file, src.base_dir))
     else:
         try:
             path = vehicle_file(S.vehicle.name)
@@ -538,7 +563,7 @@ def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
             axle = dict(data["axles"][k])
             if choice.strut is not None:
                 t = choice.strut
-                axle["strut"] = _resolve_path(t, src.base_dir) if t.endswith((".yaml", ".yml")) else t
+                axle["strut"] = resolve_path(t, src.base_dir) if t.endswith((".yaml", ".yml")) else t
             if choice.overrides:
                 axle["strut_overrides"] = apply_overrides(axle.get("strut_overrides") or {}, choice.overrides)
             data["axles"][k] = axle
@@ -549,7 +574,7 @@ def vehicle_data(S: Scenario, src: ScenarioSource) -> tuple[dict, str]:
         if isinstance(axle, dict) and str(axle.get("strut", "")).endswith((".yaml", ".yml")):
             base = src.base_dir if any(S.struts.get(n) and S.struts[n].strut for n in ("all", f"axle{k + 1}")) \
                 else Path(path).resolve().parent
-            data["axles"][k] = {**axle, "strut": _resolve_path(axle["strut"], base)}
+            data["axles"][k] = {**axle, "strut": resolve_path(axle["strut"], base)}
     comp = {k: v for k, v in S.compensation.model_dump().items() if v is not None}
     data["compensation"] = {**(data.get("compensation") or {}), **comp}
     return data, str(path)
@@ -579,6 +604,7 @@ def prepare(src: ScenarioSource) -> Prepared:
     # speed: every form as the drive's distance -> speed table (a recorded drive is read here)
     try:
         speed = build_speed_profile(S.speed, S.distance, src.base_dir)
+        check_profile(speed, S.distance, S.max_acceleration, S.max_jerk)     # what it asks of the vehicle
     except UserInputError as exc:
         raise UserInputError(f"{src.name}: {exc}") from None
     return Prepared(source=src, scenario=S, vehicle=vehicle, road_spec=road_spec, initial_temperatures_K=T,

@@ -32,6 +32,7 @@ from pydantic import StrictInt, field_validator, model_validator
 
 from hpsim.config import Model
 from hpsim.errors import UserInputError
+from hpsim.files import read_csv_text
 from hpsim.units import parse_quantity
 from hpsim.validators import in_range, quantity
 
@@ -467,6 +468,30 @@ def parse_column(name: str, where: str) -> tuple[str, float]:
     return kind, factor
 
 
+def speed_columns(header: list[str], where: str) -> tuple[list, list]:
+    """(kind, factor) and kind ('time', 'distance', 'speed' or None: ignored) of each header column: columns that
+    are not time_/distance_/speed_<unit> (a logger's gear, rpm, ...) are ignored and logged; a kind given twice is
+    ambiguous and refused."""
+    import logging
+
+    kinds, ignored = [], []
+    for h in header:
+        if re.match(r"\s*(time|distance|speed)\b|\s*(time|distance|speed)_", h, flags=re.IGNORECASE):
+            kinds.append(parse_column(h, where))
+        else:
+            kinds.append((None, 1.0))
+            ignored.append(h.strip())
+    names = [k for k, _ in kinds]
+    for kind in ("time", "distance", "speed"):
+        cols = [h for h, n in zip(header, names) if n == kind]
+        if len(cols) > 1:
+            raise UserInputError(f"{where}: {len(cols)} {kind} columns {cols}: which one is meant is ambiguous; "
+                                 "keep one")
+    if ignored:
+        logging.getLogger("hpsim").debug(f"{where}: columns ignored: {', '.join(ignored)}")
+    return kinds, names
+
+
 def read_speed_csv(spec: CsvSpeedSpec, distance_m: float, base_dir: Path | None = None) -> SpeedProfile:
     """A recorded drive from a CSV with a header row: (time or distance, speed) columns with units."""
     path = Path(spec.csv).expanduser()
@@ -474,17 +499,15 @@ def read_speed_csv(spec: CsvSpeedSpec, distance_m: float, base_dir: Path | None 
         path = Path(base_dir or Path.cwd()) / path
     where = f"speed.csv {path}"
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserInputError(f"{where}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserInputError(f"{where}: cannot read ({exc.__class__.__name__})") from None
+        # a regular file of bounded size, BOM and CRLF as spreadsheets write them (hpsim.files)
+        text = read_csv_text(path, what="a speed CSV file")
+    except UserInputError as exc:
+        raise UserInputError(f"speed.csv: {exc}") from None
     rows = [r for r in csv.reader(line for line in text.splitlines() if line.strip() and not line.startswith("#"))]
     if len(rows) < 3:
         raise UserInputError(f"{where}: expected a header row and at least 2 data rows")
     header = rows[0]
-    kinds = [parse_column(h, where) for h in header]
-    names = [k for k, _ in kinds]
+    kinds, names = speed_columns(header, where)
     if "speed" not in names or not ({"time", "distance"} & set(names)):
         raise UserInputError(f"{where}: expected a speed column and a time or distance column, got {header}")
     by = spec.by or ("time" if "time" in names else "distance")

@@ -30,12 +30,13 @@ from hpsim.errors import UserInputError
 from vehicle.numerics import noisy_root
 from vehicle.physics import thermal
 from vehicle.scenario.schema import apply_overrides, read_scenario, prepare
+from vehicle.engines.build import build_engine
 
 
 def _run(src, parameter: str, value: float):
     data = apply_overrides(src.data, {f"vehicle.overrides.{parameter}": value})
     prepared = prepare(type(src)(**{**src.__dict__, "data": data}))
-    model, drive = prepared.drive()
+    model, drive = build_engine(prepared)
     T0 = np.asarray(drive.initial_equilibrium().temperatures_K)
     res = drive.run()
     T1 = res.state.x[drive.T_index]          # the surface node: what the pyrometer read

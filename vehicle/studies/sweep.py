@@ -20,7 +20,6 @@ import csv
 import itertools
 import os
 import re
-import signal
 import time
 import traceback
 from pathlib import Path
@@ -30,16 +29,17 @@ import yaml
 from pydantic import ValidationError
 
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
-from hpsim.errors import SimulationError, UserInputError
+from hpsim.errors import SimulationError, Terminated, UserInputError
 
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
-from vehicle.engines.pool import die_with_parent, signal_workers
-from vehicle.results.run import RunInterrupted, results_status, run_scenario
+from vehicle.engines.pool import die_with_parent, stop_workers
+from vehicle.results.run import RunInterrupted, run_scenario
 from vehicle.results.sinks import add_checkpoint_hook
 from vehicle.results.validity import summary_cell
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import report
 from vehicle.engines.ensemble import eligible, grouped_jobs
+from vehicle.studies.study_folder import StudyLock, case_state, check_case_count, refuse_changed, safe_names
 
 
 class SweepSpec(Model):
@@ -87,38 +87,41 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
         raise UserInputError(f"{path}: base: scenario file {spec.base!r} not found (looked at {base_path})")
     base = read_scenario(base_path)
     keys = list(spec.grid)
-    combos = list(itertools.product(*[spec.grid[k] for k in keys])) if keys else [()]
     explicit = spec.cases or [{}]
-    cases, names = [], set()
+    n_grid = 1
+    for k in keys:
+        n_grid *= len(spec.grid[k])
+    check_case_count(len(explicit) * n_grid, str(path))           # before the grid is expanded
+    combos = list(itertools.product(*[spec.grid[k] for k in keys])) if keys else [()]
+    planned = []
     for ci, case in enumerate(explicit):
         case = dict(case)
         given = case.pop("name", None)
         for combo in combos:
             ov = {**case, **dict(zip(keys, combo))}
-            i = len(cases)
-            name = case_name(i, ov, given, dict(zip(keys, combo)))
-            if name in names:
-                raise UserInputError(f"{path}: two cases are both named {name!r}")
-            names.add(name)
-            label = f"{path} case {name}"
-            try:
-                merged = apply_overrides(base.data, {**spec.overrides, **ov})
-            except UserInputError as exc:
-                raise UserInputError(f"{label}: {exc}") from None
-            text = f"# case {name} of sweep {path.name}: base {base.name} with {ov}\n" + \
-                yaml.safe_dump(merged, sort_keys=False)
-            src = ScenarioSource(text=text, name=label, base_dir=base.base_dir, data=merged)
-            prepared = prepare(src)          # every case validated before anything runs
-            cases.append({"name": name, "overrides": ov, "source": src, "prepared": prepared})
+            planned.append((ov, case_name(len(planned), ov, given, dict(zip(keys, combo)))))
+    cases = []
+    # file names: sanitised and collision-free (vehicle.studies.study_folder)
+    for (ov, _), name in zip(planned, safe_names([n for _, n in planned])):
+        label = f"{path} case {name}"
+        try:
+            merged = apply_overrides(base.data, {**spec.overrides, **ov})
+        except UserInputError as exc:
+            raise UserInputError(f"{label}: {exc}") from None
+        text = f"# case {name} of sweep {path.name}: base {base.name} with {ov}\n" + \
+            yaml.safe_dump(merged, sort_keys=False)
+        src = ScenarioSource(text=text, name=label, base_dir=base.base_dir, data=merged)
+        prepared = prepare(src)          # every case validated before anything runs
+        cases.append({"name": name, "overrides": ov, "source": src, "prepared": prepared})
     return spec, base, cases
 
 
-def run_case(text: str, name: str, base_dir: str, out: str) -> dict:
-    """One case in a worker process: never raises, returns status and message."""
+def run_case(text: str, name: str, base_dir: str, out: str, overwrite: bool = False) -> dict:
+    """One case in a worker process: never raises, returns status and message (overwrite: start it again)."""
     t0 = time.perf_counter()
     try:
         src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=parse_yaml(text, name))
-        summary = run_scenario(src, out, resume=True, progress=False)
+        summary = run_scenario(src, out, resume=not overwrite, overwrite=overwrite, progress=False)
         return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
         return {"status": "failed", "error": str(exc), "seconds": time.perf_counter() - t0}
@@ -173,7 +176,10 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     if workers == 1:
         for tag, args in jobs:
-            finished(tag, fn(*args))
+            r = fn(*args)
+            finished(tag, r)
+            if r.get("status") == "interrupted":
+                raise KeyboardInterrupt         # Ctrl-C stopped this case: the next ones do not start
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -187,12 +193,11 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
                 except Exception as exc:   # e.g. a worker killed by the OS
                     r = failed(exc)
                 finished(futs[fut], r)
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, Terminated):
             # Ctrl-C: cases not started are dropped; running ones stop at their next checkpoint (their
-            # files stay resumable), also when only this process got the signal
-            for fut in futs:
-                fut.cancel()
-            signal_workers(pool, signal.SIGINT)
+            # files stay resumable), also when only this process got the signal; a second Ctrl-C (or
+            # SIGTERM, or no end within pool.STOP_GRACE_S) kills them: their files stay resumable too
+            stop_workers(pool, futs)
             raise
 
 
@@ -205,24 +210,39 @@ def worker_init(parent_pid: int) -> None:
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,
               scheduler: str | None = None, log: Callable[[str], None] | None = None,
-              before_start: Callable[[list], None] | None = None, ensemble: int | None = None) -> dict:
-    """before_start(the cases to run, prepared): called before any runs (the cost preview may stop it)."""
+              before_start: Callable[[list], None] | None = None, ensemble: int | None = None,
+              overwrite: bool = False) -> dict:
+    """before_start(the cases to run, prepared): called before any runs (the cost preview may stop it);
+    overwrite: run again the cases made from another definition."""
     log = log or (lambda m: None)
     path = Path(path)
     spec, base, cases = load_sweep(path)
-    client = dask_client(scheduler) if scheduler else None
     out_dir = Path(output_dir) if output_dir else Path(path.stem)
     out_dir.mkdir(parents=True, exist_ok=True)
+    with StudyLock(out_dir):                 # one study writing into a folder at a time
+        return _run_sweep(path, out_dir, cases, workers, scheduler, log, overwrite, before_start, ensemble)
+
+
+def _run_sweep(path, out_dir, cases, workers, scheduler, log, overwrite, before_start, ensemble) -> dict:
     rows: dict[str, dict] = {}
-    todo = []
+    todo, changed = [], []
     for c in cases:
         f = out_dir / f"{c['name']}.h5"
         c["file"] = f
-        if results_status(f) == "complete":
+        state = case_state(f, c["source"])          # a case made from another definition is never reused
+        c["overwrite"] = state.startswith("changed")
+        if state == "complete":
             rows[c["name"]] = {"status": "skipped", "error": ""}
             log(f"{c['name']}: complete from an earlier run, skipped")
         else:
             todo.append(c)
+            if c["overwrite"]:
+                changed.append((c["name"], state))
+    if not overwrite:
+        refuse_changed(out_dir, changed)
+    for name, why in changed:
+        log(f"{name}: {why.removeprefix('changed: ')}: run again (--overwrite)")
+    client = dask_client(scheduler) if scheduler else None
     n = len(todo)
     log(f"{path}: {len(cases)} cases, {n} to run, results in {out_dir}/")
     if before_start is not None:
@@ -242,12 +262,11 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
             log(f"[{done}/{n}] {c['name']}: FAILED: {r['error']}")
 
     by_name = {c["name"]: c for c in todo}
-    jobs = [(c["name"], (c["source"].text, c["source"].name, str(c["source"].base_dir), str(c["file"].resolve())))
-            for c in todo]
+    jobs = [(c["name"], (c["source"].text, c["source"].name, str(c["source"].base_dir), str(c["file"].resolve()),
+                         c["overwrite"])) for c in todo]
     resume_cmd = f"hpsim sweep {path} -o {out_dir}"
     try:
         # --ensemble K: the full-fidelity cases K at a time in lockstep (vehicle.engines.ensemble)
-
         fn, jobs, unpack = grouped_jobs(run_case, jobs, ensemble, [eligible(c["source"].data) for c in todo],
                                         workers)
         execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",

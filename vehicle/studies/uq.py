@@ -56,6 +56,9 @@ from vehicle.studies.uq_tables import json_safe, write_bands, write_ranking, wri
 from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
 from vehicle.engines.ensemble import eligible, grouped_jobs
 
+from vehicle.results import provenance
+from vehicle.studies.study_folder import StudyLock, check_case_count
+
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
 BANDS = (5.0, 50.0, 95.0)
@@ -281,6 +284,12 @@ def check_settings(method: str, samples: int, groups: str, n_params: int) -> Non
         raise UserInputError("--groups: grouped indices need --method sobol (a Latin hypercube ranks each parameter)")
 
 
+def check_seed(seed) -> None:
+    """--seed: an integer in [0, 2**32 - 1] (what the samplers accept)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**32:
+        raise UserInputError(f"--seed: must be an integer in [0, {2**32 - 1}], got {seed!r}")
+
+
 def n_cases(method: str, samples: int, n_draws: int) -> int:
     """Cases of a design without the nominal one (n_draws: parameters, or groups when grouped)."""
     return samples * (n_draws + 2) if method == "sobol" else samples
@@ -318,7 +327,28 @@ def _read_samples(path: Path) -> tuple[dict, list[str], list[tuple[str, np.ndarr
     if meta is None or not rows or rows[0][0] != "case":
         raise UserInputError(f"{path}: not a sample matrix written by hpsim uq (remove the folder to start again)")
     names = rows[0][1:]
-    return meta, names, [(r[0], np.array([float(v) for v in r[1:]])) for r in rows[1:]]
+    return meta, names, _sample_rows(path, rows[1:], len(names))
+
+
+def _sample_rows(path: Path, rows: list[list[str]], n: int) -> list[tuple[str, np.ndarray]]:
+    """The cases of samples.csv; a damaged row is a one-line error naming the file and line (nothing is changed)."""
+    out = []
+    lineno = {}
+    with open(path, newline="") as fh:             # the file's line of each case (for the message)
+        for k, line in enumerate(fh, start=1):
+            lineno.setdefault(line.split(",", 1)[0].strip(), k)
+    for r in rows:
+        case = r[0] if r else ""
+        where = f"{path}:{lineno.get(case, '?')}"
+        try:
+            values = np.array([float(v) for v in r[1:]])
+        except ValueError:
+            values = None
+        if values is None or values.size != n or not np.all(np.isfinite(values)):
+            raise UserInputError(f"{where}: case {case!r}: expected {n} finite numbers; the sample matrix is damaged "
+                                 "(the study folder was left as it is): restore it, or start again in another folder (-o)")
+        out.append((case, values))
+    return out
 
 
 def _differences(stored: dict, asked: dict) -> list[str]:
@@ -331,7 +361,7 @@ def _differences(stored: dict, asked: dict) -> list[str]:
         what = sorted(a ^ b)
         out.append(f"parameters or priors ({len(what)} differ, e.g. {what[0]!r})" if what else "parameter order")
     if stored.get("model") != asked.get("model"):
-        out.append("the scenario, its parameter files or --distance")
+        out.append("the scenario, its input files (vehicle, struts, road or speed CSV) or --distance")
     return out
 
 
@@ -431,8 +461,16 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
     resumed study must have the same). Returns the summary (also written to DIR/summary.json)."""
     log = log or (lambda m: None)
     check_settings(method, samples, groups, len(params))
+    check_seed(seed)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    with StudyLock(out_dir):                       # one study writing into a folder at a time
+        return _run_study(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model, log,
+                          nominal, label, before_start, ensemble)
+
+
+def _run_study(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model, log, nominal,
+               label, before_start, ensemble) -> dict:
     names = [p.name for p in params]
     meta = _fingerprint(params, method, samples, seed, groups, model)
     samples_csv = out_dir / "samples.csv"
@@ -477,7 +515,6 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
 
         jobs = [(name, (runner, name, dict(zip(names, map(float, x))))) for name, x in todo]
         # --ensemble K: the drives K at a time in lockstep (vehicle.engines.ensemble)
-
         can_join = [isinstance(runner, DriveRunner) and eligible(runner.base)] * len(jobs)
         fn, jobs, unpack = grouped_jobs(run_one, jobs, ensemble, can_join, workers)
         try:
@@ -509,6 +546,10 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     all_params, notes, resolved = scenario_parameters(src, per_axle_struts=per_axle_struts)
     params = select(all_params, parameters)
     check_settings(method, samples, groups, len(params))
+    check_seed(seed)
+    # drives: at most a study's worth (vehicle.studies.study_folder), before any sample is drawn
+    check_case_count(n_cases(method, samples, len(params)) + 1, "--samples", f"drives ({method} design of {samples})",
+                     "a smaller --samples or fewer --parameters")
     for n in notes:
         log(f"{src.name}: {n}")
     out_dir = Path(output_dir) if output_dir else Path(f"{Path(scenario).stem}_uq")
@@ -516,7 +557,12 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     # every check before any drive: the nominal case and the first draw must be valid scenarios
     nominal_case = prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
                            data=case_scenario(src.data, params, {p.name: p.nominal() for p in params}, distance)))
-    model = hashlib.sha256(json.dumps(resolved, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    # what the drives are made from: the resolved priors and the hashes of the files the scenario reads (a changed
+    # road CSV is another study: its finished cases are not reused, vehicle.results.provenance); the scenario's own
+    # content is in `resolved` (after --distance)
+    files = provenance.fingerprint(prepare(src))["files"]
+    files.pop("scenario", None)
+    model = hashlib.sha256(json.dumps([resolved, files], sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
                         before_start=None if before_start is None else (lambda n: before_start(nominal_case, n)),

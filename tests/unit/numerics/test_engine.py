@@ -15,6 +15,9 @@ from vehicle.scenario.settings import DriveSettings
 from vehicle.scenario.speed import SpeedProfile
 
 
+ONE_SECOND_M = 20 / 3.6          # one second of drive at 20 km/h: whole output intervals (no partial last one)
+
+
 @pytest.fixture(scope="module")
 def model_and_road():
     return VehicleModel(load_vehicle("apc_8x8")), build_road(RoadSpec(iso_class="D", length=140.0, seed=3))
@@ -40,8 +43,8 @@ def test_the_baseline_engine_gives_the_current_engines_drive_to_rounding(model_a
     friction or valve switch, amplify rounding: the compiled and the uncompiled run of the same engine differ by 0.2 %
     of heat after 1.8 s.)"""
     model, road = model_and_road
-    x_cur, d = _run(model, road, Ros2(0.004), 5.8)
-    x_base, d_base = _run(model, road, Ros2(0.004, engine="baseline"), 5.8)
+    x_cur, d = _run(model, road, Ros2(0.004), ONE_SECOND_M)
+    x_base, d_base = _run(model, road, Ros2(0.004, engine="baseline"), ONE_SECOND_M)
     assert d.run().state.t_s == pytest.approx(1.0)
     assert d_base.compiled_outputs is None and d.compiled_outputs is not None
     heat_cur, heat_base = d._heat(x_cur), d._heat(x_base)
@@ -50,7 +53,7 @@ def test_the_baseline_engine_gives_the_current_engines_drive_to_rounding(model_a
     assert np.max(np.abs(x_base[d.T_index] - x_cur[d.T_index])) < 1e-8
     defl = model.strut_deflections(np.stack([x_cur, x_base], axis=1))
     assert np.max(np.abs(defl[:, 1] - defl[:, 0])) < 1e-6
-    x_half, _ = _run(model, road, Ros2(0.002), 5.8)
+    x_half, _ = _run(model, road, Ros2(0.002), ONE_SECOND_M)
     assert np.max(np.abs(d._heat(x_half) - heat_cur) / heat_cur) > 1e-2
 
 
