@@ -21,6 +21,7 @@ import pytest
 
 from struts.params import load_strut
 from vehicle.presentation.report import format_report
+from vehicle.physics.outputs import variable_name
 from vehicle.results import validity as W
 from vehicle.results.reader import open_results
 from vehicle.results.run import run_scenario
@@ -132,7 +133,7 @@ def test_rows_with_stop_time_lift_off_and_solver_error(runs):
     """Time on the stops and tyre lift-off come from the drive's statistics rows, the solver's error
     estimate from the summary; checked when the drive provides them."""
     with open_results(runs["hot"]) as r:
-        have = {k: r.stats_series(W._name(k)) is not None for k in ("end_stop_time_s", "lift_off_share")}
+        have = {k: r.stats_series(variable_name(k)) is not None for k in ("end_stop_time_s", "lift_off_share")}
         has_error = W._Data(r).summary_value("solver_error_estimate") is not None
         if not (any(have.values()) or has_error):
             pytest.skip("the drive does not hand end_stop_time_s / lift_off_share / solver_error_estimate yet")
