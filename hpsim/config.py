@@ -22,7 +22,7 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
 
 from .errors import UserInputError
-from .files import read_regular_bytes
+X
 from .units import parse_quantity
 
 
@@ -163,24 +163,6 @@ def read_text_file(path: str | Path, max_bytes: int = MAX_TEXT_FILE_BYTES) -> st
     # a regular file only: a FIFO or a device would block or never end (hpsim.files)
     data = read_regular_bytes(path, max_bytes, "a small text file")
     return decode_text(data, str(path))
-
-
-def decode_text(data: bytes, name: str) -> str:
-    """UTF-8 bytes (an optional BOM is dropped) -> str; anything else is a one-line error."""
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise UserInputError(f"{name}: the file is UTF-16 text; save it as UTF-8")
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise UserInputError(f"{name}:{line}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
-                             "save the file as UTF-8") from None
-    if "\x00" in text:
-        line = text[:text.index("\x00")].count("\n") + 1
-        raise UserInputError(f"{name}:{line}: a NUL byte: this is a binary file, not text")
-    return text
 
 
 def load_yaml(path: str | Path) -> Any:

@@ -63,17 +63,26 @@ def read_regular_bytes(path: str | Path, max_bytes: int = MAX_DATA_FILE_BYTES, w
     return b"".join(chunks)
 
 
-def read_csv_text(path: str | Path, max_bytes: int = MAX_DATA_FILE_BYTES, what: str = "a CSV file") -> str:
-    """The text of a CSV file as `read_regular_bytes` reads it: UTF-8 with an optional byte-order mark (dropped),
-    line ends normalised to LF; UserInputError for another encoding (naming the line)."""
-    data = read_regular_bytes(path, max_bytes, what)
+def decode_text(data: bytes, name: str) -> str:
+    """UTF-8 bytes (an optional BOM is dropped) -> str; anything else is a one-line error."""
     if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise UserInputError(f"{path}: the file is UTF-16 text; save it as UTF-8 ({what})")
+        raise UserInputError(f"{name}: the file is UTF-16 text; save it as UTF-8")
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = data[:exc.start].count(b"\n") + 1
-        raise UserInputError(f"{path}:{line}: not UTF-8 text; expected {what}") from None
+        raise UserInputError(f"{name}:{line}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
+                             "save the file as UTF-8") from None
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise UserInputError(f"{name}:{line}: a NUL byte: this is a binary file, not text")
+    return text
+
+
+def read_csv_text(path: str | Path, max_bytes: int = MAX_DATA_FILE_BYTES, what: str = "a CSV file") -> str:
+    """The text of a CSV file as `read_regular_bytes` reads it: UTF-8 with an optional byte-order mark (dropped),
+    line ends normalised to LF; UserInputError for another encoding (naming the line)."""
+    text = decode_text(read_regular_bytes(path, max_bytes, what), f"{path} ({what})")
     return text.replace("\r\n", "\n").replace("\r", "\n")

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
-from hpsim.config import decode_text
+from hpsim.files import decode_text
 from hpsim.errors import UserInputError
 
 from .params import StrutParams
