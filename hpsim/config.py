@@ -22,7 +22,7 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError, model_validator
 
 from .errors import UserInputError
-X
+from .files import decode_text, read_regular_bytes
 from .units import parse_quantity
 
 
