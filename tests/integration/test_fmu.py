@@ -318,7 +318,9 @@ def test_fmus_run_in_a_process_without_hpsim(strut_fmu, vehicle_case, tmp_path):
     script = textwrap.dedent("""
         import json, sys
         repo = sys.argv[1]
-        sys.path[:] = [p for p in sys.path if not p.startswith(repo)]
+        # the repository's own folders (a virtual environment made inside the clone, as .ci/run makes, stays: it is
+        # where FMPy is installed, not hpsim's code)
+        sys.path[:] = [p for p in sys.path if not p.startswith(repo) or "site-packages" in p]
         sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
 
         class Hidden:            # also hidden when installed into site-packages (not editable)

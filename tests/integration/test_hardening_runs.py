@@ -57,7 +57,7 @@ def test_a_long_output_interval_loops_over_pieces_instead_of_unrolling(monkeypat
     virtual machine with pieces of 4 steps (production: 250): 10 = 4 + 4 + 2 steps against two samples of 5 unrolled
     steps (equal to rounding), and the graph of 4000 steps no larger than that of 40."""
     from vehicle.numerics import solvers
-    from tests.vehicle_helpers import make_drive
+    from tests.helpers import make_drive
 
     d = make_drive(distance_m=30.0, error_check_every=0)
     m, dt = d.model, d.settings.dt_s
@@ -82,7 +82,7 @@ def test_the_step_doubling_estimate_does_not_depend_on_the_output_interval():
     floor: the two runs' compiled code differs, and the seal friction's stick-slip amplifies the roundoff to 1e-4 of
     the heat by 18 s, so the windows start from slightly different states: 0.0038 (1 s), 0.0040 (20 ms) and 0.0042
     (4 ms) measured; the bound is 1.3x."""
-    from tests.vehicle_helpers import make_drive
+    from tests.helpers import make_drive
 
     est = {}
     for interval, M in ((1.0, 1), (0.004, 10)):

@@ -26,6 +26,11 @@ LONG = {
     "hpsim calibrate": "several drives and the noise probe (tests/test_calibration.py)",
     "hpsim uq scenarios/quick_demo.yaml --method lhs": "nine 1 km drives (tests/test_uq.py)",
     "hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2": "833 drives (the example says: hours)",
+    "hpsim report quick_sweep/": "a sweep folder (tests/integration/test_html_report.py reports one)",
+    "hpsim animate demo.h5 -o drive.gif --from 1km": "a drive of 1.2 km stored densely (test_html_report.py animates one)",
+    "hpsim animate demo.h5 -o drive.mp4": "ffmpeg, where installed",
+    "hpsim validate mileage_uq": "a uq study folder (tests/unit/studies/test_validate.py validates one)",
+    "hpsim export fmu": "an FMU's C compiled (tests/integration/test_fmu.py builds and runs both kinds)",
 }
 
 
@@ -63,6 +68,20 @@ def test_every_help_ends_with_examples():
                    and path in ("strut", "road", "vehicle")), path
 
 
+# the minimal measurement file of issue 23 (values invented)
+MEASUREMENTS = """\
+description: "example test, values invented"
+instruments:
+  pyrometer: {uncertainty: 2 K}
+  photogrammetry: {uncertainty: 5 mm}
+  scale: {uncertainty: 20 daN}
+points:
+  - {quantity: surface_temperature, axle: 1, before: 20.0 degC, after: 80.0 degC, instrument: pyrometer}
+  - {quantity: height, axle: 1, before: 1400 mm, after: 1470 mm, instrument: photogrammetry}
+  - {quantity: wheel_load, axle: 1, before: 3000 daN, after: 3100 daN, instrument: scale}
+"""
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     d = tmp_path_factory.mktemp("examples")
@@ -72,6 +91,11 @@ def workdir(tmp_path_factory):
         assert distance in text
         (d / "scenarios" / name).write_text(text.replace(distance, "distance: 300 m"))
     (d / "struts").symlink_to(ROOT / "struts")        # struts/data/apc_rig_energy.csv, as from the repository root
+    # the user's own files the examples name: a road surface (OpenCRG), a vehicle and a strut file
+    (d / "track.crg").write_bytes((ROOT / "examples" / "track_class_C.crg").read_bytes())
+    (d / "my_truck.yaml").write_text((ROOT / "vehicle" / "data" / "truck_6x6.yaml").read_text())
+    (d / "my_strut.yaml").write_text((ROOT / "struts" / "data" / "apc.yaml").read_text())
+    (d / "test.yaml").write_text(MEASUREMENTS)                 # the measurement file of docs/measurements.md
     return d
 
 
@@ -85,9 +109,9 @@ def test_the_examples_run(workdir, monkeypatch, capsys):
                                  "--data" in line))
     timings, failures = {}, []
     for line in lines:
-        if line.startswith("hpsim compare"):                       # a.h5, b.h5, results/*.h5: copies of demo.h5
+        if line.startswith(("hpsim compare", "hpsim validate")):   # a.h5, b.h5, results/*.h5: copies of demo.h5
             Path("results").mkdir(exist_ok=True)
-            for name in ("a.h5", "b.h5", "results/demo.h5"):
+            for name in ("a.h5", "b.h5", "results/demo.h5", "results/mileage_106km.h5"):
                 if not Path(name).exists():
                     Path(name).write_bytes(Path("demo.h5").read_bytes())
         argv = _argv(line)

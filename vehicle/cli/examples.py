@@ -27,7 +27,11 @@ EXAMPLES = {
   hpsim road plot road.csv -o road.png""",
     "vehicle": """\
   hpsim vehicle equilibrium --temperatures 80degC,75degC,70degC,70degC
-  hpsim vehicle response --json""",
+  hpsim vehicle response --json
+  hpsim vehicle check truck_6x6""",
+    "export": """\
+  hpsim export fmu --strut apc -o apc.fmu
+  hpsim export fmu --scenario scenarios/quick_demo.yaml -o demo.fmu""",
     "strut static": """\
   hpsim strut static --strut apc --load 41.8kN --p0 4.8MPa --temperature 20degC
   hpsim strut static --strut yin2023 --load 4kN --json""",

@@ -14,8 +14,7 @@ examples:
   hpsim export fmu --strut apc -o apc.fmu
   hpsim export fmu --strut apc --set friction.F0_compression=1.8kN --dt 0.5ms --mean 115mm -o apc.fmu
   hpsim export fmu --vehicle apc_8x8 -o apc_8x8.fmu
-  hpsim export fmu --scenario scenarios/quick_demo.yaml --set compensation.enabled=true -o demo.fmu
-  python -c "import fmpy; fmpy.dump('apc.fmu')"          # its inputs, outputs and parameters (docs/fmu.md)"""
+  hpsim export fmu --scenario scenarios/quick_demo.yaml --set compensation.enabled=true -o demo.fmu"""
 
 
 def register(sub):

@@ -9,7 +9,9 @@ from hpsim.errors import UserInputError
 CHECK_EPILOG = """examples:
   hpsim vehicle check apc_8x8                      # a shipped vehicle by name
   hpsim vehicle check my_truck.yaml --json         # everything as JSON
-  hpsim vehicle check my_truck.yaml --no-modes     # statics only (no linearisation)
+  hpsim vehicle check my_truck.yaml --no-modes     # statics only (no linearisation)"""
+
+CHECK_DESCRIPTION = """Check a vehicle file: consistency, the standing vehicle, ride modes.
 
 Exit code 0: the vehicle stands (warnings may be listed); 2: a schema error or a finding that stops a
 drive (masses against wheel loads, a strut that cannot carry its station). The same check, without
@@ -18,7 +20,9 @@ the modes, runs quietly before every drive (docs/vehicles.md "Checking a vehicle
 NEW_EPILOG = """examples:
   hpsim vehicle new -o truck.yaml --positions 0m,3.5m,4.9m --axle-loads 7.5t,7.25t,7.25t --track 2.05m --ride-height 1.25m
   hpsim vehicle new -o car.yaml --positions 0m,2.9m --mass 3.2t --cg-x 1.3m --track 1.7m --ride-height 0.9m --strut apc --motion-ratio 0.5
-  hpsim vehicle new -o mixed.yaml --positions 0m,1.5m,3.6m,5.1m --axle-loads 6t --track 2.4m --ride-height 1.4m --strut apc,apc,my_strut.yaml,my_strut.yaml
+  hpsim vehicle new -o mixed.yaml --positions 0m,1.5m,3.6m,5.1m --axle-loads 6t --track 2.4m --ride-height 1.4m --strut apc,apc,my_strut.yaml,my_strut.yaml"""
+
+NEW_DESCRIPTION = """Write a complete, commented vehicle file from a few numbers.
 
 Every strut is charged (charging.method load_and_height) to carry its wheel load at the static deflection
 at the charging temperature: the vehicle stands at the given loads and heights. Everything not given
@@ -28,14 +32,14 @@ is checked (hpsim vehicle check) after it is written."""
 
 def register(vsub):
     pc = vsub.add_parser("check", help="check a vehicle file: consistency, the standing vehicle, ride modes",
-                         epilog=CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         description=CHECK_DESCRIPTION, epilog=CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     pc.add_argument("vehicle", help="vehicle file (.yaml) or a built-in vehicle name")
     pc.add_argument("--json", action="store_true", help="print JSON only")
     pc.add_argument("--no-modes", action="store_true", help="skip the linearised modes (statics only)")
     pc.set_defaults(func=cmd_check)
 
     pn = vsub.add_parser("new", help="write a complete, commented vehicle file from a few numbers",
-                         epilog=NEW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         description=NEW_DESCRIPTION, epilog=NEW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     pn.add_argument("-o", "--output", required=True, help="the vehicle file to write (.yaml)")
     pn.add_argument("--name", default=None, help="vehicle name (default: the file's name)")
     pn.add_argument("--positions", required=True, help="axle positions behind axle 1, e.g. 0m,3.5m,4.9m (2-10 axles)")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vehicle.presentation.plots import _plt
+from vehicle.presentation.plots import pyplot
 
 TITLES = {"surface_temperature": "strut surface temperature", "oil_temperature": "oil temperature",
           "height": "hull height", "wheel_load": "wheel load"}
@@ -54,7 +54,7 @@ def _panel_series(ax, s: dict, study: bool) -> None:
 
 def validation_plot(v: dict, out: str | Path) -> Path:
     """The report figure of a comparison (module docstring)."""
-    plt = _plt()
+    plt = pyplot()
     groups: dict[tuple, list[dict]] = {}
     for p in v["points"]:
         groups.setdefault((p["quantity"], p["compared"], p["unit"]), []).append(p)

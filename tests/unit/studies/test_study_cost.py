@@ -92,8 +92,10 @@ def test_a_sweep_prints_its_drives_and_estimate_before_it_starts(tmp_path):
     estimate_s = float(m.group(1)) * (60 if m.group(2) == "min" else 1)
     took = [float(s) for s in re.findall(r"\[\d/2\] \S+: done in ([0-9.]+) s", p.stderr)]
     assert len(took) == 2
-    # a rate measured on this machine: the right order of magnitude (the load of a shared machine varies)
-    assert sum(took) / 4 < estimate_s < 4 * sum(took), (estimate_s, took)
+    # a rate measured on this machine: the right order of magnitude. The band is wide on purpose: the rate was
+    # recorded under another load (a suite on two workers runs a drive beside this one: 2x; a shared machine at
+    # load 15 on 2 cores: 4-8x measured), and each short case's time includes its set-up
+    assert sum(took) / 8 < estimate_s < 8 * sum(took), (estimate_s, took)
 
 
 def test_ranking_intervals_resolve_a_real_effect_and_not_noise():
