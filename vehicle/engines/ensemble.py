@@ -36,6 +36,10 @@ from vehicle.engines.build import full_drive_solver
 
 _STEPPERS: dict = {}         # compiled lane block functions of this process by (structure, dt, lanes, isa)
 _STEPPERS_LOCK = threading.Lock()
+# one lane at a time runs its Python and CasADi work (building models, equilibria, weighing bands, outputs): CasADi's
+# symbolic operations release the GIL and are not thread-safe (two lanes building graphs at once crashed in
+# casadi.jacobian). A lane gives the lock up only while it waits for the group's block call (`submit`).
+LANE_LOCK = threading.Lock()
 
 
 def lane_stepper(model, dt: float, lanes: int, isa: str | None = None) -> LaneStepper:
@@ -103,7 +107,15 @@ class LockstepGroup:
 
     # --- the lockstep call ----------------------------------------------------------------------------
     def submit(self, slot: int, z0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Hand in one block of lane `slot`; returns its states at the M samples (nz, M)."""
+        """Hand in one block of lane `slot`; returns its states at the M samples (nz, M). The lane's LANE_LOCK is
+        given up while it waits, so that the other lanes can reach the call."""
+        LANE_LOCK.release()
+        try:
+            return self._submit(slot, z0, U, p)
+        finally:
+            LANE_LOCK.acquire()
+
+    def _submit(self, slot: int, z0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         with self.cond:
             if self.stop:
                 raise KeyboardInterrupt
@@ -180,6 +192,7 @@ class LaneSolver(Ros2):
 
 
 def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple, out: dict, tag: str) -> None:
+    LANE_LOCK.acquire()
     try:
         with full_drive_solver(lambda dt: LaneSolver(dt, group, slot)):
             out[tag] = fn(*args)
@@ -190,6 +203,7 @@ def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple,
         out[tag] = {"status": "failed", "error": f"{type(exc).__name__}: {exc} ({' | '.join(tb)})", "seconds": 0.0}
     finally:
         group.leave(slot)
+        LANE_LOCK.release()
 
 
 def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes: int | None = None,
