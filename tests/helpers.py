@@ -13,9 +13,29 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
 
-# a short drive of the shipped 8x8 on a class D road: what most tests change a few keys of
-BASE_SCENARIO = {"vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D", "seed": 3}, "speed": "20 km/h",
-                 "distance": "200 m", "ambient_temperature": "25 degC"}
+# a short drive of the shipped 8x8 on a class D road: what most tests change a few keys (or lines) of
+SHORT_SCENARIO = """\
+vehicle: {name: apc_8x8}
+road: {iso_class: D, seed: 3}
+speed: 20 km/h
+distance: 200 m
+ambient_temperature: 25 degC
+"""
+BASE_SCENARIO = yaml.safe_load(SHORT_SCENARIO)
+
+
+# the minimal measurement file of issue 23 (values invented; docs/measurements.md): points only
+MEASUREMENT_POINTS = """\
+description: "example test, values invented"
+instruments:
+  pyrometer: {uncertainty: 2 K}
+  photogrammetry: {uncertainty: 5 mm}
+  scale: {uncertainty: 20 daN}
+points:
+  - {quantity: surface_temperature, axle: 1, before: 20.0 degC, after: 80.0 degC, instrument: pyrometer}
+  - {quantity: height, axle: 1, before: 1400 mm, after: 1470 mm, instrument: photogrammetry}
+  - {quantity: wheel_load, axle: 1, before: 3000 daN, after: 3100 daN, instrument: scale}
+"""
 
 
 def scenario_yaml(**changes) -> str:

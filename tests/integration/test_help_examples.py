@@ -14,7 +14,7 @@ import pytest
 
 from vehicle import cli
 from vehicle.cli import examples
-from tests.helpers import REPO
+from tests.helpers import MEASUREMENT_POINTS, REPO
 
 ROOT = REPO
 
@@ -68,20 +68,6 @@ def test_every_help_ends_with_examples():
                    and path in ("strut", "road", "vehicle")), path
 
 
-# the minimal measurement file of issue 23 (values invented)
-MEASUREMENTS = """\
-description: "example test, values invented"
-instruments:
-  pyrometer: {uncertainty: 2 K}
-  photogrammetry: {uncertainty: 5 mm}
-  scale: {uncertainty: 20 daN}
-points:
-  - {quantity: surface_temperature, axle: 1, before: 20.0 degC, after: 80.0 degC, instrument: pyrometer}
-  - {quantity: height, axle: 1, before: 1400 mm, after: 1470 mm, instrument: photogrammetry}
-  - {quantity: wheel_load, axle: 1, before: 3000 daN, after: 3100 daN, instrument: scale}
-"""
-
-
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     d = tmp_path_factory.mktemp("examples")
@@ -95,7 +81,7 @@ def workdir(tmp_path_factory):
     (d / "track.crg").write_bytes((ROOT / "examples" / "track_class_C.crg").read_bytes())
     (d / "my_truck.yaml").write_text((ROOT / "vehicle" / "data" / "truck_6x6.yaml").read_text())
     (d / "my_strut.yaml").write_text((ROOT / "struts" / "data" / "apc.yaml").read_text())
-    (d / "test.yaml").write_text(MEASUREMENTS)                 # the measurement file of docs/measurements.md
+    (d / "test.yaml").write_text(MEASUREMENT_POINTS)                 # the measurement file of docs/measurements.md
     return d
 
 

@@ -224,8 +224,6 @@ def seat_signals(view, seats, skip_s: float = START_SKIP_S) -> tuple[float, dict
     hull accelerations (vehicle.physics.ride.seat_vertical_acceleration / seat_lateral_acceleration); None when
     the series are missing, uneven or sparser than MIN_SAMPLE_RATE_HZ. seats: the resolved vehicle's seats
     (dicts with name, x_from_cg, y_from_cg, z_from_cg in m); the first skip_s of the drive left out."""
-    if not hasattr(view, "series"):          # a view of the statistics rows only
-        return None
     t = view.series("time")
     parts = [view.series(n) for n in ("heave_acceleration", "pitch_acceleration", "roll_acceleration")]
     roll = view.series("roll")

@@ -14,14 +14,9 @@ from hpsim.errors import UserInputError
 from vehicle import cli
 from vehicle.physics.params import load_vehicle
 from vehicle.scenario.schema import prepare, read_scenario_text
+from tests.helpers import SHORT_SCENARIO
 
-SCENARIO = """\
-vehicle: {name: apc_8x8}
-road: {iso_class: D, seed: 3}
-speed: 20 km/h
-distance: 200 m
-ambient_temperature: 25 degC
-"""
+SCENARIO = SHORT_SCENARIO
 
 
 def _prepare(tmp_path, extra: str = "", text: str = SCENARIO):

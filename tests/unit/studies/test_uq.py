@@ -20,6 +20,7 @@ import yaml
 
 from hpsim.errors import UserInputError
 from hpsim.priors import collect_priors, parse_prior
+from tests.helpers import SHORT_SCENARIO
 from vehicle import cli
 from vehicle.studies import uq
 
@@ -153,14 +154,7 @@ def test_shipped_files_load_at_their_values_and_carry_the_required_priors():
 
 
 # --- scenario -> parameters -> case overrides ------------------------------------------------------
-SCENARIO = """\
-vehicle: {name: apc_8x8}
-road: {iso_class: D, seed: 3}
-speed: 20 km/h
-distance: 200 m
-ambient_temperature: 25 degC
-output: {interval: 1 s, stats_interval: 0.1 km}
-"""
+SCENARIO = SHORT_SCENARIO + "output: {interval: 1 s, stats_interval: 0.1 km}\n"
 
 
 def _source(text: str):

@@ -27,19 +27,11 @@ from vehicle.analysis import instruments as inst
 from vehicle.analysis.measurements import read_measurements
 from vehicle.studies import uq
 from vehicle.studies.validate import validate
+from tests.helpers import MEASUREMENT_POINTS
 
 
 # the issue's example (values invented), the series shortened to the 150 m drive (27 s)
-EXAMPLE = """\
-description: "example test, values invented"
-instruments:
-  pyrometer: {uncertainty: 2 K}
-  photogrammetry: {uncertainty: 5 mm}
-  scale: {uncertainty: 20 daN}
-points:
-  - {quantity: surface_temperature, axle: 1, before: 20.0 degC, after: 80.0 degC, instrument: pyrometer}
-  - {quantity: height, axle: 1, before: 1400 mm, after: 1470 mm, instrument: photogrammetry}
-  - {quantity: wheel_load, axle: 1, before: 3000 daN, after: 3100 daN, instrument: scale}
+EXAMPLE = MEASUREMENT_POINTS + """\
 series:
   - {quantity: surface_temperature, axle: 1, csv: logs/t1.csv, x: {column: time_s, unit: s}, y: {column: T_C, unit: degC}}
 """
