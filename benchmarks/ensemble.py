@@ -73,6 +73,30 @@ def block_inputs(lanes: int):
     return model, drive.solver, np.stack(z0, 1), np.stack(U, 2), np.stack(P, 1)
 
 
+def libm_block(model, solver):
+    """The scalar block function as it was built before vehicle.numerics.vector_math: CasADi's C calling the C
+    library's exp, log, pow and tanh (the engine of the issue's filing, flags as today): (function, library)."""
+    import casadi as ca
+
+    from vehicle.numerics.codegen import compile_c
+
+    graph = solver._graph(model)
+    with tempfile.TemporaryDirectory() as tmp:
+        cg = ca.CodeGenerator(f"{graph.name()}.c", {"with_header": False})
+        cg.add(graph)
+        cwd = os.getcwd()
+        os.chdir(tmp)
+        try:
+            cg.generate()
+        finally:
+            os.chdir(cwd)
+        code = (Path(tmp) / f"{graph.name()}.c").read_bytes()
+    lib, error = compile_c(code, f"{graph.name()}_libm")
+    if lib is None:
+        raise RuntimeError(error)
+    return ca.external(graph.name(), str(lib)), str(lib)
+
+
 def per_step(model, solver, z0, U, P, lanes: int, isa: str, repeats: int) -> dict:
     """CPU time per lane-step of the scalar block (one case per call) and the lanes' block (all lanes per call),
     interleaved; and the largest difference of the states after one block."""
@@ -80,9 +104,14 @@ def per_step(model, solver, z0, U, P, lanes: int, isa: str, repeats: int) -> dic
 
     stepper = lane_stepper(model, solver.dt, lanes, isa)
     K, M = solver.K, solver.M
+    libm_fn, libm_lib = libm_block(model, solver)
     Ul = np.ascontiguousarray(U.transpose(1, 0, 2))
-    best = {"scalar": np.inf, "lanes": np.inf}
+    best = {"scalar": np.inf, "lanes": np.inf, "libm": np.inf}
     for _ in range(repeats):
+        t0 = time.process_time()
+        for i in range(lanes):
+            libm_fn(z0[:, i], U[:, :, i], P[:, i])
+        best["libm"] = min(best["libm"], (time.process_time() - t0) / (lanes * K * M))
         t0 = time.process_time()
         Zs = [np.asarray(solver.fn(z0[:, i], U[:, :, i], P[:, i])) for i in range(lanes)]
         best["scalar"] = min(best["scalar"], (time.process_time() - t0) / (lanes * K * M))
@@ -90,7 +119,8 @@ def per_step(model, solver, z0, U, P, lanes: int, isa: str, repeats: int) -> dic
         Zl = stepper.advance(z0, Ul, P, K, M)
         best["lanes"] = min(best["lanes"], (time.process_time() - t0) / (lanes * K * M))
     diff = max(float(np.max(np.abs(Zl[:, :, i].T - Zs[i]))) for i in range(lanes))
-    return {"scalar_us": best["scalar"] * 1e6, "lanes_us": best["lanes"] * 1e6, "block_max_abs_difference": diff,
+    return {"scalar_us": best["scalar"] * 1e6, "lanes_us": best["lanes"] * 1e6, "libm_us": best["libm"] * 1e6,
+            "libm_library": libm_lib, "block_max_abs_difference": diff,
             "library": str(stepper.library), "scalar_name": solver.fn.name(), "lanes_name": stepper.name,
             "K": K, "M": M, "vector_width": stepper.vector_width}
 
@@ -205,10 +235,12 @@ def main() -> None:
             np.savez(data, z0=z0, U=U, Ul=np.ascontiguousarray(U.transpose(1, 0, 2)), P=P, K=ps["K"], M=ps["M"])
             from vehicle.numerics.codegen import cache_dir
 
-            scalar_lib = next(iter(sorted(cache_dir().glob(f"{ps['scalar_name']}_*.so"),
+            scalar_lib = next(iter(sorted((p for p in cache_dir().glob(f"{ps['scalar_name']}_*.so")
+                                           if not p.name.startswith(f"{ps['scalar_name']}_libm_")),
                                           key=lambda p: p.stat().st_mtime, reverse=True)), None)
             n_steps = ps["K"] * ps["M"]
             ir_s = callgrind("scalar", str(scalar_lib), ps["scalar_name"], data) if scalar_lib else None
+            ir_m = callgrind("scalar", ps["libm_library"], ps["scalar_name"], data)
             # valgrind cannot run AVX-512: the counts of the AVX2 library of 4 lanes then
             cg_lanes, lib, lname = L, ps["library"], ps["lanes_name"]
             if isa == "avx512":
@@ -221,6 +253,7 @@ def main() -> None:
                          P=P[:, :4], K=ps["K"], M=ps["M"])
             ir_l = callgrind("lanes", lib, lname, data)
             res["instructions_per_lane_step"] = {"scalar": ir_s / n_steps if ir_s else None,
+                                                 "libm": ir_m / n_steps if ir_m else None,
                                                  "lanes": ir_l / (n_steps * cg_lanes) if ir_l else None,
                                                  "lanes_isa": "avx2" if isa == "avx512" else isa, "lanes_n": cg_lanes}
         if not args.no_drives:
@@ -242,11 +275,14 @@ def main() -> None:
         print(json.dumps(res, indent=1, default=float))
         return
     print(f"ensemble of {L} lanes ({isa}, vector width {ps['vector_width']}) against the scalar engine, one run")
-    print(f"  us per lane-step (CPU, min of {args.repeats}):  scalar {ps['scalar_us']:.2f}  lanes {ps['lanes_us']:.2f}"
-          f"  ratio {ps['scalar_us'] / ps['lanes_us']:.2f}x")
+    print(f"  us per lane-step (CPU, min of {args.repeats}):  scalar with the C library's exp/log/pow/tanh "
+          f"{ps['libm_us']:.2f}  scalar {ps['scalar_us']:.2f}  lanes {ps['lanes_us']:.2f}  ratios: lanes "
+          f"{ps['scalar_us'] / ps['lanes_us']:.2f}x the scalar engine, {ps['libm_us'] / ps['lanes_us']:.2f}x the "
+          f"C-library engine")
     ir = res.get("instructions_per_lane_step")
     if ir and ir["scalar"] and ir["lanes"]:
-        print(f"  instructions per lane-step (callgrind; lanes: {ir['lanes_n']} of {ir['lanes_isa']}):  scalar "
+        libm = f"scalar with the C library {ir['libm']:.0f}  " if ir.get("libm") else ""
+        print(f"  instructions per lane-step (callgrind; lanes: {ir['lanes_n']} of {ir['lanes_isa']}):  {libm}scalar "
               f"{ir['scalar']:.0f}  lanes {ir['lanes']:.0f}  ratio {ir['scalar'] / ir['lanes']:.2f}x")
     print(f"  one block, largest state difference lanes vs scalar: {ps['block_max_abs_difference']:.3g}")
     if "drives" in res:

@@ -44,7 +44,7 @@ import casadi as ca
 from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
-from vehicle.numerics import compile_time
+from vehicle.numerics import compile_time, vector_math
 
 CACHE_ENV = "HPSIM_CACHE"
 CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
@@ -145,7 +145,7 @@ def _generate_c(fn: ca.Function) -> bytes:
             cg.generate()
         finally:
             os.chdir(cwd)
-        return (Path(tmp) / src_name).read_bytes()
+        return vector_math.with_scalar_math((Path(tmp) / src_name).read_bytes())
 
 
 def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str):

@@ -35,6 +35,7 @@ import casadi as ca
 import numpy as np
 
 from vehicle.numerics.codegen import compile_c
+from vehicle.numerics import vector_math
 
 # instruction sets the lane library can be built for: extra compiler flags, doubles per hardware vector
 ISAS = {"sse2": ((), 2), "avx2": (("-mavx2",), 4), "avx512": (("-mavx512f",), 8)}
@@ -45,16 +46,17 @@ _BINARY = {ca.OP_ADD: "({0}+{1})", ca.OP_SUB: "({0}-{1})", ca.OP_MUL: "({0}*{1})
            ca.OP_LT: "CMP({0}<{1})", ca.OP_LE: "CMP({0}<={1})", ca.OP_EQ: "CMP({0}=={1})",
            ca.OP_NE: "CMP({0}!={1})", ca.OP_AND: "AND({0},{1})", ca.OP_OR: "OR({0},{1})",
            ca.OP_IF_ELSE_ZERO: "IFZ({0},{1})", ca.OP_FMIN: "FMIN({0},{1})", ca.OP_FMAX: "FMAX({0},{1})",
-           ca.OP_POW: "LANE2(pow,{0},{1})", ca.OP_CONSTPOW: "LANE2(pow,{0},{1})",
+           ca.OP_POW: "POW({0},{1})", ca.OP_CONSTPOW: "POW({0},{1})",
            ca.OP_ATAN2: "LANE2(atan2,{0},{1})", ca.OP_COPYSIGN: "LANE2(copysign,{0},{1})",
            ca.OP_FMOD: "LANE2(fmod,{0},{1})", ca.OP_HYPOT: "LANE2(hypot,{0},{1})"}
 _UNARY = {ca.OP_NEG: "(-{0})", ca.OP_TWICE: "(2.*{0})", ca.OP_SQ: "({0}*{0})", ca.OP_INV: "(1./{0})",
           ca.OP_ASSIGN: "{0}", ca.OP_NOT: "NOT({0})", ca.OP_SQRT: "SQRT({0})", ca.OP_FABS: "FABS({0})",
           ca.OP_SIGN: "SIGN({0})"}
-_LIBM = {"EXP": "exp", "LOG": "log", "TANH": "tanh", "SIN": "sin", "COS": "cos", "TAN": "tan", "ASIN": "asin",
+_LIBM = {"SIN": "sin", "COS": "cos", "TAN": "tan", "ASIN": "asin",
          "ACOS": "acos", "ATAN": "atan", "SINH": "sinh", "COSH": "cosh", "ASINH": "asinh", "ACOSH": "acosh",
          "ATANH": "atanh", "FLOOR": "floor", "CEIL": "ceil", "ERF": "erf", "LOG1P": "log1p", "EXPM1": "expm1"}
 _UNARY.update({getattr(ca, f"OP_{k}"): f"LANE1({v},{{0}})" for k, v in _LIBM.items()})
+_UNARY.update({ca.OP_EXP: "EXP({0})", ca.OP_LOG: "LOG({0})", ca.OP_TANH: "TANH({0})"})   # vehicle.numerics.vector_math
 
 _PRELUDE = r"""
 #include <math.h>
@@ -97,6 +99,11 @@ static inline V FMAX(V x, V y) {
   VL tx = (x > y) | (y != y), ty = (y > x) | (x != x);
   return (V)(((VL)x & tx) | ((VL)y & ty & ~tx) | (((VL)x & (VL)y) & ~(tx | ty)));
 }
+%(vector_math)s
+#define EXP(x) hp_exp_v(x)
+#define LOG(x) hp_log_v(x)
+#define TANH(x) hp_tanh_v(x)
+#define POW(x, y) hp_pow_v(x, y)
 #else
 /* no vector extension: the lanes one after the other, CasADi's scalar statements */
 #define VW 1
@@ -125,6 +132,19 @@ static inline double FMAX(double x, double y) {
   if (y > x || x != x) return y;
   a.u &= b.u; return a.d;
 }
+/* the scalar engine's functions (vehicle.numerics.vector_math.scalar_header): hp_* under GCC and Clang */
+%(scalar_math)s
+#ifdef HP_VECTOR_MATH
+#define EXP(x) hp_exp(x)
+#define LOG(x) hp_log(x)
+#define TANH(x) hp_tanh(x)
+#define POW(x, y) hp_pow(x, y)
+#else
+#define EXP(x) exp(x)
+#define LOG(x) log(x)
+#define TANH(x) tanh(x)
+#define POW(x, y) pow(x, y)
+#endif
 #endif
 static inline void load(V* dst, const double* src, int n, int g) {
   for (int i = 0; i < n; ++i) memcpy(&dst[i], src + (long)i * NL + g * VW, sizeof(V));
@@ -238,7 +258,9 @@ def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: s
     np_ = parametric.size1_in(0)
     if parametric.size1_out(0) != npw or step.size1_out(0) != nz:
         raise ValueError("lanes_source: the step and the parametric function do not fit together")
-    prelude = _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes)}
+    prelude = _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes),
+                          "vector_math": vector_math.vector_source("V", "VL", "v"),
+                          "scalar_math": vector_math.scalar_functions()}
     return "\n".join([prelude, emit_function(step, "step"), emit_function(parametric, "parametric"),
                       _BLOCK % {"name": name, "np": np_, "npw": npw, "nz": nz, "nu": nu}])
 
