@@ -134,6 +134,12 @@ static inline double FMAX(double x, double y) {
 }
 /* the scalar engine's functions (vehicle.numerics.vector_math.scalar_header): hp_* under GCC and Clang */
 %(scalar_math)s
+#if defined(HP_VECTOR_MATH) && defined(HP_BATCH)
+/* independent calls of one step gathered into one vector call (`emit_batched`): the lanes' functions */
+typedef double HB __attribute__((vector_size(8 * HP_BATCH)));
+typedef long long HBL __attribute__((vector_size(8 * HP_BATCH)));
+%(batch_math)s
+#endif
 #ifdef HP_VECTOR_MATH
 #define EXP(x) hp_exp(x)
 #define LOG(x) hp_log(x)
@@ -252,16 +258,115 @@ def emit_function(fn: ca.Function, cname: str) -> str:
     return "\n".join(lines)
 
 
-def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: str) -> str:
-    """The C of the lane block function `name` (see the module docstring) for NL = `lanes`."""
+_TRANSCENDENTAL = {ca.OP_EXP: "exp", ca.OP_LOG: "log", ca.OP_TANH: "tanh", ca.OP_POW: "pow", ca.OP_CONSTPOW: "pow"}
+
+
+def _values(fn: ca.Function) -> list[tuple[int, list[int]]]:
+    """Per instruction: (its op, the instructions whose values it reads). CasADi reuses work registers; this
+    follows the values (register -> instruction that last wrote it)."""
+    writer: dict[int, int] = {}
+    out = []
+    for k in range(fn.n_instructions()):
+        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+        if op in (ca.OP_INPUT, ca.OP_CONST):
+            reads = []
+        elif op == ca.OP_OUTPUT or op in _UNARY or op in _TRANSCENDENTAL and op not in (ca.OP_POW, ca.OP_CONSTPOW):
+            reads = [writer[i_in[0]]]
+        else:
+            reads = [writer[i_in[0]], writer[i_in[1]]]
+        out.append((op, reads))
+        if op != ca.OP_OUTPUT:
+            writer[i_out[0]] = k
+    return out
+
+
+def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
+    """C of an SX function on one lane (V = double) whose exp, log, tanh and pow calls run `width` at a time in
+    one vector call of vehicle.numerics.vector_math (lane-count independent: the same bits as one call each).
+
+    Each value gets its own variable (w<k>: instruction k) and the instructions are reordered by their depth in
+    calls (d = the most calls on a path from an input): for d = 0, 1, ...: the calls at depth d (their arguments
+    are of lower depth), gathered by function into vectors, then the other instructions at depth d in their
+    original order. Every instruction reads only values computed before it, as in the original order, and each
+    is the same IEEE operation, so the results are those of `emit_function`'s code bit for bit; the ROS2 step's
+    216 calls (8 struts x stages) fall into a few dozen vector calls."""
+    if not isinstance(fn, ca.Function) or not fn.is_a("SXFunction"):
+        raise TypeError("emit_batched: expected an SX function")
+    n_in, n_out = fn.n_in(), fn.n_out()
+    for dense_in in range(n_in):
+        sp = fn.sparsity_in(dense_in)
+        if sp.nnz() != sp.numel():
+            raise ValueError(f"emit_batched: input {dense_in} of {fn.name()} is sparse")
+    values = _values(fn)
+    depth = []
+    for op, reads in values:
+        d = max((depth[r] for r in reads), default=0)
+        depth.append(d + 1 if op in _TRANSCENDENTAL else d)
+    args = [f"const V* restrict i{k}" for k in range(n_in)] + [f"V* restrict o{k}" for k in range(n_out)]
+    lines = [f"NOIPA static void {cname}({', '.join(args)}) {{"]
+    rows_out = [fn.sparsity_out(k).row() for k in range(n_out)]
+    for k in range(n_out):
+        sp = fn.sparsity_out(k)
+        if sp.nnz() != sp.numel():
+            lines.append(f"  for (int i = 0; i < {sp.numel()}; ++i) o{k}[i] = BC(0.);")
+    by_depth: dict[int, list[int]] = {}
+    for k, d in enumerate(depth):
+        by_depth.setdefault(d, []).append(k)
+    for d in sorted(by_depth):
+        calls: dict[str, list[int]] = {}
+        for k in by_depth[d]:
+            if values[k][0] in _TRANSCENDENTAL:
+                calls.setdefault(_TRANSCENDENTAL[values[k][0]], []).append(k)
+        for name, ks in calls.items():
+            lines.extend(_batched_calls(name, ks, values, width))
+        for k in by_depth[d]:
+            op, reads = values[k]
+            if op in _TRANSCENDENTAL:
+                continue
+            i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
+            w = [f"w{r}" for r in reads]
+            if op == ca.OP_INPUT:
+                lines.append(f"  V w{k}=i{i_in[0]} ? i{i_in[0]}[{i_in[1]}] : BC(0.);")
+            elif op == ca.OP_OUTPUT:
+                lines.append(f"  if (o{i_out[0]}!=0) o{i_out[0]}[{rows_out[i_out[0]][i_out[1]]}]={w[0]};")
+            elif op == ca.OP_CONST:
+                lines.append(f"  V w{k}=BC({_constant(fn.instruction_constant(k))});")
+            elif op in _BINARY:
+                lines.append(f"  V w{k}=" + _BINARY[op].format(*w) + ";")
+            elif op in _UNARY:
+                lines.append(f"  V w{k}=" + _UNARY[op].format(*w) + ";")
+            else:
+                raise NotImplementedError(f"emit_batched: operation {op} of {fn.name()} has no lane form")
+    lines.append("}")
+    return "\n".join(lines)
+
+
+def _batched_calls(name: str, ks: list[int], values, width: int) -> list[str]:
+    """C of the calls `name` of instructions `ks` (same depth: independent), `width` per vector call; a short
+    last vector repeats its first argument in the unused lanes."""
+    lines = [f"  V {', '.join(f'w{k}' for k in ks)};"]
+    for start in range(0, len(ks), width):
+        chunk = ks[start:start + width]
+        pad = chunk + [chunk[0]] * (width - len(chunk))
+        args = [f"(HB){{{', '.join(f'w{values[k][1][a]}' for k in pad)}}}" for a in range(len(values[chunk[0]][1]))]
+        outs = " ".join(f"w{k}=y_[{i}];" for i, k in enumerate(chunk))
+        lines.append(f"  {{ HB y_ = hp_{name}_b({', '.join(args)}); {outs} }}")
+    return lines
+
+
+def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: str, batch: int = 0) -> str:
+    """The C of the lane block function `name` (see the module docstring) for NL = `lanes`; batch > 0: the step by
+    `emit_batched` with vector calls of `batch` lanes (the one-lane build, -DHPSIM_LANES_SCALAR)."""
     nz, nu, npw = step.size1_in(0), step.size1_in(1), step.size1_in(3)
     np_ = parametric.size1_in(0)
     if parametric.size1_out(0) != npw or step.size1_out(0) != nz:
         raise ValueError("lanes_source: the step and the parametric function do not fit together")
-    prelude = _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes),
-                          "vector_math": vector_math.vector_source("V", "VL", "v"),
-                          "scalar_math": vector_math.scalar_functions()}
-    return "\n".join([prelude, emit_function(step, "step"), emit_function(parametric, "parametric"),
+    prelude = (f"#define HP_BATCH {int(batch)}\n" if batch else "") + _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes),
+                          "vector_math": vector_math.tables_source() + vector_math.vector_source("V", "VL", "v"),
+                          "scalar_math": vector_math.scalar_functions(),
+                          "batch_math": vector_math.vector_source("HB", "HBL", "b")}
+    step_c = emit_batched(step, "step", batch) if batch else emit_function(step, "step")
+    return "\n".join([prelude, step_c, emit_function(parametric, "parametric"),
                       _BLOCK % {"name": name, "np": np_, "npw": npw, "nz": nz, "nu": nu}])
 
 
@@ -292,14 +397,18 @@ class LaneStepper:
     """The ROS2 block function of `solver` (a bound-able `Ros2`, W at every step) over `lanes` cases of `model`'s
     structure, compiled (cached like every library) and loaded: `advance(z0, U, P, K, M)`.
 
-    scalar=True builds the fallback (lanes one after the other, no vector extension) on any compiler."""
+    scalar=True builds the fallback (lanes one after the other, no vector extension) on any compiler;
+    batched=True the one-lane build whose step gathers its exp/log/tanh/pow calls into vectors of the instruction
+    set's width (`emit_batched`; GCC or Clang): the scalar engine's block function (`Ros2`)."""
 
     def __init__(self, solver, model, lanes: int, *, isa: str | None = None, scalar: bool = False,
-                 cc: str | None = None):
+                 cc: str | None = None, batched: bool = False):
         if solver.jacobian_every != 1 or solver.engine != "current":
             raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
         step, _, parametric, _ = solver.step_functions(model)
-        self._load(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}", isa, scalar, cc)
+        tag = "b" if batched else ""
+        self._load(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{tag}", isa,
+                   scalar or batched, cc, batched)
 
     @classmethod
     def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
@@ -309,7 +418,7 @@ class LaneStepper:
         self._load(step, parametric, lanes, name, isa, scalar, cc)
         return self
 
-    def _load(self, step, parametric, lanes, name, isa, scalar, cc) -> None:
+    def _load(self, step, parametric, lanes, name, isa, scalar, cc, batched=False) -> None:
         self.lanes = int(lanes)
         if self.lanes < 1 or self.lanes & (self.lanes - 1):
             raise ValueError(f"LaneStepper: lanes must be a power of two (a vector's length), got {lanes}")
@@ -317,7 +426,8 @@ class LaneStepper:
         self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
         self.npw = parametric.size1_out(0)
         self.name = name
-        self.source = lanes_source(step, parametric, self.lanes, self.name)
+        self.source = lanes_source(step, parametric, self.lanes, self.name,
+                                   batch=ISAS[self.isa][1] if batched else 0)
         self.flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
         lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=cc)
         if lib is None:
@@ -359,3 +469,22 @@ class LaneStepper:
         Z = np.empty((M, self.nz, L))
         self._fn(z0, U, P, Z, int(M), int(K))
         return Z
+
+
+class BatchedBlock:
+    """The scalar engine's block function on a one-lane `LaneStepper` (batched calls), called as CasADi's block
+    function is: (z (nz,), U (nu, K M + 1), p (np,)) -> the states at the M samples (nz, M)."""
+
+    def __init__(self, stepper: LaneStepper, K: int, M: int):
+        if stepper.lanes != 1:
+            raise ValueError("BatchedBlock: a one-lane stepper is needed")
+        self.stepper, self.K, self.M = stepper, int(K), int(M)
+
+    def name(self) -> str:
+        return self.stepper.name
+
+    def __call__(self, z, U, p) -> np.ndarray:
+        U = np.asarray(U, dtype=np.float64)
+        Z = self.stepper.advance(np.asarray(z, dtype=np.float64).reshape(-1, 1), U.T[:, :, None],
+                                 np.asarray(p, dtype=np.float64).reshape(-1, 1), self.K, self.M)
+        return Z[:, :, 0].T

@@ -35,12 +35,14 @@ drive rather than chosen inside it.
 from __future__ import annotations
 
 import time
+import warnings
 
 import casadi as ca
 import numpy as np
 
 from vehicle.numerics.contract import SolverCapabilities
 from vehicle.numerics.codegen import compile_function
+from vehicle.numerics.lanes import BatchedBlock, LaneStepper
 
 GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
 
@@ -262,7 +264,7 @@ class Ros2:
     ENGINES = ("current", "baseline")
 
     def __init__(self, dt: float = 0.004, *, compile: bool = True, jacobian_every: int = 1,
-                 engine: str = "current"):
+                 engine: str = "current", batch_calls: bool = True):
         if engine not in self.ENGINES:
             raise ValueError(f"Ros2 engine: {engine!r}, expected one of {self.ENGINES}")
         if int(jacobian_every) < 1:
@@ -273,6 +275,9 @@ class Ros2:
         self.compile = compile
         self.jacobian_every = int(jacobian_every)
         self.engine = engine
+        # the step's exp/log/tanh/pow calls gathered into vector calls (vehicle.numerics.lanes.emit_batched; the
+        # same bits): where it applies (compiled, current engine, W at every step, GCC or Clang), else CasADi's C
+        self.batch_calls = batch_calls and compile and engine == "current" and self.jacobian_every == 1
         self.memory = None
         self.build_s = 0.0
         self.K, self.M = 1, 1              # steps per sample, samples per call: set by `bind`
@@ -293,7 +298,8 @@ class Ros2:
         return d
 
     def _key(self, model, K: int, M: int) -> tuple:
-        key = (model.structure, self.dt, K, M, self.compile, min(self.jacobian_every, K), self.engine)
+        key = (model.structure, self.dt, K, M, self.compile, min(self.jacobian_every, K), self.engine,
+               self.batch_calls)
         if self.engine == "baseline":        # the parameter values are in the code
             key += (model.parameters.numeric().tobytes(),)
         return key
@@ -304,7 +310,7 @@ class Ros2:
         `codegen.precompile` to build its libraries together."""
         K, M = int(steps_per_sample), int(samples_per_call)
         key = self._key(model, K, M)
-        if not self.compile or key in _BLOCK_FUNCTIONS:
+        if not self.compile or key in _BLOCK_FUNCTIONS or self.batch_calls:
             return None
         if key not in _GRAPHS:
             self.K, self.M = K, M
@@ -323,10 +329,14 @@ class Ros2:
         key = self._key(model, self.K, self.M)
         fn = _BLOCK_FUNCTIONS.get(key)
         if fn is None:
-            graph = _GRAPHS.pop(key, None)
-            if graph is None:
-                graph = self._graph(model)
-            fn = compile_function(graph) if self.compile else graph
+            stepper = self._batched_stepper(model) if self.batch_calls else None
+            if stepper is not None:
+                fn = BatchedBlock(stepper, self.K, self.M)
+            else:
+                graph = _GRAPHS.pop(key, None)
+                if graph is None:
+                    graph = self._graph(model)
+                fn = compile_function(graph) if self.compile else graph
             _BLOCK_FUNCTIONS[key] = fn
         self.fn = fn
         self.memory = model.initial_memory()
@@ -480,7 +490,20 @@ class Ros2:
     def refined_solver(self, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, unbound."""
         return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
-                          engine=self.engine)
+                          engine=self.engine, batch_calls=self.batch_calls)
+
+    def _batched_stepper(self, model) -> LaneStepper | None:
+        """The one-lane block library with batched calls for this model structure and step (one per process and
+        (structure, dt); K and M are arguments of its calls), or None where it cannot be built (a compiler
+        without GCC's vector extension: CasADi's C then)."""
+        key = ("batched", model.structure, self.dt)
+        if key not in _BLOCK_FUNCTIONS:
+            try:
+                _BLOCK_FUNCTIONS[key] = LaneStepper(self, model, 1, batched=True)
+            except RuntimeError as e:
+                warnings.warn(f"the batched step could not be built ({e}); using CasADi's C")
+                _BLOCK_FUNCTIONS[key] = None
+        return _BLOCK_FUNCTIONS[key]
 
     def refined(self, model, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, bound for one output sample (factor*K steps):

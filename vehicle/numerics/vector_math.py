@@ -7,26 +7,31 @@ from the scalar libm, so the lanes would no longer equal the scalar engine. Here
 are written out once, branch-free, in GCC/Clang vector-extension C over a lane type; the scalar engine's CasADi C
 calls the same code through a one-lane vector (`scalar_header`), so scalar and lanes round alike by construction.
 
-Methods (textbook argument reduction, e.g. J.-M. Muller, "Elementary Functions", 3rd ed., 2016, ch. 11; Cody &
-Waite, "Software Manual for the Elementary Functions", 1980):
+Methods: table-driven argument reduction (P. T. P. Tang, "Table-driven implementation of the exponential function
+in IEEE floating-point arithmetic", ACM TOMS 15(2), 1989; and of the logarithm, ACM TOMS 16(4), 1990; J.-M.
+Muller, "Elementary Functions", 3rd ed., 2016, ch. 11), short Taylor polynomials evaluated by Estrin's scheme:
 
-- exp(x) = 2^n exp(r), n = round(x / ln 2), r = x - n ln2_hi - n ln2_lo (|r| <= ln 2 / 2; ln2_hi has its low 32
-  bits zero, so n ln2_hi is exact), exp(r) by its Taylor polynomial to r^13 (truncation < 2^-57 relative), 2^n
-  applied as two exact power-of-two factors (subnormal results round once). x is clamped to
-  [EXP_MIN_ARG, EXP_MAX_ARG], beyond which the result is 0 or +inf anyway.
-- log(x) = k ln 2 + log(m), x = 2^k m with m in [sqrt(2)/2, sqrt(2)); log(m) = 2 atanh(s), s = (m - 1)/(m + 1),
-  summed as f - (f^2/2 - s (f^2/2 + R)), f = m - 1, R = sum_{j=1..11} 2 s^(2j) / (2j + 1) (truncation < 2^-60;
-  the form keeps the error below 1 ulp, as in 4.3BSD/fdlibm's log). Subnormal x is scaled by 2^54 first.
+- exp(x) = 2^m 2^(j/N) exp(r): n = round(x N / ln 2) = N m + j, r = x - n (ln 2 / N)_hi - n (ln 2 / N)_lo (the hi
+  part has its low 32 bits zero, so n times it is exact), |r| <= ln 2 / (2N); exp(r) - 1 = r + r^2 Q(r) to r^5
+  (truncation < 2^-60); 2^(j/N) from a table as hi + lo. 2^m is applied as two exact power-of-two factors, so a
+  subnormal result rounds once. x is clamped to [EXP_MIN_ARG, EXP_MAX_ARG], beyond which the result is 0 or +inf.
+- log(x) = k ln 2 + log(c) + log1p(r): x = 2^k z with z in [sqrt(2)/2, sqrt(2)), c = 1 + i / N the grid point
+  nearest z, r = z / c - 1 computed as z_hi (1/c)' - 1 + z_lo (1/c)' with (1/c)' = 1/c rounded to 21 bits (z_hi:
+  z's top 32 bits, so the product is exact), log(c) from a table as -log((1/c)') hi + lo; log1p(r) = r + r^2 Q(r)
+  to r^8 (|r| < 2^-7.4, truncation < 2^-60). The grid point 1 has (1/c)' = 1: near x = 1 the result is log1p(x-1)
+  itself, without cancellation. Subnormal x is scaled by 2^54 first.
 - pow(x, y) = exp(y log|x|), with the sign of a negative base for an odd integer y and NaN for a non-integer y.
   The error grows with |y log x| (the absolute error of y log x becomes a relative error of the result): about
-  (1 + |y log x|) ulp; the model's powers (polytropic ratios, y log x of order 1) stay within a few ulp.
-- tanh(x) = -e / (e + 2), e = expm1(-2|x|), with the sign of x: expm1(u) = 2^n (expm1(r) + 1) - 1, expm1(r) by
-  r times its Taylor polynomial (to r^14 / 14!), accurate near 0 where 1 - 2/(exp(2x) + 1) would cancel.
+  (1 + |y log x|) ulp; the model's powers (correlation exponents, y log x of order 1) stay within a few ulp.
+- tanh(x) = -e / (e + 2), e = expm1(-2|x|) = (2^m 2^(j/N) - 1) + 2^m (2^(j/N) (r + r^2 Q(r)) + lo), with the
+  sign of x: accurate near 0, where 1 - 2/(exp(2x) + 1) would cancel.
 
-Special values follow C99 Annex F where the model can meet them (NaN in gives NaN out, log(0) = -inf,
-log(x < 0) = NaN, exp(+-inf) = inf, 0, pow(x, 0) = 1); the measured accuracy against the C library is tested in
-tests/unit/numerics/test_vector_math.py. Without the vector extension (a compiler other than GCC or Clang) both
-the scalar engine and the lanes use the C library.
+Every operation is correctly rounded IEEE arithmetic (the code is compiled without fused multiply-add and without
+value-changing flags: vehicle.numerics.codegen.COMPILER_FLAGS) and the table lookups are exact, so a lane gives the
+bits of the scalar function whatever the vector width. Special values follow C99 Annex F where the model can meet
+them (NaN in gives NaN out, log(0) = -inf, log(x < 0) = NaN, exp(+-inf) = inf, 0, pow(x, 0) = 1). The measured
+accuracy against the C library is tested in tests/unit/numerics/test_vector_math.py. Without the vector extension
+(a compiler other than GCC or Clang) both the scalar engine and the lanes use the C library.
 """
 from __future__ import annotations
 
@@ -34,35 +39,72 @@ import math
 import struct
 from decimal import Decimal, getcontext
 
-getcontext().prec = 50
+getcontext().prec = 60
 _LN2 = Decimal(2).ln()
 
 
-def _cleared_low_bits(value: Decimal, bits: int) -> float:
-    """`value` rounded to a double whose last `bits` mantissa bits are zero (a product with a small integer exact)."""
+def _cleared_low_bits(value, bits: int) -> float:
+    """`value` rounded to a double, then its last `bits` mantissa bits set to zero."""
     (u,) = struct.unpack("<Q", struct.pack("<d", float(value)))
     (v,) = struct.unpack("<d", struct.pack("<Q", u & ~((1 << bits) - 1)))
     return v
 
 
-LN2_HI = _cleared_low_bits(_LN2, 32)
-LN2_LO = float(_LN2 - Decimal(LN2_HI))
-LOG2E = float(1 / _LN2)
-SQRT2 = float(Decimal(2).sqrt())
+def _hi_lo(value: Decimal) -> tuple[float, float]:
+    hi = float(value)
+    return hi, float(value - Decimal(hi))
+
+
+EXP_TABLE_BITS = 7                       # N = 128 table entries of 2^(j/N)
+LOG_TABLE_BITS = 7                       # grid 1 + i / 128 over [sqrt(2)/2, sqrt(2))
+EXP_POLY_DEGREE = 5                      # |r| <= ln 2 / 256: r^6 / 6! < 2^-60 relative
+LOG_POLY_DEGREE = 8                      # |r| < 2^-7.4: r^9 / 9 < 2^-60 relative
+LOG_INVERSE_BITS = 21                    # (1/c)' times a 32-bit z_hi is exact
+LOG_SPLIT_BITS = 21                      # z_hi: z with its low 21 mantissa bits zero (32 significant bits)
 ROUNDING_SHIFTER = 1.5 * 2.0 ** 52       # x + this - this rounds x to an integer (|x| < 2^51)
 EXP_MAX_ARG = 710.0                      # exp(710) > DBL_MAX: +inf
 EXP_MIN_ARG = -746.0                     # exp(-746) < the smallest subnormal / 2: 0
 EXPM1_MIN_ARG = -40.0                    # expm1(-40) = -1 to double precision (e^-40 < 2^-57)
 SUBNORMAL_SCALE_BITS = 54
-EXP_TAYLOR_DEGREE = 13
-EXPM1_TAYLOR_DEGREE = 14
-LOG_ATANH_TERMS = 11
+
+_N_EXP = 1 << EXP_TABLE_BITS
+_N_LOG = 1 << LOG_TABLE_BITS
+LN2_N_HI = _cleared_low_bits(_LN2 / _N_EXP, 32)
+LN2_N_LO = float(_LN2 / _N_EXP - Decimal(LN2_N_HI))
+N_LOG2E = float(_N_EXP / _LN2)
+LN2_HI = _cleared_low_bits(_LN2, 32)
+LN2_LO = float(_LN2 - Decimal(LN2_HI))
+SQRT2 = float(Decimal(2).sqrt())
+_LOG_I_MIN = round((1 / math.sqrt(2) - 1) * _N_LOG)    # grid points of z in [sqrt(2)/2, sqrt(2))
+_LOG_I_MAX = round((math.sqrt(2) - 1) * _N_LOG)
 
 FUNCTIONS = ("exp", "log", "pow", "tanh")    # the C library functions these replace
 
 
 def _c(value: float) -> str:
     return float(value).hex()
+
+
+def _c_mask(low_zero_bits: int) -> str:
+    """C literal of the 64-bit mask with the low `low_zero_bits` bits zero."""
+    return f"0x{(2 ** 64 - 1) ^ ((1 << low_zero_bits) - 1):016x}ULL"
+
+
+def exp_table() -> list[tuple[float, float]]:
+    """2^(j/N), j = 0 .. N-1, as (hi, lo): hi the double nearest, lo the rest rounded."""
+    return [_hi_lo(Decimal(2) ** (Decimal(j) / _N_EXP)) for j in range(_N_EXP)]
+
+
+def log_table() -> list[tuple[float, float, float]]:
+    """For the grid points c = 1 + i/N, i = _LOG_I_MIN .. _LOG_I_MAX: ((1/c)', -log((1/c)') hi, lo), (1/c)' = 1/c
+    rounded to LOG_INVERSE_BITS significant bits (exactly 1 at c = 1)."""
+    rows = []
+    for i in range(_LOG_I_MIN, _LOG_I_MAX + 1):
+        inv = 1.0 / (1.0 + i / _N_LOG)
+        m, e = math.frexp(inv)
+        inv = math.ldexp(round(m * (1 << LOG_INVERSE_BITS)), e - LOG_INVERSE_BITS)
+        rows.append((inv, *_hi_lo(-Decimal(inv).ln())))
+    return rows
 
 
 def _estrin(var: str, coefficients: list[float], v: str) -> tuple[str, str]:
@@ -81,48 +123,66 @@ def _estrin(var: str, coefficients: list[float], v: str) -> tuple[str, str]:
     return " ".join(decls), terms[0]
 
 
+def tables_source() -> str:
+    """The C tables of `exp_table` and `log_table` (static, shared by every lane type of one file)."""
+    e = ",\n  ".join(f"{{{_c(h)}, {_c(lo)}}}" for h, lo in exp_table())
+    lg = ",\n  ".join(f"{{{_c(a)}, {_c(b)}, {_c(c)}}}" for a, b, c in log_table())
+    return (f"static const double hp_exp_table[{_N_EXP}][2] = {{\n  {e}}};\n"
+            f"static const double hp_log_table[{_LOG_I_MAX - _LOG_I_MIN + 1}][3] = {{\n  {lg}}};\n")
+
+
 def vector_source(v: str, vl: str, suffix: str) -> str:
     """C of hp_exp_<suffix>, hp_log_<suffix>, hp_pow_<suffix>, hp_tanh_<suffix> over the lane type `v` (a GCC
-    vector of doubles) with `vl` its 64-bit integer vector of the same length (comparisons give -1 / 0 lanes)."""
-    # exp(r) = 1 + (r + r^2 Q(r)) and expm1(r) = r + r^2 Q(r), Q(r) = sum_k r^k / (k + 2)!: one rounding at 1 +
-    exp_decl, exp_q = _estrin("r", [1.0 / math.factorial(k + 2) for k in range(EXP_TAYLOR_DEGREE - 1)], v)
-    em_decl, em_q = _estrin("r", [1.0 / math.factorial(k + 2) for k in range(EXPM1_TAYLOR_DEGREE - 1)], v)
-    log_decl, log_poly = _estrin("z", [2.0 / (2 * j + 1) for j in range(1, LOG_ATANH_TERMS + 1)], v)
+    vector of doubles) with `vl` its 64-bit integer vector of the same length (comparisons give -1 / 0 lanes).
+    Needs `tables_source()` before it in the file."""
+    # exp(r) - 1 = r + r^2 Q(r), Q(r) = sum_k r^k / (k + 2)!;  log1p(r) = r + r^2 Q(r), Q(r) = sum_k (-1)^(k+1) r^k / (k + 2)
+    exp_decl, exp_q = _estrin("r", [1.0 / math.factorial(k + 2) for k in range(EXP_POLY_DEGREE - 1)], v)
+    log_decl, log_q = _estrin("r", [(-1.0) ** (k + 1) / (k + 2) for k in range(LOG_POLY_DEGREE - 1)], v)
     sh = _c(ROUNDING_SHIFTER)
     return f"""
 static inline {v} hp_sel_{suffix}({vl} m, {v} a, {v} b) {{ return ({v})((({vl})a & m) | (({vl})b & ~m)); }}
 static inline {v} hp_pow2_{suffix}({vl} n) {{ return ({v})((n + 1023) << 52); }}
 static inline {v} hp_bc_{suffix}(double c) {{ return ({v}){{0}} + c; }}
 static inline {vl} hp_sign_{suffix}(void) {{ return ({vl}){{0}} + (long long)0x8000000000000000ULL; }}
+#define HP_LANES_{suffix} ((int)(sizeof({v}) / sizeof(double)))
+/* n = round(x N / ln 2) (k: as an integer), r = x - n ln 2 / N, |r| <= ln 2 / 2N; exp(x) = 2^(k/N) exp(r) */
+#define HP_EXP_REDUCE_{suffix}(x) \\
+  {v} t = x * {_c(N_LOG2E)} + {sh}; \\
+  {v} n = t - {sh}; \\
+  {vl} k = ({vl})t - ({vl})hp_bc_{suffix}({sh}); \\
+  {v} r = (x - n * {_c(LN2_N_HI)}) - n * {_c(LN2_N_LO)}; \\
+  {vl} j = k & {_N_EXP - 1}, m = k >> {EXP_TABLE_BITS}; \\
+  {v} th, tl; \\
+  for (int l_ = 0; l_ < HP_LANES_{suffix}; ++l_) {{ th[l_] = hp_exp_table[j[l_]][0]; tl[l_] = hp_exp_table[j[l_]][1]; }} \\
+  {exp_decl} \\
+  {v} p = r + r2 * {exp_q};
 static inline {v} hp_exp_{suffix}({v} x) {{
   x = hp_sel_{suffix}(x > {_c(EXP_MAX_ARG)}, hp_bc_{suffix}({_c(EXP_MAX_ARG)}), x);
   x = hp_sel_{suffix}(x < {_c(EXP_MIN_ARG)}, hp_bc_{suffix}({_c(EXP_MIN_ARG)}), x);
-  {v} t = x * {_c(LOG2E)} + {sh};
-  {v} n = t - {sh};
-  {vl} k = ({vl})t - ({vl})hp_bc_{suffix}({sh});
-  {v} r = (x - n * {_c(LN2_HI)}) - n * {_c(LN2_LO)};
-  {vl} k1 = k >> 1;
-  {exp_decl}
-  {v} p = 1. + (r + r2 * {exp_q});
-  return p * hp_pow2_{suffix}(k1) * hp_pow2_{suffix}(k - k1);
+  HP_EXP_REDUCE_{suffix}(x)
+  {vl} m1 = m >> 1;
+  return (th + (th * p + tl)) * hp_pow2_{suffix}(m1) * hp_pow2_{suffix}(m - m1);
 }}
 static inline {v} hp_log_{suffix}({v} x) {{
   {vl} tiny = x < {_c(2.0 ** -1022)};
   {v} xs = hp_sel_{suffix}(tiny, x * {_c(2.0 ** SUBNORMAL_SCALE_BITS)}, x);
   {vl} bits = ({vl})xs;
   {vl} e = ((bits >> 52) & 2047) - 1023 - (tiny & {SUBNORMAL_SCALE_BITS});
-  {v} m = ({v})((bits & 0xfffffffffffffLL) | 0x3ff0000000000000LL);
-  {vl} big = m > {_c(SQRT2)};
-  m = hp_sel_{suffix}(big, m * 0.5, m);
+  {v} z = ({v})((bits & 0xfffffffffffffLL) | 0x3ff0000000000000LL);
+  {vl} big = z >= {_c(SQRT2)};
+  z = hp_sel_{suffix}(big, z * 0.5, z);
   e = e - big;
-  {v} f = m - 1.;
-  {v} s = f / (f + 2.);
-  {v} z = s * s;
+  {v} t = (z - 1.) * {_c(float(_N_LOG))} + {sh};
+  {vl} i = ({vl})t - ({vl})hp_bc_{suffix}({sh}) - ({_LOG_I_MIN});
+  {v} inv, lh, ll;
+  for (int l_ = 0; l_ < HP_LANES_{suffix}; ++l_) {{
+    inv[l_] = hp_log_table[i[l_]][0]; lh[l_] = hp_log_table[i[l_]][1]; ll[l_] = hp_log_table[i[l_]][2];
+  }}
+  {v} zh = ({v})(({vl})z & (long long){_c_mask(LOG_SPLIT_BITS)});
+  {v} r = (zh * inv - 1.) + (z - zh) * inv;
   {log_decl}
-  {v} R = z * {log_poly};
-  {v} hfsq = 0.5 * f * f;
   {v} ed = ({v})(e + ({vl})hp_bc_{suffix}({sh})) - {sh};
-  {v} y = ed * {_c(LN2_HI)} + (f - (hfsq - (s * (hfsq + R) + ed * {_c(LN2_LO)})));
+  {v} y = (ed * {_c(LN2_HI)} + lh) + (r + (r2 * {log_q} + (ed * {_c(LN2_LO)} + ll)));
   y = hp_sel_{suffix}(x == 0., hp_bc_{suffix}(-__builtin_inf()), y);
   y = hp_sel_{suffix}(x < 0., hp_bc_{suffix}(__builtin_nan("")), y);
   y = hp_sel_{suffix}(x == __builtin_inf(), x, y);
@@ -146,15 +206,11 @@ static inline {v} hp_tanh_{suffix}({v} x) {{
   {vl} sign = hp_sign_{suffix}();
   {v} u = ({v})(({vl})x & ~sign) * -2.;
   u = hp_sel_{suffix}(u < {_c(EXPM1_MIN_ARG)}, hp_bc_{suffix}({_c(EXPM1_MIN_ARG)}), u);
-  {v} t = u * {_c(LOG2E)} + {sh};
-  {v} n = t - {sh};
-  {vl} k = ({vl})t - ({vl})hp_bc_{suffix}({sh});
-  {v} r = (u - n * {_c(LN2_HI)}) - n * {_c(LN2_LO)};
-  {v} scale = hp_pow2_{suffix}(k);
-  {em_decl}
-  {v} e = scale * (r + r2 * {em_q}) + (scale - 1.);
-  {v} th = -e / (e + 2.);
-  return ({v})((({vl})th & ~sign) | (({vl})x & sign));
+  HP_EXP_REDUCE_{suffix}(u)
+  {v} s = hp_pow2_{suffix}(m);
+  {v} e = (s * th - 1.) + s * (th * p + tl);
+  {v} h = -e / (e + 2.);
+  return ({v})((({vl})h & ~sign) | (({vl})x & sign));
 }}
 """
 
@@ -164,10 +220,10 @@ def scalar_functions() -> str:
     the same operations as every lane of the vector code."""
     return ("\n#if defined(__GNUC__) || defined(__clang__)\n"
             "#define HP_VECTOR_MATH 1\n"
-            "#define HP_OUTLINE static __attribute__((noinline))\n"
+            "#define HP_OUTLINE static inline\n"
             "typedef double hp_v1 __attribute__((vector_size(8)));\n"
             "typedef long long hp_l1 __attribute__((vector_size(8)));\n"
-            + vector_source("hp_v1", "hp_l1", "1")
+            + tables_source() + vector_source("hp_v1", "hp_l1", "1")
             + "HP_OUTLINE double hp_exp(double x) { return hp_exp_1((hp_v1){x})[0]; }\n"
               "HP_OUTLINE double hp_log(double x) { return hp_log_1((hp_v1){x})[0]; }\n"
               "HP_OUTLINE double hp_pow(double x, double y) { return hp_pow_1((hp_v1){x}, (hp_v1){y})[0]; }\n"
