@@ -37,6 +37,7 @@ import tempfile
 import threading
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
@@ -293,8 +294,29 @@ def _compiler() -> str | None:
     return os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc") or shutil.which("clang")
 
 
-def _plan(fn: ca.Function, cc: str, opt_level: str):
-    """(flags, code, code_sha, cache folder, stem) of `fn`'s library: its C and where the cache keeps it."""
+@dataclass(frozen=True)
+class CSource:
+    """Hand-generated C (not a CasADi function: e.g. `vehicle.numerics.lanes`) to build into a library named
+    `name` with `extra_flags`: what `compile_c` builds, and what `precompile` builds together with CasADi's."""
+    code: bytes
+    name: str
+    extra_flags: tuple[str, ...] = ()
+
+
+def _c_flags(opt_level: str, extra_flags: tuple[str, ...]) -> list[str]:
+    return [opt_level, *COMPILER_FLAGS[1:], *extra_flags]
+
+
+def _c_stem(code: bytes, name: str, flags: list[str], cc: str) -> str:
+    return f"{name}_{hashlib.sha256(code + ' '.join(flags).encode() + cc.encode()).hexdigest()[:20]}"
+
+
+def _plan(fn, cc: str, opt_level: str):
+    """(flags, code, code_sha, cache folder, stem) of the library of `fn` (a CasADi function or a `CSource`): its C
+    and where the cache keeps it."""
+    if isinstance(fn, CSource):
+        flags = _c_flags(opt_level, fn.extra_flags)
+        return flags, fn.code, hashlib.sha256(fn.code).hexdigest(), cache_dir(), _c_stem(fn.code, fn.name, flags, cc)
     code = _generate_c(fn)
     code_sha = hashlib.sha256(code).hexdigest()
     flags = [opt_level, *COMPILER_FLAGS[1:]]
@@ -303,8 +325,8 @@ def _plan(fn: ca.Function, cc: str, opt_level: str):
 
 
 def precompile(fns, *, opt_level: str = "-O2") -> int:
-    """Build the libraries of several functions at once, one compiler process each, so that `compile_function`
-    then finds them in the cache; returns how many were built.
+    """Build the libraries of several functions (CasADi functions or `CSource`s) at once, one compiler process
+    each, so that `compile_function` and `compile_c` then find them in the cache; returns how many were built.
 
     A drive needs two or three libraries (the block stepper, the half-step stepper of its error estimate, the
     block outputs) of about 5 s of compiler time each: built one after the other they add up, built together
@@ -340,11 +362,10 @@ def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_
     cc = cc or _compiler()
     if cc is None:
         return None, "no C compiler found"
-    flags = [opt_level, *COMPILER_FLAGS[1:], *extra_flags]
+    flags = _c_flags(opt_level, tuple(extra_flags))
     code_sha = hashlib.sha256(code).hexdigest()
-    key = hashlib.sha256(code + " ".join(flags).encode() + cc.encode()).hexdigest()[:20]
     d = cache_dir()
-    stem = f"{name}_{key}"
+    stem = _c_stem(code, name, flags, cc)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
         error = _build(cc, flags, code, code_sha, d, stem)

@@ -34,7 +34,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from vehicle.numerics.codegen import compile_c
+from vehicle.numerics.codegen import CSource, compile_c
 from vehicle.numerics import vector_math
 
 # instruction sets the lane library can be built for: extra compiler flags, doubles per hardware vector
@@ -402,23 +402,26 @@ class LaneStepper:
     set's width (`emit_batched`; GCC or Clang): the scalar engine's block function (`Ros2`)."""
 
     def __init__(self, solver, model, lanes: int, *, isa: str | None = None, scalar: bool = False,
-                 cc: str | None = None, batched: bool = False):
+                 cc: str | None = None, batched: bool = False, load: bool = True):
         if solver.jacobian_every != 1 or solver.engine != "current":
             raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
         step, _, parametric, _ = solver.step_functions(model)
         tag = "b" if batched else ""
-        self._load(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{tag}", isa,
-                   scalar or batched, cc, batched)
+        self._prepare(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{tag}", isa,
+                      scalar or batched, cc, batched)
+        if load:           # load=False: the C only (`job`, for codegen.precompile), `load()` later
+            self.load()
 
     @classmethod
     def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
                        isa: str | None = None, scalar: bool = False, cc: str | None = None) -> "LaneStepper":
         """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX)."""
         self = cls.__new__(cls)
-        self._load(step, parametric, lanes, name, isa, scalar, cc)
+        self._prepare(step, parametric, lanes, name, isa, scalar, cc)
+        self.load()
         return self
 
-    def _load(self, step, parametric, lanes, name, isa, scalar, cc, batched=False) -> None:
+    def _prepare(self, step, parametric, lanes, name, isa, scalar, cc, batched=False) -> None:
         self.lanes = int(lanes)
         if self.lanes < 1 or self.lanes & (self.lanes - 1):
             raise ValueError(f"LaneStepper: lanes must be a power of two (a vector's length), got {lanes}")
@@ -429,7 +432,18 @@ class LaneStepper:
         self.source = lanes_source(step, parametric, self.lanes, self.name,
                                    batch=ISAS[self.isa][1] if batched else 0)
         self.flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
-        lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=cc)
+        self.cc = cc
+        self.library = None
+
+    def job(self) -> CSource:
+        """The library's C and flags, for `codegen.precompile` (which builds it with other libraries at once)."""
+        return CSource(self.source.encode(), self.name, self.flags)
+
+    def load(self) -> "LaneStepper":
+        """Compile (or find in the cache) and load the library."""
+        if self.library is not None:
+            return self
+        lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=self.cc)
         if lib is None:
             raise RuntimeError(f"the lane library could not be compiled ({error})")
         self.library = lib
@@ -443,6 +457,7 @@ class LaneStepper:
         self._step.argtypes = [ptr] * 5
         self._parametric = getattr(self._lib, f"{self.name}_parametric")
         self._parametric.argtypes = [ptr] * 2
+        return self
 
     def step(self, z, u0, u1, pw) -> np.ndarray:
         """One step of every lane: z (nz, lanes), u0 and u1 (nu, lanes), pw (the parametric part, (npw, lanes))."""

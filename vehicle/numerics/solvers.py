@@ -310,8 +310,11 @@ class Ros2:
         `codegen.precompile` to build its libraries together."""
         K, M = int(steps_per_sample), int(samples_per_call)
         key = self._key(model, K, M)
-        if not self.compile or key in _BLOCK_FUNCTIONS or self.batch_calls:
+        if not self.compile or key in _BLOCK_FUNCTIONS:
             return None
+        if self.batch_calls:
+            stepper = self._batched_stepper(model, load=False)
+            return None if stepper is None or stepper.library is not None else stepper.job()
         if key not in _GRAPHS:
             self.K, self.M = K, M
             _GRAPHS[key] = self._graph(model)
@@ -492,18 +495,21 @@ class Ros2:
         return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
                           engine=self.engine, batch_calls=self.batch_calls)
 
-    def _batched_stepper(self, model) -> LaneStepper | None:
+    def _batched_stepper(self, model, load: bool = True) -> LaneStepper | None:
         """The one-lane block library with batched calls for this model structure and step (one per process and
         (structure, dt); K and M are arguments of its calls), or None where it cannot be built (a compiler
-        without GCC's vector extension: CasADi's C then)."""
+        without GCC's vector extension: CasADi's C then). load=False: its C only, unless built already."""
         key = ("batched", model.structure, self.dt)
         if key not in _BLOCK_FUNCTIONS:
+            _BLOCK_FUNCTIONS[key] = LaneStepper(self, model, 1, batched=True, load=False)
+        stepper = _BLOCK_FUNCTIONS[key]
+        if load and stepper is not None and stepper.library is None:
             try:
-                _BLOCK_FUNCTIONS[key] = LaneStepper(self, model, 1, batched=True)
+                stepper.load()
             except RuntimeError as e:
                 warnings.warn(f"the batched step could not be built ({e}); using CasADi's C")
-                _BLOCK_FUNCTIONS[key] = None
-        return _BLOCK_FUNCTIONS[key]
+                stepper = _BLOCK_FUNCTIONS[key] = None
+        return stepper
 
     def refined(self, model, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, bound for one output sample (factor*K steps):

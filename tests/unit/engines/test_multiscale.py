@@ -57,14 +57,26 @@ def road_rate_run():
     return _run({**MULTISCALE, "proxy": "road_rate"})
 
 
+def assert_within_stated_error(full: dict, ms: dict) -> None:
+    """The multiscale run's end temperatures and load shifts per axle against the full run's, within the stated
+    error: a 95 % interval of the window sampling error (ERROR_COVERAGE, Student t from 5 windows), so each axle
+    falls outside with 5 % probability. At most one of the four axles may be outside (two or more: 1.4 % if the
+    interval is right) and none by more than twice. Which axle lands where is a draw: the windows' ride is
+    chaotic, and a rounding-level change of the engine (its exp/log by 1 ulp) moved axle 3's dN error from 0.55
+    to 1.18 of its interval on this drive, the full run's dN by up to 0.0008 pp."""
+    est = ms["estimated_error"]
+    for key, errors in (("T_end_C", est["T_end_K"]), ("dN_pct", est["dN_pct"])):
+        ratio = [abs(a_ms[key] - a_full[key]) / e for a_full, a_ms, e in zip(full["axles"], ms["axles"], errors)]
+        assert sum(r > 1.0 for r in ratio) <= 1 and max(ratio) <= 2.0, (key, ratio)
+
+
 def test_multiscale_with_the_road_rate_proxy_matches_the_full_run_within_its_stated_error(pair, road_rate_run):
     (_, full), _ = pair
     _, ms = road_rate_run
     est = ms["estimated_error"]
     assert est["control_variate"] and est["proxy"] == "road_rate"
-    for a_full, a_ms, eT, eN in zip(full["axles"], ms["axles"], est["T_end_K"], est["dN_pct"]):
-        assert abs(a_ms["T_end_C"] - a_full["T_end_C"]) <= eT, (a_ms, a_full, eT)
-        assert abs(a_ms["dN_pct"] - a_full["dN_pct"]) <= eN, (a_ms, a_full, eN)
+    assert_within_stated_error(full, ms)
+    for a_full, eT in zip(full["axles"], est["T_end_K"]):
         assert 0 < eT < 0.2 * (a_full["T_end_C"] - a_full["T_start_C"])
 
 
@@ -77,11 +89,10 @@ def test_multiscale_matches_the_full_run_within_its_stated_error(pair):
     assert est["windows"] == 5 and est["control_variate"] and est["sigmas"] > 4.0
     # it drove less than half the road with the full model
     assert est["covered_km"] < 0.5 * ms["distance_km"]
-    for a_full, a_ms, eT, eN in zip(full["axles"], ms["axles"], est["T_end_K"], est["dN_pct"]):
+    assert_within_stated_error(full, ms)
+    for a_full, eT in zip(full["axles"], est["T_end_K"]):
         rise = a_full["T_end_C"] - a_full["T_start_C"]
         assert rise > 2.0                                     # the struts did warm up: something to estimate
-        assert abs(a_ms["T_end_C"] - a_full["T_end_C"]) <= eT, (a_ms, a_full, eT)
-        assert abs(a_ms["dN_pct"] - a_full["dN_pct"]) <= eN, (a_ms, a_full, eN)
         # the estimate is informative: well below the temperature rise it qualifies
         assert 0 < eT < 0.2 * rise
     # the dissipated energy is extrapolated over the gaps as well (within 10 % of the full run)
