@@ -4,8 +4,10 @@
 
 The drive: the mileage scenario's settings (apc_8x8, ISO class D, 4 ms step, output every 1 s, statistics every
 1 km) over --distance, in `lanes` cases that differ in speed (18-24 km/h), initial temperature and road seed.
-Printed, for the scalar engine (`Ros2`, each case on its own) and the ensemble (`vehicle.engines.ensemble`, the
-cases in lockstep through `vehicle.numerics.lanes`):
+Printed, for the engine before vehicle.numerics.vector_math (`libm_block`: CasADi's C calling the C library's
+exp/log/pow/tanh, the engine of the issue's filing), today's scalar engine (`Ros2`, each case on its own, its calls
+batched into vector calls) and the ensemble (`vehicle.engines.ensemble`, the cases in lockstep through
+`vehicle.numerics.lanes`):
   instructions per lane-step   callgrind's count of the block function alone on one block of 250 steps (the
                                scalar engine's block for one case, the lanes' block for all lanes, divided by the
                                lanes): independent of the machine's load (valgrind runs AVX2, not AVX-512);
@@ -164,16 +166,43 @@ def callgrind(kind: str, lib: str, name: str, data: Path) -> int | None:
     return None
 
 
+def libm_solver_class():
+    """`Ros2` whose block function is `libm_block`'s (the engine before vehicle.numerics.vector_math: a call of the
+    C library per exp/log/pow/tanh); its error probes and outputs are today's."""
+    from vehicle.numerics.solvers import Ros2
+
+    class LibmRos2(Ros2):
+        def block_graph(self, model, steps_per_sample, samples_per_call):
+            return None
+
+        def bind(self, model, steps_per_sample, samples_per_call):
+            self.K, self.M = int(steps_per_sample), int(samples_per_call)
+            self.nx, self.nmem = model.nx, model.n_memory
+            self.fn, _ = libm_block(model, self)
+            self.memory = model.initial_memory()
+            return self
+
+    return LibmRos2
+
+
 def drives(distance: str, lanes: int, isa: str, folder: Path) -> dict:
-    """The cases on the scalar engine one after the other, then in one ensemble: CPU and wall seconds, per-case
-    results, the largest relative difference of the files."""
+    """The cases on the engine before vehicle.numerics.vector_math (C library calls), on today's scalar engine, one
+    after the other, then in one ensemble: CPU and wall seconds, per-case results, the largest relative difference
+    of the files (ensemble against today's scalar engine)."""
+    from vehicle.engines.build import full_drive_solver
     from vehicle.engines.ensemble import run_lockstep
     from vehicle.studies.sweep import run_case
 
     base = str(Path(__file__).resolve().parents[1] / "scenarios")
     items = {kind: [(f"{kind}{i}", (scenario_text(i, distance), f"case {i}", base, str(folder / f"{kind}{i}.h5")))
-                    for i in range(lanes)] for kind in ("s", "e")}
+                    for i in range(lanes)] for kind in ("s", "e", "m")}
     out = {}
+    libm = libm_solver_class()
+    c0, w0 = time.process_time(), time.perf_counter()
+    with full_drive_solver(lambda dt: libm(dt)):
+        res = [run_case(*args) for _, args in items["m"]]
+    out["libm"] = {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
+                   "status": [r["status"] for r in res]}
     c0, w0 = time.process_time(), time.perf_counter()
     res = [run_case(*args) for _, args in items["s"]]
     out["scalar"] = {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
@@ -265,7 +294,7 @@ def main() -> None:
         # per case: a fixed part (set-up, model, equilibria, files) and a part per km, from the two distances
         d, d4 = res["drives"], res["drives_short"]
         res["drives_per_hour"], res["per_case_106km_cpu_s"] = {}, {}
-        for k in ("scalar", "ensemble"):
+        for k in ("libm", "scalar", "ensemble"):
             per_km = (d[k]["cpu_s"] - d4[k]["cpu_s"]) / L / (0.75 * km)
             fixed = max(d[k]["cpu_s"] / L - per_km * km, 0.0)
             res["per_case_106km_cpu_s"][k] = {"fixed_s": fixed, "per_km_s": per_km,
@@ -291,11 +320,14 @@ def main() -> None:
               f", ensemble CPU {d['ensemble']['cpu_s']:.1f} s (wall {d['ensemble']['wall_s']:.1f}, integration "
               f"{d['ensemble']['integration_s']:.1f}); ratio {d['scalar']['cpu_s'] / d['ensemble']['cpu_s']:.2f}x")
         dph, pc = res["drives_per_hour"], res["per_case_106km_cpu_s"]
-        for k in ("scalar", "ensemble"):
+        for k in ("libm", "scalar", "ensemble"):
             print(f"  {k}: per case {pc[k]['fixed_s']:.2f} s fixed + {pc[k]['per_km_s']:.3f} s per km (CPU; from "
                   f"{args.distance} and a quarter of it) -> {pc[k]['total_s']:.1f} s per 106 km drive")
-        print(f"  106 km drives per hour on {args.workers} workers (CPU time, {args.workers} busy workers): scalar "
-              f"{dph['scalar']:.0f}, ensemble {dph['ensemble']:.0f} ({dph['ensemble'] / dph['scalar']:.2f}x)")
+        print(f"  106 km drives per hour on {args.workers} workers (CPU time, {args.workers} busy workers): C-library "
+              f"engine (before issue 26's math) {dph['libm']:.0f}, scalar {dph['scalar']:.0f} "
+              f"({dph['scalar'] / dph['libm']:.2f}x), ensemble {dph['ensemble']:.0f} "
+              f"({dph['ensemble'] / dph['libm']:.2f}x the C-library engine, {dph['ensemble'] / dph['scalar']:.2f}x "
+              f"the scalar)")
         print(f"  largest relative difference of the files (every series and statistics row): "
               f"{d['largest_relative_difference']:.3g}  status {d['scalar']['status']} {d['ensemble']['status']}")
 

@@ -6,14 +6,17 @@ writes the same statements over a lane type `V` instead of `double`:
 
 - with GCC or Clang, `V` is a vector of NL doubles (``__attribute__((vector_size(8 * NL)))``, structure of
   arrays: work variable a5 holds lane l's value in a5[l]); + - * / and the comparisons are the vector
-  extension's element-wise operations, sqrt a per-lane loop (one `sqrtpd`), the transcendental functions
-  (exp, log, tanh, pow) the C library's scalar function per lane (a vector math library would round
-  differently), CasADi's conditionals (`c ? b : 0`, `x <= y` as 1.0 / 0.0) bit masks. Every lane computes
+  extension's element-wise operations, sqrt a per-lane loop (one `sqrtpd`), exp, log, tanh and pow
+  `vehicle.numerics.vector_math`'s functions over the lane type (the scalar engine calls the same code on one
+  lane: the same bits), the other C library functions lane by lane, CasADi's conditionals (`c ? b : 0`, `x <= y` as 1.0 / 0.0) bit masks. Every lane computes
   every operation: the step has no branch (the sparse LU of W is symbolic, without pivoting, and the
   valves' Newton iterations are a fixed count), so nothing needs masking inside it: a lane gone non-finite
   stays in its own lane;
 - elsewhere (no vector extension, or `-DHPSIM_LANES_SCALAR`) `V` is `double` and the block runs the
-  lanes one after the other: the scalar step, the same statements as CasADi's.
+  lanes one after the other: the scalar step, the same statements as CasADi's;
+- the one-lane build with batched calls (`emit_batched`, `LaneStepper(..., batched=True)`, `BatchedBlock`) is
+  the scalar engine's block function (`vehicle.numerics.solvers.Ros2`): `V` is `double`, and the step's
+  exp/log/tanh/pow calls of one depth run a vector's width at a time.
 
 fmin/fmax are written as the C library computes them (glibc 2.36: a NaN operand gives the other one, of
 +0 and -0 the minimum is -0), so that lanes equal the scalar engine bit for bit. The library is compiled
@@ -372,10 +375,8 @@ def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: s
 
 def default_isa() -> str:
     """The instruction set for the lane library: $HPSIM_LANES_ISA, else the widest the processor has (AVX-512,
-    AVX2, SSE2). Measured (benchmarks/ensemble.py, docs/validation.md §7): 8 lanes of AVX-512 2.04 us per
-    lane-step, 4 of AVX2 2.55 us, 8 of AVX2 (two registers per value) 5.15 us, 16 of AVX-512 5.85 us, the
-    scalar engine 7.3 us. Valgrind
-    cannot run AVX-512: HPSIM_LANES_ISA=avx2 for instruction counts."""
+    AVX2, SSE2): one hardware vector of lanes has measured fastest per lane-step (docs/engines.md, "Vector
+    lanes"). Valgrind cannot run AVX-512: HPSIM_LANES_ISA=avx2 for instruction counts."""
     asked = os.environ.get(ISA_ENV, "").strip().lower()
     if asked:
         if asked not in ISAS:
@@ -408,20 +409,22 @@ class LaneStepper:
         step, _, parametric, _ = solver.step_functions(model)
         tag = "b" if batched else ""
         self._prepare(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{tag}", isa,
-                      scalar or batched, cc, batched)
+                      scalar or batched, cc, ISAS[isa or default_isa()][1] if batched else 0)
         if load:           # load=False: the C only (`job`, for codegen.precompile), `load()` later
             self.load()
 
     @classmethod
     def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
-                       isa: str | None = None, scalar: bool = False, cc: str | None = None) -> "LaneStepper":
-        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX)."""
+                       isa: str | None = None, scalar: bool = False, cc: str | None = None,
+                       batch: int = 0) -> "LaneStepper":
+        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX);
+        batch > 0: its calls gathered `batch` at a time (`emit_batched`, the one-lane build)."""
         self = cls.__new__(cls)
-        self._prepare(step, parametric, lanes, name, isa, scalar, cc)
+        self._prepare(step, parametric, lanes, name, isa, scalar or batch > 0, cc, batch)
         self.load()
         return self
 
-    def _prepare(self, step, parametric, lanes, name, isa, scalar, cc, batched=False) -> None:
+    def _prepare(self, step, parametric, lanes, name, isa, scalar, cc, batch: int = 0) -> None:
         self.lanes = int(lanes)
         if self.lanes < 1 or self.lanes & (self.lanes - 1):
             raise ValueError(f"LaneStepper: lanes must be a power of two (a vector's length), got {lanes}")
@@ -429,8 +432,7 @@ class LaneStepper:
         self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
         self.npw = parametric.size1_out(0)
         self.name = name
-        self.source = lanes_source(step, parametric, self.lanes, self.name,
-                                   batch=ISAS[self.isa][1] if batched else 0)
+        self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
         self.flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
         self.cc = cc
         self.library = None
