@@ -26,6 +26,7 @@ import casadi as ca
 
 from hpsim.errors import UserInputError
 from vehicle.fmu.description import model_description
+from vehicle.numerics import vector_math
 from vehicle.numerics.codegen import compile_source
 
 WRAPPER = Path(__file__).with_name("fmi2_wrapper.c")
@@ -97,7 +98,7 @@ def _renamed(fn: ca.Function, name: str) -> ca.Function:
 
 def generate_c(spec: FmuSpec, folder: Path) -> Path:
     """<id>_model.c in `folder`: hp_step, hp_param, hp_outputs, hp_init (and hp_run) as CasADi C (its helper
-    functions are named after the file: <id>_model_sq, ...)."""
+    functions are named after the file: <id>_model_sq, ...), with vehicle.numerics.vector_math's exp/log/pow/tanh."""
     file_name = f"{spec.identifier}_model.c"
     cg = ca.CodeGenerator(file_name, {"with_header": False})
     for fn, name in ((spec.step, "hp_step"), (spec.parametric, "hp_param"), (spec.outputs, "hp_outputs"),
@@ -110,7 +111,11 @@ def generate_c(spec: FmuSpec, folder: Path) -> Path:
         cg.generate()
     finally:
         os.chdir(cwd)
-    return folder / file_name
+    # exp, log, pow and tanh as the engine computes them (GCC and Clang; other compilers: the C library), so that
+    # the FMU's arithmetic is the engine's
+    path = folder / file_name
+    path.write_bytes(vector_math.with_scalar_math(path.read_bytes()))
+    return path
 
 
 def _c_array(ctype: str, name: str, values) -> str:

@@ -384,7 +384,8 @@ def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_
 def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
     """Generate C for `fn`, compile it to a shared library (cached, verified) and load it.
 
-    Falls back to CasADi's virtual machine (slower, same results) when no C compiler is found
+    Falls back to CasADi's virtual machine (slower; the same results to rounding: it calls the C library's exp, log,
+    pow and tanh, the compiled code vehicle.numerics.vector_math's) when no C compiler is found
     or the compilation fails.
     """
     cc = _compiler()
