@@ -122,7 +122,7 @@ def per_step(model, solver, z0, U, P, lanes: int, isa: str, repeats: int) -> dic
         best["lanes"] = min(best["lanes"], (time.process_time() - t0) / (lanes * K * M))
     diff = max(float(np.max(np.abs(Zl[:, :, i].T - Zs[i]))) for i in range(lanes))
     return {"scalar_us": best["scalar"] * 1e6, "lanes_us": best["lanes"] * 1e6, "libm_us": best["libm"] * 1e6,
-            "libm_library": libm_lib, "block_max_abs_difference": diff,
+            "libm_library": libm_lib, "libm_name": libm_fn.name(), "block_max_abs_difference": diff,
             "library": str(stepper.library), "scalar_name": solver.fn.name(), "lanes_name": stepper.name,
             "K": K, "M": M, "vector_width": stepper.vector_width}
 
@@ -262,14 +262,16 @@ def main() -> None:
         if not args.no_callgrind:
             data = tmp / "block.npz"
             np.savez(data, z0=z0, U=U, Ul=np.ascontiguousarray(U.transpose(1, 0, 2)), P=P, K=ps["K"], M=ps["M"])
-            from vehicle.numerics.codegen import cache_dir
-
-            scalar_lib = next(iter(sorted((p for p in cache_dir().glob(f"{ps['scalar_name']}_*.so")
-                                           if not p.name.startswith(f"{ps['scalar_name']}_libm_")),
-                                          key=lambda p: p.stat().st_mtime, reverse=True)), None)
             n_steps = ps["K"] * ps["M"]
-            ir_s = callgrind("scalar", str(scalar_lib), ps["scalar_name"], data) if scalar_lib else None
-            ir_m = callgrind("scalar", ps["libm_library"], ps["scalar_name"], data)
+            ir_m = callgrind("scalar", ps["libm_library"], ps["libm_name"], data)
+            # today's scalar engine: the one-lane library with batched calls (AVX2 under valgrind: 4 per call)
+            from vehicle.numerics.lanes import LaneStepper
+
+            one = LaneStepper(solver, model, 1, batched=True, isa="avx2" if isa == "avx512" else isa)
+            data1 = tmp / "block1.npz"
+            np.savez(data1, z0=z0[:, :1], U=U[:, :, :1], Ul=np.ascontiguousarray(U[:, :, :1].transpose(1, 0, 2)),
+                     P=P[:, :1], K=ps["K"], M=ps["M"])
+            ir_s = callgrind("lanes", str(one.library), one.name, data1)
             # valgrind cannot run AVX-512: the counts of the AVX2 library of 4 lanes then
             cg_lanes, lib, lname = L, ps["library"], ps["lanes_name"]
             if isa == "avx512":
@@ -311,8 +313,8 @@ def main() -> None:
     ir = res.get("instructions_per_lane_step")
     if ir and ir["scalar"] and ir["lanes"]:
         libm = f"scalar with the C library {ir['libm']:.0f}  " if ir.get("libm") else ""
-        print(f"  instructions per lane-step (callgrind; lanes: {ir['lanes_n']} of {ir['lanes_isa']}):  {libm}scalar "
-              f"{ir['scalar']:.0f}  lanes {ir['lanes']:.0f}  ratio {ir['scalar'] / ir['lanes']:.2f}x")
+        print(f"  instructions per lane-step (callgrind, {ir['lanes_isa']}; lanes: {ir['lanes_n']}):  {libm}scalar "
+              f"(batched calls) {ir['scalar']:.0f}  lanes {ir['lanes']:.0f}  ratio {ir['scalar'] / ir['lanes']:.2f}x")
     print(f"  one block, largest state difference lanes vs scalar: {ps['block_max_abs_difference']:.3g}")
     if "drives" in res:
         d = res["drives"]
