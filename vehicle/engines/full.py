@@ -92,7 +92,6 @@ class Drive:
                 graphs.append(outputs_graph(model, self.M))
             precompile([g for g in graphs if g is not None])
         self.solver = solver.bind(model, self.K, self.M)
-        self.outputs = model.output_function_ode()
         self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
         # continues (vehicle.engines.time_parallel) leaves it open
@@ -111,6 +110,13 @@ class Drive:
             t0 = time.perf_counter()
             self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
             self.build_s += time.perf_counter() - t0
+
+    @cached_property
+    def outputs(self):
+        """The model's outputs y(x, memory, u, p) in CasADi's virtual machine (`VehicleModel.output_function_ode`):
+        for blocks the compiled block outputs do not serve. Built on first use: a drive whose libraries are in the
+        compile cache builds no graph it does not evaluate."""
+        return self.model.output_function_ode()
 
     # --- initial state --------------------------------------------------------------------------
     def initial_equilibrium(self):

@@ -121,7 +121,8 @@ def test_a_parameter_change_reuses_the_compiled_model(monkeypatch):
     road = build_road(RoadSpec(iso_class="D", length=140.0, seed=2))
     calls = []
     real = solvers.compile_function
-    monkeypatch.setattr(solvers, "compile_function", lambda fn, **kw: calls.append(fn.name()) or real(fn, **kw))
+    # (the drives hand codegen.Library objects, named before any graph is built)
+    monkeypatch.setattr(solvers, "compile_function", lambda fn, **kw: calls.append(fn.name) or real(fn, **kw))
     solvers._BLOCK_FUNCTIONS.clear()
 
     def run(overrides):
