@@ -41,8 +41,6 @@ class MultiscaleDrive(Drive):
         self._J_sums: dict = {}
         self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
         self._proxy_setup()
-        # scipy.stats (Student t of the stated error) imported now: part of the set-up, not of the run
-        error_factor(2)
         self.build_s += time.perf_counter() - t0
         self.estimate: dict | None = None
         self.window_log: list[dict] = []
