@@ -37,7 +37,6 @@ import json
 import os
 import shutil
 import signal
-import stat
 import subprocess
 import sys
 import tempfile
@@ -51,27 +50,15 @@ from typing import Callable
 
 import casadi as ca
 
+from hpsim.cache import CACHE_ENV, cache_problem
 from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time
 
-CACHE_ENV = "HPSIM_CACHE"
 CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
 DEFAULT_CACHE_MAX_MB = 200.0
 _STALE_BUILD_S = 3600.0        # a build folder older than this was left by a killed process
-
-
-def _untrusted(d: Path) -> str | None:
-    """Why folder `d` may not hold libraries this process loads (None: it may)."""
-    st = d.stat()
-    if not stat.S_ISDIR(st.st_mode):
-        return "not a folder"
-    if hasattr(os, "geteuid") and st.st_uid != os.geteuid():
-        return f"owned by another user (uid {st.st_uid})"
-    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"writable by other users (mode {stat.S_IMODE(st.st_mode):o})"
-    return None
 
 
 @functools.lru_cache(maxsize=1)
@@ -83,12 +70,7 @@ def _private_cache() -> Path:
 
 def cache_dir() -> Path:
     """The compile cache folder (created 0700); a private temporary one when it cannot be trusted."""
-    d = Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "hpsim")
-    try:
-        d.mkdir(mode=0o700, parents=True, exist_ok=True)
-        problem = _untrusted(d)
-    except OSError as exc:
-        problem = f"cannot be created ({exc.strerror})"
+    d, problem = cache_problem()
     if problem is None:
         return d
     fallback = _private_cache()
