@@ -105,8 +105,11 @@ class MultiscaleDrive(Drive):
             road, track = self.station_roads[i], ("left" if i % 2 == 0 else "right")
             roads[i] = np.interp(s - m.a[i], road.distance_m, road.heights(track, m.params.station_axle(i)))
 
+        standing = self.equilibrium_solver.solve(T0, self.gas_masses)     # the same for every friction velocity
+
         def velocities(V, sl=slice(None)):
-            lin = linear.linearise(m.params, T0, friction_velocity_m_s=V, gas_masses=self.gas_masses)
+            lin = linear.linearise(m.params, T0, friction_velocity_m_s=V, gas_masses=self.gas_masses,
+                                   equilibrium=standing)
             return linear_strut_velocity(lambda f: linear.strut_velocity_response(lin, f), roads[:, sl], rate,
                                          ms.LINEAR_PROXY_FREQUENCIES)
         V = ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S

@@ -170,10 +170,12 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
 
 
 def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s: float | None = None,
-              speed_m_per_s: float = 0.0, gas_masses=None) -> LinearVehicle:
+              speed_m_per_s: float = 0.0, gas_masses=None, equilibrium=None) -> LinearVehicle:
     """The vehicle linearised at its standing equilibrium (struts at `temperatures_K`, default the
     charging temperature; charged as in a drive, or with the given `gas_masses`, a drive's own [kg]).
-    See the module doc for the friction option."""
+    See the module doc for the friction option. `equilibrium`: that standing equilibrium when the caller has
+    solved it (an `EquilibriumSolver.solve` of this vehicle at these temperatures and gas masses: the seal
+    friction does not enter the static balance, so one serves every friction velocity)."""
     model = None
     if gas_masses is None:
         model = VehicleModel(params)
@@ -186,7 +188,7 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     n = model.n
     T = np.full(n, params.charging.temperature) if temperatures_K is None else \
         np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
-    eq = EquilibriumSolver(model).solve(T, gas_masses)
+    eq = EquilibriumSolver(model).solve(T, gas_masses) if equilibrium is None else equilibrium
     x0 = model.state_at_rest(eq, gas_masses)
     # standing road, constant speed (no acceleration), ambient = strut temperature: no heat flow
     u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
