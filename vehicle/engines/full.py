@@ -402,8 +402,13 @@ class Drive:
         """Every time series of the output table (vehicle.physics.outputs) at a block's samples."""
         m = self.model
         n = X.shape[1]
-        if self.compiled_outputs is not None and n == self.M:
-            Y, acc, heights = self.compiled_outputs(X, np.broadcast_to(memory, (m.n_memory, n)), U, self.p)
+        if self.compiled_outputs is not None and n <= self.M:
+            # fewer samples than a block (the first, a window's or the drive's last): the compiled block outputs on
+            # the samples padded with copies of the last (each column is evaluated on its own), the padding dropped
+            pad = np.full(self.M, n - 1)
+            pad[:n] = np.arange(n)
+            Y, acc, heights = (np.asarray(v)[:, :n] for v in self.compiled_outputs(
+                X[:, pad], np.broadcast_to(memory, (m.n_memory, n))[:, pad], U[:, pad], self.p))
         else:
             Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
                                                   np.repeat(self.p[:, None], n, axis=1))

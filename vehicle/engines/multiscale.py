@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.stages import timed
 
 from vehicle.physics import linear
 from vehicle.physics.model import DISSIPATION_TERMS
@@ -304,8 +305,9 @@ class MultiscaleDrive(Drive):
             w["flow"] = LinearFlow(w["A"])
             if k == 0 and self._linear_proxy_pending:
                 iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
-                self._linear_proxy_setup((w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
-                                         if self.ms.LINEAR_PROXY_MATCH_RMS else None)
+                timed("drive: the proxy's set-up", self._linear_proxy_setup,
+                      (w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
+                      if self.ms.LINEAR_PROXY_MATCH_RMS else None)
                 self._linear_proxy_pending = False
             if k == 0 and self.ms.placement == "weighted":
                 lam = np.linalg.eigvals(w["A"]).real
