@@ -90,7 +90,7 @@ class Drive:
                 graphs.append(solver.refined_solver(1).block_graph(model, 1, 1))
             if outputs_compiled:
                 graphs.append(outputs_graph(model, self.M))
-            precompile([g for g in graphs if g is not None])
+            precompile([g for g in graphs + self._libraries(model) if g is not None])
         self.solver = solver.bind(model, self.K, self.M)
         self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
@@ -110,6 +110,11 @@ class Drive:
             t0 = time.perf_counter()
             self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
             self.build_s += time.perf_counter() - t0
+
+    def _libraries(self, model) -> list:
+        """Libraries an engine built on this drive needs besides the solver's and the block outputs' (as
+        `codegen.Library`, compiled together with those when the cache misses them)."""
+        return []
 
     @cached_property
     def outputs(self):

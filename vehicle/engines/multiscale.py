@@ -17,8 +17,8 @@ from vehicle.scenario.settings import MultiscaleSettings
 from vehicle.engines.full import Drive, DriveResult, DriveState
 from vehicle.engines.control_variate import (band_power_cumulative, control_variate, linear_strut_velocity, on_grid,
                                              station_patterns, stratified_error_covariance, variance_ratio)
-from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, warm_up_correction,
-                                       window_forcings)
+from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
+                                       warm_up_correction, window_forcings)
 
 MODE = "multiscale"
 
@@ -38,13 +38,17 @@ class MultiscaleDrive(Drive):
         t0 = time.perf_counter()
         self.slow_index = np.asarray(model.slow_state_indices(), int)
         self.ext_index = np.arange(model.n_dynamic, model.nx)
-        self.J_slow = slow_rate_jacobian(model)
+        self.J_slow = slow_rate_jacobian(model, compiled=self._caps.compiled)
         self._J_sums: dict = {}
         self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
         self._proxy_setup()
         self.build_s += time.perf_counter() - t0
         self.estimate: dict | None = None
         self.window_log: list[dict] = []
+
+    def _libraries(self, model) -> list:
+        """The full drive's libraries and the slow rates' Jacobian (compiled together when missing)."""
+        return super()._libraries(model) + [slow_rate_library(model)]
 
     # --- layout for the sink: the full drive's, plus where each window's averages start ------------
     def describe(self):
