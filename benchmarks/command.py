@@ -10,7 +10,8 @@ first one warm-up run of each (the compile cache filled: the timings are those o
 command's wall time (from outside the process: interpreter start and imports included), the ratio full /
 multiscale of the medians, and the `-v` stage times of the median run of each (reading, scenario checks, model,
 road, the cache lookup, the drive, the summary; "other" is the wall time outside the stages: interpreter start,
-imports, the output file's set-up). On a shared machine the wall times are noisy: compare the ratio of one run.
+imports, the output file's set-up), and each command's CPU time (user + system, of the process and its children):
+on a shared machine the wall times are noisy (compare the ratio of one run), the CPU times less so.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -33,9 +35,12 @@ def run_once(scenario: Path, out: Path) -> dict:
     """One `hpsim -v run`: its wall time and the stage times it logs."""
     cmd = [sys.executable, "-m", "vehicle.cli", "-v", "run", str(scenario), "-o", str(out), "--overwrite",
            "--no-progress"]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if res.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({res.returncode}):\n{res.stderr[-2000:]}")
     stages: dict[str, float] = {}
@@ -43,7 +48,7 @@ def run_once(scenario: Path, out: Path) -> dict:
         m = STAGE.match(line.strip())
         if m:
             stages[m["name"]] = stages.get(m["name"], 0.0) + float(m["s"])
-    return {"wall_s": wall, "stages": stages}
+    return {"wall_s": wall, "cpu_s": cpu, "stages": stages}
 
 
 def outside_stages(run: dict) -> float:
@@ -72,16 +77,21 @@ def main(argv=None) -> int:
     for name, rs in runs.items():
         walls = [r["wall_s"] for r in rs]
         mid = sorted(rs, key=lambda r: r["wall_s"])[len(rs) // 2]
-        median[name] = {"wall_s": statistics.median(walls), "walls_s": walls, "stages": mid["stages"],
-                        "other_s": outside_stages(mid)}
+        cpus = [r["cpu_s"] for r in rs]
+        median[name] = {"wall_s": statistics.median(walls), "walls_s": walls, "cpu_s": statistics.median(cpus),
+                        "cpus_s": cpus, "stages": mid["stages"], "other_s": outside_stages(mid)}
     ratio = median["full"]["wall_s"] / median["multiscale"]["wall_s"]
     ratios = [f["wall_s"] / m["wall_s"] for f, m in zip(runs["full"], runs["multiscale"])]
+    cpu_ratio = median["full"]["cpu_s"] / median["multiscale"]["cpu_s"]
     if args.json:
-        print(json.dumps({"runs": median, "ratio": ratio, "ratios": ratios, "cpus": os.cpu_count()}, indent=1))
+        print(json.dumps({"runs": median, "ratio": ratio, "ratios": ratios, "cpu_ratio": cpu_ratio,
+                          "cpus": os.cpu_count()}, indent=1))
         return 0
     for name, m in median.items():
-        print(f"{name:10s} wall {m['wall_s']:6.2f} s (runs: {', '.join(f'{w:.2f}' for w in m['walls_s'])})")
-    print(f"ratio full / multiscale: {ratio:.2f} (per pair: {', '.join(f'{r:.2f}' for r in ratios)})")
+        print(f"{name:10s} wall {m['wall_s']:6.2f} s (runs: {', '.join(f'{w:.2f}' for w in m['walls_s'])}), "
+              f"CPU {m['cpu_s']:6.2f} s (runs: {', '.join(f'{c:.2f}' for c in m['cpus_s'])})")
+    print(f"ratio full / multiscale: wall {ratio:.2f} (per pair: {', '.join(f'{r:.2f}' for r in ratios)}), "
+          f"CPU {cpu_ratio:.2f}")
     names = list(dict.fromkeys(k for m in median.values() for k in m["stages"]))
     print(f"\n{'stage (median run)':52s} {'full':>8s} {'multiscale':>11s}")
     for k in names:
