@@ -2,7 +2,8 @@
 integration").
 
     python benchmarks/command.py [--repeat 3] [--json]
-    python benchmarks/command.py --full scenarios/mileage_106km.yaml --multiscale scenarios/mileage_106km_multiscale.yaml
+    python benchmarks/command.py --full scenarios/mileage_106km.yaml \
+        --multiscale scenarios/mileage_106km_multiscale.yaml
 
 Runs `hpsim -v run <scenario> -o <tmp>.h5 --overwrite --no-progress` for both scenarios as separate processes, one
 after the other, --repeat times alternating (full, multiscale, full, ...), so that both see the same machine load;

@@ -269,9 +269,9 @@ def _kill(proc) -> None:
 
 
 def _run_builds(jobs, width: int) -> list[str | None]:
-    """Compile the jobs ((cc, flags, code, code_sha, folder, stem[, record entries]) each) with at most `width` compilers at once;
-    per job None when built, else the compiler's error. An interrupt or an error stops every compiler and keeps
-    nothing of the unfinished ones."""
+    """Compile the jobs ((cc, flags, code, code_sha, folder, stem[, record entries]) each) with at most `width`
+    compilers at once; per job None when built, else the compiler's error. An interrupt or an error stops every
+    compiler and keeps nothing of the unfinished ones."""
     errors, running = [], []                    # running: started, removed only once finished
     try:
         for job in jobs:

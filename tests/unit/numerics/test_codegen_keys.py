@@ -87,7 +87,8 @@ def test_a_drive_with_its_libraries_in_the_cache_builds_no_graph(monkeypatch):
     graphs = []
     real_graph, real_outputs = solvers.Ros2._graph, solvers._outputs_function
     monkeypatch.setattr(solvers.Ros2, "_graph", lambda self, model: graphs.append("block") or real_graph(self, model))
-    monkeypatch.setattr(solvers, "_outputs_function", lambda model, n: graphs.append("outputs") or real_outputs(model, n))
+    monkeypatch.setattr(solvers, "_outputs_function",
+                        lambda model, n: graphs.append("outputs") or real_outputs(model, n))
     monkeypatch.setattr(codegen, "_generate_c", lambda fn: pytest.fail("C generated for a cached library"))
     solvers._BLOCK_FUNCTIONS.clear()
     again = Drive(m, road, DriveSettings(**settings)).run().state.x
