@@ -2,16 +2,27 @@
 
 Bare numbers are SI. Everything inside hpsim is SI (m, s, kg, N, Pa, K, W, J).
 Parsing is done by pint; this module only fixes the registry and the error
-messages.
+messages. Conversions that succeeded are kept in hpsim's private cache folder
+(`hpsim.cache`, one small JSON file per pint version and version of this module),
+so that a command whose quantities were all seen before neither imports pint nor
+builds its registry (together ~0.6 s).
 """
 from __future__ import annotations
 
+import atexit
 import functools
+import hashlib
+import json
 import math
 import numbers
+import os
 import re
+import tempfile
+from importlib import metadata
+from pathlib import Path
 from typing import Any
 
+from .cache import trusted_cache_dir
 from .errors import UserInputError
 
 # A quantity is a short text: a number and a unit expression ("41.8 kN", "5e-12 m^3/(Pa*s)").
@@ -90,6 +101,10 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
             raise UserInputError(f"{where}: empty value, expected a quantity in {unit}")
         if (text, unit) in _PARSED:               # a sweep validates the same strings in every case
             return _PARSED[(text, unit)]
+        known = _stored().get(f"{unit}\0{text}")
+        if known is not None:
+            _PARSED[(text, unit)] = known
+            return known
         check_quantity_text(text, where, unit)
         ureg = registry()
         try:
@@ -123,12 +138,64 @@ def parse_quantity(value: Any, unit: str, *, where: str = "value") -> float:
         raise UserInputError(f"{where}: {_shown(value)} is not a finite number")
     if isinstance(value, str) and len(_PARSED) < _PARSED_MAX:
         _PARSED[(value.strip(), unit)] = out
+        _NEW[f"{unit}\0{value.strip()}"] = out
     return out
 
 
 # successful conversions of quantity strings (pint takes ~1 ms each; validating a study's cases repeats them)
 _PARSED: dict = {}
 _PARSED_MAX = 100_000
+# conversions kept on disk (`_stored`): at most this many, those of this process added at its exit
+_STORED_MAX = 20_000
+_NEW: dict = {}
+
+
+def _store_path() -> Path | None:
+    """The file of stored conversions in the trusted cache folder (None: no trusted folder, or pint not found)."""
+    try:
+        pint_version = metadata.version("pint")
+    except metadata.PackageNotFoundError:
+        return None
+    d = trusted_cache_dir()
+    if d is None:
+        return None
+    digest = hashlib.sha256(Path(__file__).read_bytes() + pint_version.encode()).hexdigest()[:16]
+    return d / f"quantities_{digest}.json"
+
+
+@functools.lru_cache(maxsize=1)
+def _stored() -> dict:
+    """The conversions stored by earlier processes ("unit\\0text" -> SI value), read once; their writer is
+    registered to run at exit. Anything but finite numbers is ignored (a damaged file costs pint time, nothing
+    else)."""
+    path = _store_path()
+    if path is None:
+        return {}
+    atexit.register(_write_new, path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    return {k: float(v) for k, v in data.items()
+            if isinstance(k, str) and type(v) in (int, float) and math.isfinite(v)}
+
+
+def _write_new(path: Path) -> None:
+    """Add this process's new conversions to the stored ones (written to a temporary name and renamed: atomic)."""
+    if not _NEW:
+        return
+    merged = {**_stored(), **_NEW}
+    if len(merged) > _STORED_MAX:
+        return
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".quantities-", dir=path.parent)
+        with os.fdopen(fd, "w") as fh:
+            json.dump(merged, fh)
+        os.replace(tmp, path)
+    except OSError:
+        pass
 
 
 def parse_quantity_list(text: str, unit: str, *, where: str = "value") -> list[float]:

@@ -75,7 +75,20 @@ def _source(entry) -> str:
 
 
 def load_gas(name: str = "nitrogen") -> GasProperties:
-    """Load gas properties from the package file struts/data/<name>.yaml."""
+    """Load gas properties from the package file struts/data/<name>.yaml (read once per process: every strut of
+    every model built asks for them, and the YAML takes ~15 ms to parse; the properties are frozen)."""
+    if isinstance(name, str) and name in _LOADED:
+        return _LOADED[name]
+    gas = _read_gas(name)
+    _LOADED[name] = gas
+    return gas
+
+
+# the gases read by this process, by name
+_LOADED: dict = {}
+
+
+def _read_gas(name: str) -> GasProperties:
     resource = files("struts") / "data" / f"{name}.yaml"
     where = f"struts/data/{name}.yaml"
     if not isinstance(name, str) or not name.isidentifier() or not resource.is_file():

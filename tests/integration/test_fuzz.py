@@ -566,18 +566,19 @@ def _cache_functions():
     return f, g
 
 
-def _compile_and_evaluate(cache: Path, which: str = "f"):
-    """In a child: compile `which` through the cache; (0, {value, vm value, library, external})."""
+def _compile_and_evaluate(cache: Path, which: str = "f", as_library: bool = False):
+    """In a child: compile `which` through the cache (as_library: as a codegen.Library, found by its key);
+    (0, {value, vm value, library, external})."""
 
     def target():
         import numpy as np
 
-        from vehicle.numerics.codegen import compile_function
+        from vehicle.numerics.codegen import Library, compile_function
 
         os.environ["HPSIM_CACHE"] = str(cache)
         fn = dict(zip("fg", _cache_functions()))[which]
         arg = np.arange(1.0, fn.size1_in(0) + 1.0)
-        compiled = compile_function(fn)
+        compiled = compile_function(Library(fn.name(), ("fuzz",), lambda: fn) if as_library else fn)
         libs = sorted(str(p) for p in cache.glob(f"{fn.name()}_*.so"))
         return 0, {"value": np.asarray(compiled(arg)).ravel().tolist(), "vm": np.asarray(fn(arg)).ravel().tolist(),
                    "libraries": libs, "external": compiled is not fn}
@@ -603,16 +604,19 @@ def _tamper(lib: Path, how: str, tmp: Path):
         raise AssertionError(how)
 
 
+@pytest.mark.parametrize("as_library", [False, True], ids=["by_code", "by_key"])
 @pytest.mark.parametrize("how", ["truncated", "zero_bytes", "garbage", "foreign_library"])
-def test_tampered_cache_library_is_rebuilt_not_loaded(tmp_path, how):
+def test_tampered_cache_library_is_rebuilt_not_loaded(tmp_path, how, as_library):
+    """Whether the library is looked up by its C (a plain function) or by its key before any C is generated (a
+    codegen.Library, as the drives do): a library whose bytes are not the recorded ones is rebuilt."""
     cache = tmp_path / "cache"
-    first = run_forked(_compile_and_evaluate(cache), tmp_path)
+    first = run_forked(_compile_and_evaluate(cache, as_library=as_library), tmp_path)
     assert first.code == 0 and first.value["external"], first.err
     lib = Path(first.value["libraries"][0])
     good = lib.read_bytes()
     _tamper(lib, how, tmp_path)
     tampered = lib.read_bytes()
-    again = run_forked(_compile_and_evaluate(cache), tmp_path)
+    again = run_forked(_compile_and_evaluate(cache, as_library=as_library), tmp_path)
     assert not again.signal, f"crashed with signal {again.signal} loading a {how} library"
     assert again.code == 0 and "Traceback" not in again.err, again.err
     assert again.value["value"] == pytest.approx(again.value["vm"], rel=1e-12)

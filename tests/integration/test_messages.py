@@ -50,7 +50,8 @@ def test_verbose_run_logs_its_stages_and_the_commands_wall_time(flagship_300m):
                           cwd=flagship_300m.parent)
     assert p.returncode == 0, p.stderr
     stages = dict(re.findall(r"^stage ([A-Za-z :()]+?): ([0-9.]+) s$", p.stderr, re.M))
-    for name in ("reading", "road", "build: model", "compile: C generated and looked up in the cache", "compile",
+    for name in ("reading", "output checked against the inputs", "road", "build: model",
+                 "compile: looked up in the cache (C generated when missing)", "compile",
                  "build: drive (the compile included)", "drive", "summary"):
         assert name in stages, (name, p.stderr)
     # the wall time printed is the command's (process start to the last line), not the drive's

@@ -7,8 +7,6 @@ from hpsim.errors import UserInputError
 from hpsim.tables import format_table, print_json
 from hpsim.units import parse_quantity
 
-from vehicle.studies.calibration import calibrate_heat
-
 from .stages import command_wall_s
 
 
@@ -24,6 +22,8 @@ def register(sub):
 
 
 def cmd_calibrate(args):
+    from vehicle.studies.calibration import calibrate_heat      # here: the parser needs none of it (`hpsim --help`)
+
     target = parse_quantity(args.target_rise, "delta_degC", where="--target-rise")
     if not 0 < target < 300:
         raise UserInputError(f"--target-rise: must be in (0, 300) K, got {target}")

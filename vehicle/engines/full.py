@@ -90,9 +90,8 @@ class Drive:
                 graphs.append(solver.refined_solver(1).block_graph(model, 1, 1))
             if outputs_compiled:
                 graphs.append(outputs_graph(model, self.M))
-            precompile([g for g in graphs if g is not None])
+            precompile([g for g in graphs + self._libraries(model) if g is not None])
         self.solver = solver.bind(model, self.K, self.M)
-        self.outputs = model.output_function_ode()
         self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
         # continues (vehicle.engines.time_parallel) leaves it open
@@ -111,6 +110,18 @@ class Drive:
             t0 = time.perf_counter()
             self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
             self.build_s += time.perf_counter() - t0
+
+    def _libraries(self, model) -> list:
+        """Libraries an engine built on this drive needs besides the solver's and the block outputs' (as
+        `codegen.Library`, compiled together with those when the cache misses them)."""
+        return []
+
+    @cached_property
+    def outputs(self):
+        """The model's outputs y(x, memory, u, p) in CasADi's virtual machine (`VehicleModel.output_function_ode`):
+        for blocks the compiled block outputs do not serve. Built on first use: a drive whose libraries are in the
+        compile cache builds no graph it does not evaluate."""
+        return self.model.output_function_ode()
 
     # --- initial state --------------------------------------------------------------------------
     def initial_equilibrium(self):
@@ -396,8 +407,13 @@ class Drive:
         """Every time series of the output table (vehicle.physics.outputs) at a block's samples."""
         m = self.model
         n = X.shape[1]
-        if self.compiled_outputs is not None and n == self.M:
-            Y, acc, heights = self.compiled_outputs(X, np.broadcast_to(memory, (m.n_memory, n)), U, self.p)
+        if self.compiled_outputs is not None and n <= self.M:
+            # fewer samples than a block (the first, a window's or the drive's last): the compiled block outputs on
+            # the samples padded with copies of the last (each column is evaluated on its own), the padding dropped
+            pad = np.full(self.M, n - 1)
+            pad[:n] = np.arange(n)
+            Y, acc, heights = (np.asarray(v)[:, :n] for v in self.compiled_outputs(
+                X[:, pad], np.broadcast_to(memory, (m.n_memory, n))[:, pad], U[:, pad], self.p))
         else:
             Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
                                                   np.repeat(self.p[:, None], n, axis=1))

@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.stages import timed
 
 from vehicle.physics import linear
 from vehicle.physics.model import DISSIPATION_TERMS
@@ -16,8 +17,8 @@ from vehicle.scenario.settings import MultiscaleSettings
 from vehicle.engines.full import Drive, DriveResult, DriveState
 from vehicle.engines.control_variate import (band_power_cumulative, control_variate, linear_strut_velocity, on_grid,
                                              station_patterns, stratified_error_covariance, variance_ratio)
-from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, warm_up_correction,
-                                       window_forcings)
+from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
+                                       warm_up_correction, window_forcings)
 
 MODE = "multiscale"
 
@@ -37,15 +38,17 @@ class MultiscaleDrive(Drive):
         t0 = time.perf_counter()
         self.slow_index = np.asarray(model.slow_state_indices(), int)
         self.ext_index = np.arange(model.n_dynamic, model.nx)
-        self.J_slow = slow_rate_jacobian(model)
+        self.J_slow = slow_rate_jacobian(model, compiled=self._caps.compiled)
         self._J_sums: dict = {}
         self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
         self._proxy_setup()
-        # scipy.stats (Student t of the stated error) imported now: part of the set-up, not of the run
-        error_factor(2)
         self.build_s += time.perf_counter() - t0
         self.estimate: dict | None = None
         self.window_log: list[dict] = []
+
+    def _libraries(self, model) -> list:
+        """The full drive's libraries and the slow rates' Jacobian (compiled together when missing)."""
+        return super()._libraries(model) + [slow_rate_library(model)]
 
     # --- layout for the sink: the full drive's, plus where each window's averages start ------------
     def describe(self):
@@ -107,8 +110,11 @@ class MultiscaleDrive(Drive):
             road, track = self.station_roads[i], ("left" if i % 2 == 0 else "right")
             roads[i] = np.interp(s - m.a[i], road.distance_m, road.heights(track, m.params.station_axle(i)))
 
+        standing = self.equilibrium_solver.solve(T0, self.gas_masses)     # the same for every friction velocity
+
         def velocities(V, sl=slice(None)):
-            lin = linear.linearise(m.params, T0, friction_velocity_m_s=V, gas_masses=self.gas_masses)
+            lin = linear.linearise(m.params, T0, friction_velocity_m_s=V, gas_masses=self.gas_masses,
+                                   equilibrium=standing)
             return linear_strut_velocity(lambda f: linear.strut_velocity_response(lin, f), roads[:, sl], rate,
                                          ms.LINEAR_PROXY_FREQUENCIES)
         V = ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S
@@ -303,8 +309,9 @@ class MultiscaleDrive(Drive):
             w["flow"] = LinearFlow(w["A"])
             if k == 0 and self._linear_proxy_pending:
                 iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
-                self._linear_proxy_setup((w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
-                                         if self.ms.LINEAR_PROXY_MATCH_RMS else None)
+                timed("drive: the proxy's set-up", self._linear_proxy_setup,
+                      (w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
+                      if self.ms.LINEAR_PROXY_MATCH_RMS else None)
                 self._linear_proxy_pending = False
             if k == 0 and self.ms.placement == "weighted":
                 lam = np.linalg.eigvals(w["A"]).real

@@ -8,30 +8,46 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import expm
 
+from vehicle.numerics.codegen import Library, compile_function
+
 ERROR_COVERAGE = 0.95       # the stated error: a 95 % interval of the sampling error (Student t, see error_factor)
 
 
 def error_factor(dof: int) -> float:
     """Standard deviations in the stated error: the two-sided ERROR_COVERAGE quantile of Student's t with the
     estimate's degrees of freedom (the windows' scatter is estimated from few windows: 3.2 for 3, 2.1 for 20)."""
-    from scipy.stats import t as student_t   # lazy: scipy.stats costs ~0.3 s to import
+    # scipy.special's inverse of Student's t distribution, which scipy.stats.t.ppf evaluates (the same numbers);
+    # scipy.special is loaded with scipy.linalg already, scipy.stats would cost ~0.4 s to import
+    from scipy.special import stdtrit
 
-    return float(student_t.ppf(0.5 + ERROR_COVERAGE / 2, max(int(dof), 1)))
+    return float(stdtrit(max(int(dof), 1), 0.5 + ERROR_COVERAGE / 2))
 
 
 
 
-def slow_rate_jacobian(model):
-    """J(x, memory, u, p) = d(rates of the slow states)/d(all states) (CasADi AD of model.ode_function)."""
-    key = "_multiscale_slow_jacobian"
-    fn = model.__dict__.get(key)
-    if fn is None:
+def slow_rate_library(model) -> Library:
+    """J(x, memory, u, p) = d(rates of the slow states)/d(all states) (CasADi AD of model.ode_function) as a
+    `codegen.Library`: compiled, and found in the compile cache by the model's structure without building the
+    model's equations."""
+    name = f"hpsim_jslow_{model.structure}"
+
+    def build():
         idx = model.slow_state_indices()
         x, _, u, p = model.symbols
         mem = model.memory_symbol
         f, _ = model.ode_function(x, mem, u, p)
         fs = ca.vertcat(*[f[i] for i in idx])
-        fn = ca.Function("J_slow", [x, mem, u, p], [ca.jacobian(fs, x)])
+        return ca.Function(name, [x, mem, u, p], [ca.jacobian(fs, x)])
+    return Library(name, ("J_slow", model.structure), build)
+
+
+def slow_rate_jacobian(model, compiled: bool = True):
+    """`slow_rate_library`'s function, compiled (or in CasADi's virtual machine); once per model object."""
+    key = "_multiscale_slow_jacobian"
+    fn = model.__dict__.get(key)
+    if fn is None:
+        lib = slow_rate_library(model)
+        fn = compile_function(lib) if compiled else lib.graph()
         model.__dict__[key] = fn
     return fn
 

@@ -1,8 +1,13 @@
 """Compiled code for CasADi functions: generate C, compile it with the system compiler, cache it.
 
-The cache lives in ~/.cache/hpsim (or $HPSIM_CACHE), keyed by a hash of the generated code, the
-compiler and its flags, so a structural change of the model compiles anew and everything else
-reuses the library. Without a C compiler the function runs in CasADi's virtual machine.
+The cache lives in ~/.cache/hpsim (or $HPSIM_CACHE). A CasADi function given as a `Library` (what
+the drives compile) is keyed by what determines its code: its name, the caller's key (the model's
+structure, the step, the block shape), the source of hpsim's packages (`source_version`), CasADi's
+version, the compiler and its flags; a run finds its library by that key before any graph is built,
+and builds the graph and its C only when the library is missing. A plain `casadi.Function` is keyed by
+a hash of its generated code, the compiler and its flags. Either way a structural change of the model
+compiles anew and everything else reuses the library. Without a C compiler the function runs in
+CasADi's virtual machine.
 
 Trust model (README, "Set-up"): loading a library runs its code, so only libraries this user
 built are loaded.
@@ -11,10 +16,12 @@ built are loaded.
   group/others is not used: a private temporary cache (removed at exit) takes its place, with a
   warning.
 - Beside each library `<name>_<key>.so` a record `<name>_<key>.json` holds the SHA-256 of the
-  generated C and of the built library. A library is loaded only when both match (the C that
-  this process generated, the library bytes on disk); anything else (truncated, empty, another
-  model's library, a foreign file, no record) is rebuilt, never loaded. After loading, the
-  function's inputs and outputs are compared with the model's.
+  generated C and of the built library. A library is loaded only when the library bytes on disk
+  match the record, and (a plain function) the record's C is the C this process generated, or (a
+  `Library`, found by its key without generating C) the record holds that key and both files are
+  this user's; anything else (truncated, empty, another model's library, a foreign file, no record)
+  is rebuilt, never loaded. After loading, the function's inputs and outputs are compared with the
+  model's (a `Library`: with the graph's, kept in the record when it was built).
 - Libraries and records are written to temporary names and renamed into place (atomic), so
   parallel sweep workers compiling the same model never see half a file.
 - The cache is bounded: beyond HPSIM_CACHE_MAX_MB (default 200 MB) the least recently used
@@ -30,7 +37,6 @@ import json
 import os
 import shutil
 import signal
-import stat
 import subprocess
 import sys
 import tempfile
@@ -38,31 +44,21 @@ import threading
 import time
 import warnings
 from dataclasses import dataclass
+from importlib.util import find_spec
 from pathlib import Path
+from typing import Callable
 
 import casadi as ca
 
+from hpsim.cache import CACHE_ENV, cache_problem
 from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time, vector_math
 
-CACHE_ENV = "HPSIM_CACHE"
 CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
 DEFAULT_CACHE_MAX_MB = 200.0
 _STALE_BUILD_S = 3600.0        # a build folder older than this was left by a killed process
-
-
-def _untrusted(d: Path) -> str | None:
-    """Why folder `d` may not hold libraries this process loads (None: it may)."""
-    st = d.stat()
-    if not stat.S_ISDIR(st.st_mode):
-        return "not a folder"
-    if hasattr(os, "geteuid") and st.st_uid != os.geteuid():
-        return f"owned by another user (uid {st.st_uid})"
-    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"writable by other users (mode {stat.S_IMODE(st.st_mode):o})"
-    return None
 
 
 @functools.lru_cache(maxsize=1)
@@ -74,12 +70,7 @@ def _private_cache() -> Path:
 
 def cache_dir() -> Path:
     """The compile cache folder (created 0700); a private temporary one when it cannot be trusted."""
-    d = Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "hpsim")
-    try:
-        d.mkdir(mode=0o700, parents=True, exist_ok=True)
-        problem = _untrusted(d)
-    except OSError as exc:
-        problem = f"cannot be created ({exc.strerror})"
+    d, problem = cache_problem()
     if problem is None:
         return d
     fallback = _private_cache()
@@ -117,15 +108,67 @@ def _sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
-def _verified(lib: Path, record: Path, code_sha: str) -> bool:
-    """The library on disk is the one built from this C code (see the module's trust model)."""
+def _verified(lib: Path, record: Path, code_sha: str | None, lookup_key: str | None = None) -> bool:
+    """The library on disk is the one built from this C code (code_sha), or the one recorded under this lookup key
+    by this user (see the module's trust model)."""
     try:
         meta = json.loads(record.read_text())
-        return (isinstance(meta, dict) and meta.get("c_sha256") == code_sha
-                and lib.stat().st_size == meta.get("library_bytes")
-                and _sha256_file(lib) == meta.get("library_sha256"))
+        if not isinstance(meta, dict):
+            return False
+        if code_sha is not None and meta.get("c_sha256") != code_sha:
+            return False
+        if lookup_key is not None and (meta.get("lookup_key") != lookup_key or not _mine(lib) or not _mine(record)):
+            return False
+        return lib.stat().st_size == meta.get("library_bytes") and _sha256_file(lib) == meta.get("library_sha256")
     except (OSError, ValueError):
         return False
+
+
+def _mine(path: Path) -> bool:
+    return not hasattr(os, "geteuid") or path.stat().st_uid == os.geteuid()
+
+
+# the packages whose source builds the graphs (and generates their C): a change of any of them is a new key
+SOURCE_PACKAGES = ("hpsim", "struts", "terrain", "vehicle")
+
+
+@functools.lru_cache(maxsize=1)
+def source_version() -> str:
+    """SHA-256 of the Python source of SOURCE_PACKAGES as installed (each file's path and bytes): part of every
+    `Library` key, so that an edit of the code that builds a graph or writes its C is never served an old library."""
+    h = hashlib.sha256()
+    for pkg in SOURCE_PACKAGES:
+        spec = find_spec(pkg)
+        for root in sorted(spec.submodule_search_locations or ()) if spec else ():
+            for path in sorted(Path(root).rglob("*.py")):
+                h.update(f"{pkg}/{path.relative_to(root).as_posix()}\0".encode())
+                h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+@dataclass(frozen=True)
+class Library:
+    """A CasADi function to compile, known before its graph is built: `name` (the function's own name, which the
+    graph `build()` returns must carry) and `key` (what, besides hpsim's source and CasADi's version, determines
+    its code: the model's structure, the step, the block shape). `compile_function` and `precompile` find its
+    library in the cache by these and call `build` only when it is missing (or no compiler is found)."""
+    name: str
+    key: tuple
+    build: Callable[[], ca.Function]
+
+    def graph(self) -> ca.Function:
+        fn = self.build()
+        if fn.name() != self.name:
+            raise ValueError(f"Library {self.name}: its graph is named {fn.name()}")
+        return fn
+
+
+def _signature(fn: ca.Function) -> str:
+    """Digest of a function's inputs and outputs (count, shapes and sparsity patterns)."""
+    parts = [(fn.n_in(), fn.n_out())]
+    for sp in [fn.sparsity_in(i) for i in range(fn.n_in())] + [fn.sparsity_out(i) for i in range(fn.n_out())]:
+        parts.append((sp.size1(), sp.size2(), tuple(sp.colind()), tuple(sp.row())))
+    return hashlib.sha256(repr(parts).encode()).hexdigest()
 
 
 def _same_signature(a: ca.Function, b: ca.Function) -> bool:
@@ -149,8 +192,9 @@ def _generate_c(fn: ca.Function) -> bytes:
         return vector_math.with_scalar_math((Path(tmp) / src_name).read_bytes())
 
 
-def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str):
-    """Start compiling `code` into a private build folder of d: (the compiler process, the job)."""
+def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str, meta: dict | None = None):
+    """Start compiling `code` into a private build folder of d: (the compiler process, the job); `meta`: more
+    entries of the library's record (a `Library`'s lookup key and signature)."""
     build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
     try:
         src = build / f"{stem}.c"
@@ -162,13 +206,13 @@ def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path,
     except BaseException:
         shutil.rmtree(build, ignore_errors=True)
         raise
-    return proc, (cc, flags, code_sha, d, stem, build)
+    return proc, (cc, flags, code_sha, meta or {}, d, stem, build)
 
 
 def _finish_build(proc, job) -> str | None:
     """Wait for a started compiler and put its library and record into the cache (atomic renames); None when done,
     else the compiler's error. The build folder is removed whatever happens; an interrupt kills the compiler."""
-    cc, flags, code_sha, d, stem, build = job
+    cc, flags, code_sha, extra, d, stem, build = job
     try:
         try:
             _, stderr = proc.communicate()
@@ -181,7 +225,7 @@ def _finish_build(proc, job) -> str | None:
             return stderr.strip()[:300] or f"exit code {proc.returncode}"
         built = build / f"{stem}.so"
         meta = {"c_sha256": code_sha, "library_sha256": _sha256_file(built), "library_bytes": built.stat().st_size,
-                "compiler": cc, "flags": flags, "built": time.strftime("%Y-%m-%dT%H:%M:%S")}
+                "compiler": cc, "flags": flags, "built": time.strftime("%Y-%m-%dT%H:%M:%S"), **extra}
         (build / f"{stem}.json").write_text(json.dumps(meta))
         # atomic renames, library first: a reader sees an old record with a new library at worst,
         # which fails verification and rebuilds
@@ -225,9 +269,9 @@ def _kill(proc) -> None:
 
 
 def _run_builds(jobs, width: int) -> list[str | None]:
-    """Compile the jobs ((cc, flags, code, code_sha, folder, stem) each) with at most `width` compilers at once;
-    per job None when built, else the compiler's error. An interrupt or an error stops every compiler and keeps
-    nothing of the unfinished ones."""
+    """Compile the jobs ((cc, flags, code, code_sha, folder, stem[, record entries]) each) with at most `width`
+    compilers at once; per job None when built, else the compiler's error. An interrupt or an error stops every
+    compiler and keeps nothing of the unfinished ones."""
     errors, running = [], []                    # running: started, removed only once finished
     try:
         for job in jobs:
@@ -245,9 +289,10 @@ def _run_builds(jobs, width: int) -> list[str | None]:
     return errors
 
 
-def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str) -> str | None:
+def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str,
+           meta: dict | None = None) -> str | None:
     """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
-    return _run_builds([(cc, flags, code, code_sha, d, stem)], 1)[0]
+    return _run_builds([(cc, flags, code, code_sha, d, stem, meta)], 1)[0]
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -295,11 +340,14 @@ def _compiler() -> str | None:
 
 
 @dataclass(frozen=True)
-class CSource:
-    """Hand-generated C (not a CasADi function: e.g. `vehicle.numerics.lanes`) to build into a library named
-    `name` with `extra_flags`: what `compile_c` builds, and what `precompile` builds together with CasADi's."""
-    code: bytes
+class CLibrary:
+    """Hand-generated C (not a CasADi function: `vehicle.numerics.lanes`) to compile, known before its C is written:
+    `name`, `key` (what, besides hpsim's source, determines the C: the model's structure, the step, the lanes) and
+    `extra_flags`; `build()` returns the C, called only when the library is missing from the cache.
+    `compile_library` and `precompile` find it by these, as `Library`s."""
     name: str
+    key: tuple
+    build: Callable[[], bytes]
     extra_flags: tuple[str, ...] = ()
 
 
@@ -312,11 +360,8 @@ def _c_stem(code: bytes, name: str, flags: list[str], cc: str) -> str:
 
 
 def _plan(fn, cc: str, opt_level: str):
-    """(flags, code, code_sha, cache folder, stem) of the library of `fn` (a CasADi function or a `CSource`): its C
-    and where the cache keeps it."""
-    if isinstance(fn, CSource):
-        flags = _c_flags(opt_level, fn.extra_flags)
-        return flags, fn.code, hashlib.sha256(fn.code).hexdigest(), cache_dir(), _c_stem(fn.code, fn.name, flags, cc)
+    """(flags, code, code_sha, cache folder, stem) of the library of CasADi function `fn`: its C and where the cache
+    keeps it."""
     code = _generate_c(fn)
     code_sha = hashlib.sha256(code).hexdigest()
     flags = [opt_level, *COMPILER_FLAGS[1:]]
@@ -324,25 +369,103 @@ def _plan(fn, cc: str, opt_level: str):
     return flags, code, code_sha, cache_dir(), f"{fn.name()}_{key}"
 
 
+def lookup_key(lib: Library, cc: str, opt_level: str = "-O2") -> str:
+    """The cache key of a `Library`: its name and key, hpsim's source, CasADi's version, the compiler, its flags."""
+    text = repr((lib.name, lib.key, source_version(), ca.__version__, cc, opt_level, COMPILER_FLAGS))
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def _library_stem(lib: Library | CLibrary, cc: str, opt_level: str) -> tuple[Path, str, str]:
+    """(cache folder, stem, lookup key) of a `Library` or `CLibrary` (whose extra flags are part of its key)."""
+    key = lookup_key(lib if isinstance(lib, Library) else Library(lib.name, (lib.key, lib.extra_flags), None),
+                     cc, opt_level)
+    return cache_dir(), f"{lib.name}_{key}", key
+
+
+def _clibrary_job(lib: CLibrary, cc: str, opt_level: str, d: Path, stem: str, key: str):
+    """The build job of a `CLibrary` missing from the cache (its C written now)."""
+    code = lib.build()
+    return (cc, _c_flags(opt_level, lib.extra_flags), code, hashlib.sha256(code).hexdigest(), d, stem,
+            {"lookup_key": key})
+
+
+def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = None) -> tuple[Path | None, str]:
+    """The library of a `CLibrary`, found in the cache by its key (its C not written) or built: (path, "") or
+    (None, why not: no compiler, the compiler's error). The caller loads it (ctypes)."""
+    cc = cc or _compiler()
+    if cc is None:
+        return None, "no C compiler found"
+    d, stem, key = _library_stem(lib, cc, opt_level)
+    so, record = d / f"{stem}.so", d / f"{stem}.json"
+    if not _verified(so, record, None, key):
+        job = _clibrary_job(lib, cc, opt_level, d, stem, key)
+        compile_time.announce([len(job[2])], 1, d)
+        t0 = time.perf_counter()
+        error = _build(*job)
+        if error is not None:
+            return None, error
+        compile_time.compiled_s += time.perf_counter() - t0
+        evict(d, cache_limit_bytes(), keep=(stem,))
+        if not _verified(so, record, job[3], key):
+            return None, f"{so.name} changed while it was built"
+    _touch(record)
+    return so, ""
+
+
+def _library_job(lib: Library, cc: str, opt_level: str, d: Path, stem: str, key: str):
+    """The graph of a `Library` missing from the cache, and its build job (cc, flags, code, code_sha, d, stem, record
+    entries)."""
+    graph = lib.graph()
+    code = _generate_c(graph)
+    meta = {"lookup_key": key, "signature": _signature(graph)}
+    return graph, (cc, [opt_level, *COMPILER_FLAGS[1:]], code, hashlib.sha256(code).hexdigest(), d, stem, meta)
+
+
+def _load_library(lib: Library, d: Path, stem: str) -> ca.Function | None:
+    """The cached library `stem` of `lib` loaded, when its signature is the one recorded when it was built."""
+    compiled = ca.external(lib.name, str(d / f"{stem}.so"))
+    try:
+        recorded = json.loads((d / f"{stem}.json").read_text()).get("signature")
+    except (OSError, ValueError, AttributeError):
+        recorded = None
+    return compiled if recorded == _signature(compiled) else None
+
+
 def precompile(fns, *, opt_level: str = "-O2") -> int:
-    """Build the libraries of several functions (CasADi functions or `CSource`s) at once, one compiler process
-    each, so that `compile_function` and `compile_c` then find them in the cache; returns how many were built.
+    """Build the libraries of several functions (`casadi.Function`, `Library` or `CLibrary`) at once, one compiler
+    process each, so that `compile_function` and `compile_library` then find them in the cache; returns how many
+    were built.
 
     A drive needs two or three libraries (the block stepper, the half-step stepper of its error estimate, the
     block outputs) of about 5 s of compiler time each: built one after the other they add up, built together
     they take about the longest one on a machine with that many cores. Only the compilers run in parallel (at
     most one per core, processes started here and waited for); the C is generated here, one function after the
-    other. A Ctrl-C stops every compiler and keeps nothing; a failed build is left to `compile_function`, which
-    reports it and falls back to the virtual machine.
+    other (a `Library` found in the cache by its key: neither its graph nor its C). A Ctrl-C stops every
+    compiler and keeps nothing; a failed build is left to `compile_function`, which reports it and falls back to
+    the virtual machine.
     """
     cc = _compiler()
     if cc is None:
         return 0
+
+    def plan(fn):
+        if isinstance(fn, CLibrary):
+            d, stem, key = _library_stem(fn, cc, opt_level)
+            return None if _verified(d / f"{stem}.so", d / f"{stem}.json", None, key) else \
+                _clibrary_job(fn, cc, opt_level, d, stem, key)
+        if isinstance(fn, Library):
+            d, stem, key = _library_stem(fn, cc, opt_level)
+            if _verified(d / f"{stem}.so", d / f"{stem}.json", None, key):
+                return None
+            return _library_job(fn, cc, opt_level, d, stem, key)[1]
+        flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
+        if _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha):
+            return None
+        return (cc, flags, code, code_sha, d, stem)
     todo = []
-    plans = timed("compile: C generated and looked up in the cache", lambda: [_plan(fn, cc, opt_level) for fn in fns])
-    for flags, code, code_sha, d, stem in plans:
-        if not _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha) and stem not in {t[-1] for t in todo}:
-            todo.append((cc, flags, code, code_sha, d, stem))
+    for job in timed("compile: looked up in the cache (C generated when missing)", lambda: [plan(f) for f in fns]):
+        if job is not None and job[5] not in {t[5] for t in todo}:
+            todo.append(job)
     width = max(1, os.cpu_count() or 1)                         # no more compilers than cores
     if todo:
         compile_time.announce([len(t[2]) for t in todo], width, todo[0][4])
@@ -350,7 +473,7 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
     timed("compile", _run_builds, todo, width=width)
     if todo:
         compile_time.record([len(t[2]) for t in todo], width, time.perf_counter() - t0, todo[0][4])
-        evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[-1] for t in todo))
+        evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[5] for t in todo))
     return len(todo)
 
 
@@ -381,8 +504,9 @@ def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_
     return lib, ""
 
 
-def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
-    """Generate C for `fn`, compile it to a shared library (cached, verified) and load it.
+def compile_function(fn: ca.Function | Library, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
+    """Generate C for `fn`, compile it to a shared library (cached, verified) and load it. A `Library` found in the
+    cache by its key is loaded without building its graph.
 
     Falls back to CasADi's virtual machine (slower; the same results to rounding: it calls the C library's exp, log,
     pow and tanh, the compiled code vehicle.numerics.vector_math's) when no C compiler is found
@@ -391,33 +515,70 @@ def compile_function(fn: ca.Function, *, opt_level: str = "-O2", verbose: bool =
     cc = _compiler()
     if cc is None:
         warnings.warn("no C compiler found: running the model in CasADi's virtual machine (slower)")
-        return fn
+        return fn.graph() if isinstance(fn, Library) else fn
+    if isinstance(fn, Library):
+        return _compile_library(fn, cc, opt_level, verbose)
     flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
-        compile_time.announce([len(code)], 1, d)
-        t0 = time.perf_counter()
-        error = _build(cc, flags, code, code_sha, d, stem)
+        error = _compile_announced(fn.name(), (cc, flags, code, code_sha, d, stem), verbose)
         if error is not None:
-            warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
             return fn
-        compile_time.compiled_s += time.perf_counter() - t0
-        if verbose:
-            print(f"compiled {fn.name()} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-        evict(d, cache_limit_bytes(), keep=(stem,))
         if not _verified(lib, record, code_sha):     # replaced by someone else in between
             warnings.warn(f"compile cache {d}: {lib.name} changed while it was built; "
                           "using CasADi's virtual machine")
             return fn
-    try:
-        os.utime(record)                # last use, for the eviction order
-    except OSError:
-        pass
+    _touch(record)
     compiled = ca.external(fn.name(), str(lib))
     if not _same_signature(compiled, fn):
         warnings.warn(f"compile cache {d}: {lib.name} does not match the model; using CasADi's virtual machine")
         return fn
     return compiled
+
+
+def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool) -> ca.Function:
+    """compile_function of a `Library`: found by its key (no graph built), else built from its graph."""
+    d, stem, key = _library_stem(spec, cc, opt_level)
+    lib, record = d / f"{stem}.so", d / f"{stem}.json"
+    if _verified(lib, record, None, key):
+        compiled = _load_library(spec, d, stem)
+        if compiled is not None:
+            _touch(record)
+            return compiled
+    graph, job = _library_job(spec, cc, opt_level, d, stem, key)
+    if _compile_announced(spec.name, job, verbose) is not None:
+        return graph
+    compiled = _load_library(spec, d, stem) if _verified(lib, record, job[3], key) else None
+    if compiled is None or not _same_signature(compiled, graph):
+        warnings.warn(f"compile cache {d}: {lib.name} changed while it was built or does not match the model; "
+                      "using CasADi's virtual machine")
+        return graph
+    _touch(record)
+    return compiled
+
+
+def _compile_announced(name: str, job, verbose: bool) -> str | None:
+    """Build one library (announced, its time counted, the cache trimmed); None when built, else the error (warned
+    about: the caller falls back to the virtual machine)."""
+    code, d, stem = job[2], job[4], job[5]
+    compile_time.announce([len(code)], 1, d)
+    t0 = time.perf_counter()
+    error = _build(*job)
+    if error is not None:
+        warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
+        return error
+    compile_time.compiled_s += time.perf_counter() - t0
+    if verbose:
+        print(f"compiled {name} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    evict(d, cache_limit_bytes(), keep=(stem,))
+    return None
+
+
+def _touch(record: Path) -> None:
+    try:
+        os.utime(record)                # last use, for the eviction order
+    except OSError:
+        pass
 
 
 def compile_source(code: bytes, name: str, extra_flags: tuple[str, ...] = ()) -> Path:

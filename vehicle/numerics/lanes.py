@@ -37,7 +37,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from vehicle.numerics.codegen import CSource, compile_c
+from vehicle.numerics.codegen import CLibrary, compile_c, compile_library
 from vehicle.numerics import vector_math
 
 # instruction sets the lane library can be built for: extra compiler flags, doubles per hardware vector
@@ -206,6 +206,7 @@ int %(name)s_parametric(const double* P, double* pw) {
   return 0;
 }
 int %(name)s_lanes(void) { return NL; }
+int %(name)s_npw(void) { return %(npw)d; }
 int %(name)s_vector_width(void) { return VW; }
 """
 
@@ -406,46 +407,52 @@ class LaneStepper:
                  cc: str | None = None, batched: bool = False, load: bool = True):
         if solver.jacobian_every != 1 or solver.engine != "current":
             raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
-        step, _, parametric, _ = solver.step_functions(model)
-        tag = "b" if batched else ""
-        self._prepare(step, parametric, lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{tag}", isa,
-                      scalar or batched, cc, ISAS[isa or default_isa()][1] if batched else 0)
-        if load:           # load=False: the C only (`job`, for codegen.precompile), `load()` later
+        self._setup(lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{'b' if batched else ''}", isa,
+                    scalar or batched, cc)
+        batch = ISAS[self.isa][1] if batched else 0
+        self.nz, self.nu, self.np = model.nx + model.n_memory, model.nu, model.np
+
+        def build() -> bytes:
+            step, _, parametric, _ = solver.step_functions(model)
+            self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
+            return self.source.encode()
+        # found in the compile cache by what determines the C (no graph built when it is there)
+        self.spec = CLibrary(self.name, (model.structure, float(solver.dt), self.lanes, batch), build, self.flags)
+        if load:           # load=False: `spec` for codegen.precompile, `load()` later
             self.load()
 
     @classmethod
     def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
                        isa: str | None = None, scalar: bool = False, cc: str | None = None,
                        batch: int = 0) -> "LaneStepper":
-        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX);
-        batch > 0: its calls gathered `batch` at a time (`emit_batched`, the one-lane build)."""
+        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX), cached by
+        its C; batch > 0: its calls gathered `batch` at a time (`emit_batched`, the one-lane build)."""
         self = cls.__new__(cls)
-        self._prepare(step, parametric, lanes, name, isa, scalar or batch > 0, cc, batch)
-        self.load()
-        return self
+        self._setup(lanes, name, isa, scalar or batch > 0, cc)
+        self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
+        self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
+        self.spec = None
+        return self.load()
 
-    def _prepare(self, step, parametric, lanes, name, isa, scalar, cc, batch: int = 0) -> None:
+    def _setup(self, lanes, name, isa, scalar, cc) -> None:
         self.lanes = int(lanes)
         if self.lanes < 1 or self.lanes & (self.lanes - 1):
             raise ValueError(f"LaneStepper: lanes must be a power of two (a vector's length), got {lanes}")
         self.isa = isa or default_isa()
-        self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
-        self.npw = parametric.size1_out(0)
         self.name = name
-        self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
         self.flags = (*EXTRA_FLAGS, *ISAS[self.isa][0]) + (("-DHPSIM_LANES_SCALAR",) if scalar else ())
         self.cc = cc
+        self.source = None            # the C, when this process wrote it
         self.library = None
-
-    def job(self) -> CSource:
-        """The library's C and flags, for `codegen.precompile` (which builds it with other libraries at once)."""
-        return CSource(self.source.encode(), self.name, self.flags)
 
     def load(self) -> "LaneStepper":
         """Compile (or find in the cache) and load the library."""
         if self.library is not None:
             return self
-        lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=self.cc)
+        if self.spec is not None:
+            lib, error = compile_library(self.spec, cc=self.cc)
+        else:
+            lib, error = compile_c(self.source.encode(), self.name, self.flags, cc=self.cc)
         if lib is None:
             raise RuntimeError(f"the lane library could not be compiled ({error})")
         self.library = lib
@@ -455,6 +462,7 @@ class LaneStepper:
         self._fn.argtypes = [ptr, ptr, ptr, ptr, ctypes.c_int, ctypes.c_int]
         self._fn.restype = ctypes.c_int
         self.vector_width = int(getattr(self._lib, f"{self.name}_vector_width")())
+        self.npw = int(getattr(self._lib, f"{self.name}_npw")())
         self._step = getattr(self._lib, f"{self.name}_step")
         self._step.argtypes = [ptr] * 5
         self._parametric = getattr(self._lib, f"{self.name}_parametric")

@@ -34,6 +34,7 @@ drive rather than chosen inside it.
 """
 from __future__ import annotations
 
+import hashlib
 import time
 import warnings
 
@@ -41,7 +42,7 @@ import casadi as ca
 import numpy as np
 
 from vehicle.numerics.contract import SolverCapabilities
-from vehicle.numerics.codegen import compile_function
+from vehicle.numerics.codegen import Library, compile_function
 from vehicle.numerics.lanes import BatchedBlock, LaneStepper
 
 GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
@@ -304,21 +305,41 @@ class Ros2:
             key += (model.parameters.numeric().tobytes(),)
         return key
 
-    def block_graph(self, model, steps_per_sample: int, samples_per_call: int) -> ca.Function | None:
-        """The uncompiled block function `bind` would compile for this model (built once per process), or None
-        when this process holds it compiled already or the solver runs uncompiled: what a drive hands to
-        `codegen.precompile` to build its libraries together."""
+    def block_graph(self, model, steps_per_sample: int, samples_per_call: int) -> Library | None:
+        """The block function `bind` would compile for this model, as a `codegen.Library` (its graph built only when
+        the compile cache misses it), or None when this process holds it compiled already or the solver runs
+        uncompiled: what a drive hands to `codegen.precompile` to build its libraries together."""
         K, M = int(steps_per_sample), int(samples_per_call)
         key = self._key(model, K, M)
         if not self.compile or key in _BLOCK_FUNCTIONS:
             return None
         if self.batch_calls:
             stepper = self._batched_stepper(model, load=False)
-            return None if stepper is None or stepper.library is not None else stepper.job()
-        if key not in _GRAPHS:
-            self.K, self.M = K, M
-            _GRAPHS[key] = self._graph(model)
-        return _GRAPHS[key]
+            if stepper is not None:
+                return None if stepper.library is not None else stepper.spec
+        return self._library(model, K, M)
+
+    def _block_name(self, model, K: int, M: int) -> str:
+        if self.engine == "baseline":
+            return f"hpsim_ros2_baseline_{model.structure}_{K}x{M}"
+        every = min(self.jacobian_every, K)
+        return f"hpsim_ros2_{model.structure}_{K}x{M}" + ("" if every == 1 else f"_j{every}")
+
+    def _library(self, model, K: int, M: int) -> Library:
+        """The block function for (K, M) as a `codegen.Library`: its name and key, its graph built on demand (once
+        per process: kept in _GRAPHS until `bind` compiles it)."""
+        key = self._key(model, K, M)
+
+        def build():
+            if key not in _GRAPHS:
+                solver = type(self)(self.dt, compile=self.compile, jacobian_every=self.jacobian_every,
+                                    engine=self.engine, batch_calls=self.batch_calls)
+                solver.K, solver.M = K, M
+                _GRAPHS[key] = solver._graph(model)
+            return _GRAPHS[key]
+        # the baseline's parameter values are in its code: in the key as a digest
+        lib_key = key[1:] if self.engine != "baseline" else key[1:-1] + (hashlib.sha256(key[-1]).hexdigest(),)
+        return Library(self._block_name(model, K, M), (model.structure, *lib_key), build)
 
     def _graph(self, model) -> ca.Function:
         """The uncompiled block function of this engine for (self.K, self.M)."""
@@ -336,10 +357,9 @@ class Ros2:
             if stepper is not None:
                 fn = BatchedBlock(stepper, self.K, self.M)
             else:
-                graph = _GRAPHS.pop(key, None)
-                if graph is None:
-                    graph = self._graph(model)
-                fn = compile_function(graph) if self.compile else graph
+                lib = self._library(model, self.K, self.M)
+                fn = compile_function(lib) if self.compile else lib.graph()
+                _GRAPHS.pop(key, None)
             _BLOCK_FUNCTIONS[key] = fn
         self.fn = fn
         self.memory = model.initial_memory()
@@ -468,8 +488,7 @@ class Ros2:
         P = ca.MX.sym("p", np_)
         n = self.K * self.M
         out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(parametric(P), 1, self.M))
-        tag = "" if every == 1 else f"_j{every}"
-        return ca.Function(f"hpsim_ros2_{model.structure}_{self.K}x{self.M}{tag}", [Z0, U, P], [out])
+        return ca.Function(self._block_name(model, self.K, self.M), [Z0, U, P], [out])
 
     def _build_baseline(self, model) -> ca.Function:
         """The block function of commit 18a58c4 on this model (see the class docstring)."""
@@ -488,7 +507,7 @@ class Ros2:
         P = ca.MX.sym("p", np_)
         n = self.K * self.M
         out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(P[:n_run], 1, n))
-        return ca.Function(f"hpsim_ros2_baseline_{model.structure}_{self.K}x{self.M}", [Z0, U, P], [out])
+        return ca.Function(self._block_name(model, self.K, self.M), [Z0, U, P], [out])
 
     def refined_solver(self, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, unbound."""
@@ -608,8 +627,9 @@ def compiled_outputs(model, n: int, compile: bool = True) -> ca.Function:
     key = ("outputs", model.structure, int(n), compile)
     fn = _BLOCK_FUNCTIONS.get(key)
     if fn is None:
-        fn = _GRAPHS.pop(key, None) or _outputs_function(model, n)
-        fn = compile_function(fn) if compile else fn
+        lib = _outputs_library(model, n)
+        fn = compile_function(lib) if compile else lib.graph()
+        _GRAPHS.pop(key, None)
         _BLOCK_FUNCTIONS[key] = fn
     return fn
 
@@ -622,12 +642,19 @@ def _outputs_function(model, n: int) -> ca.Function:
     return ca.Function(f"hpsim_outputs_{model.structure}_{n}", [X, MEM, U, P], list(outs))
 
 
-def outputs_graph(model, n: int) -> ca.Function | None:
-    """The uncompiled function of `compiled_outputs(model, n)` (for `codegen.precompile`), None when this process
-    holds it compiled already."""
+def _outputs_library(model, n: int) -> Library:
     key = ("outputs", model.structure, int(n), True)
-    if key in _BLOCK_FUNCTIONS:
+
+    def build():
+        if key not in _GRAPHS:
+            _GRAPHS[key] = _outputs_function(model, n)
+        return _GRAPHS[key]
+    return Library(f"hpsim_outputs_{model.structure}_{int(n)}", key, build)
+
+
+def outputs_graph(model, n: int) -> Library | None:
+    """The function of `compiled_outputs(model, n)` as a `codegen.Library` (for `codegen.precompile`), None when this
+    process holds it compiled already."""
+    if ("outputs", model.structure, int(n), True) in _BLOCK_FUNCTIONS:
         return None
-    if key not in _GRAPHS:
-        _GRAPHS[key] = _outputs_function(model, n)
-    return _GRAPHS[key]
+    return _outputs_library(model, n)

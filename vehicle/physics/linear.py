@@ -114,6 +114,35 @@ def mechanical_states(model: VehicleModel) -> list[str]:
     return names + list(HULL) + list(HULL_RATES)
 
 
+def _jacobian_function(model: VehicleModel, outputs: tuple[str, ...]) -> ca.Function:
+    """(x, z, u, p) -> the Jacobians of `_model_jacobians`, built once per model structure and outputs: models that
+    differ in parameter values only (the equivalent-linear friction at several velocity amplitudes, as the
+    multiscale proxy's matching asks for) share it."""
+    key = (model.structure, tuple(outputs))
+    J = _JACOBIANS.get(key)
+    if J is None:
+        f, g, y = model.dae_functions
+        x, z, u = ca.SX.sym("x", model.nx), ca.SX.sym("z", model.nz), ca.SX.sym("u", model.nu)
+        p = ca.SX.sym("p", model.np)
+        dx, res, out_all = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
+        ys = []
+        for name in outputs:
+            j = list(model.OUTPUT_NAMES).index(name)
+            ys.append(out_all[j * model.n:(j + 1) * model.n])
+        yv = ca.vertcat(*ys)
+        J = ca.Function("J", [x, z, u, p], [ca.jacobian(dx, x), ca.jacobian(dx, z), ca.jacobian(dx, u),
+                                            ca.jacobian(yv, x), ca.jacobian(yv, z), ca.jacobian(yv, u),
+                                            ca.jacobian(res, x), ca.jacobian(res, z), ca.jacobian(res, u), res, dx])
+        if len(_JACOBIANS) >= 8:
+            _JACOBIANS.pop(next(iter(_JACOBIANS)))
+        _JACOBIANS[key] = J
+    return J
+
+
+# Jacobian functions of `_jacobian_function` by (model structure, outputs): a few, the oldest dropped first
+_JACOBIANS: dict = {}
+
+
 def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray,
                      outputs: tuple[str, ...] = ("wheel_load",)):
     """(df/dx, df/du, [(dy/dx, dy/du) per output], f) at (x0, u0) for run parameters p; y: the per-station
@@ -125,24 +154,14 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     ODE form eliminates them by a warm-started, clamped Newton step whose derivative is
     ill-defined exactly at rest, where the clamp's bounds meet.)
     """
-    f, g, y = model.dae_functions
-    x, z, u = ca.SX.sym("x", model.nx), ca.SX.sym("z", model.nz), ca.SX.sym("u", model.nu)
-    dx, res, out_all = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
-    ys = []
-    for name in outputs:
-        j = list(model.OUTPUT_NAMES).index(name)
-        ys.append(out_all[j * model.n:(j + 1) * model.n])
-    yv = ca.vertcat(*ys)
-    J = ca.Function("J", [x, z, u], [ca.jacobian(dx, x), ca.jacobian(dx, z), ca.jacobian(dx, u),
-                                     ca.jacobian(yv, x), ca.jacobian(yv, z), ca.jacobian(yv, u),
-                                     ca.jacobian(res, x), ca.jacobian(res, z), ca.jacobian(res, u), res, dx])
+    J = _jacobian_function(model, outputs)
     z0 = np.zeros(model.nz)
     for _ in range(20):                     # the valve pressure drops at the equilibrium (0 at rest)
-        *_, gx, gz, gu, r, _ = (np.asarray(v, float) for v in J(x0, z0, u0))
+        *_, gx, gz, gu, r, _ = (np.asarray(v, float) for v in J(x0, z0, u0, p))
         if model.nz == 0 or np.max(np.abs(r)) < 1e-12:
             break
         z0 = z0 - np.linalg.solve(gz, r.ravel())
-    fx, fz, fu, yx, yz, yu, gx, gz, gu, _, rates = (np.asarray(v, float) for v in J(x0, z0, u0))
+    fx, fz, fu, yx, yz, yu, gx, gz, gu, _, rates = (np.asarray(v, float) for v in J(x0, z0, u0, p))
     if model.nz:
         zx, zu = -np.linalg.solve(gz, gx), -np.linalg.solve(gz, gu)
         fx, fu, yx, yu = fx + fz @ zx, fu + fz @ zu, yx + yz @ zx, yu + yz @ zu
@@ -151,10 +170,12 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
 
 
 def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s: float | None = None,
-              speed_m_per_s: float = 0.0, gas_masses=None) -> LinearVehicle:
+              speed_m_per_s: float = 0.0, gas_masses=None, equilibrium=None) -> LinearVehicle:
     """The vehicle linearised at its standing equilibrium (struts at `temperatures_K`, default the
     charging temperature; charged as in a drive, or with the given `gas_masses`, a drive's own [kg]).
-    See the module doc for the friction option."""
+    See the module doc for the friction option. `equilibrium`: that standing equilibrium when the caller has
+    solved it (an `EquilibriumSolver.solve` of this vehicle at these temperatures and gas masses: the seal
+    friction does not enter the static balance, so one serves every friction velocity)."""
     model = None
     if gas_masses is None:
         model = VehicleModel(params)
@@ -167,7 +188,7 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     n = model.n
     T = np.full(n, params.charging.temperature) if temperatures_K is None else \
         np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
-    eq = EquilibriumSolver(model).solve(T, gas_masses)
+    eq = EquilibriumSolver(model).solve(T, gas_masses) if equilibrium is None else equilibrium
     x0 = model.state_at_rest(eq, gas_masses)
     # standing road, constant speed (no acceleration), ambient = strut temperature: no heat flow
     u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
@@ -286,7 +307,9 @@ def strut_velocity_response(lin: LinearVehicle, f_hz) -> np.ndarray:
     Vi = np.linalg.inv(V)
     Br, Bd = Vi @ lin.B_road, Vi @ lin.B_rate                   # (m, n)
     g = 1.0 / (s[:, None] - lam[None, :])                       # (n_f, m)
-    H = np.einsum("im,fm,mj->fij", CV, g, Br) + np.einsum("im,fm,mj->fij", CV, g * s[:, None], Bd)
+    # sum over the modes m of CV_im g_fm Br_mj as one matrix product per frequency (BLAS; einsum's loop over
+    # f, i, j, m was the proxy set-up's largest item)
+    H = (CV[None] * g[:, None, :]) @ Br + (CV[None] * (g * s[:, None])[:, None, :]) @ Bd
     return H + lin.D_velocity_road[None] + s[:, None, None] * lin.D_velocity_rate[None]
 
 

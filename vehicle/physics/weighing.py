@@ -328,8 +328,16 @@ def weighing_bands(model: VehicleModel, temperatures_K, gas_masses_kg, oil_volum
     temperatures_at_stop_K (optional): strut temperatures when the vehicle stopped; the struts then
     cooled at rest to temperatures_K before the weighing (see the module docstring).
     """
-    return (solver or WeighingSolver(model)).bands(temperatures_K, gas_masses_kg, oil_volumes_m3,
-                                                   temperatures_at_stop_K)
+    return (solver or weighing_solver(model)).bands(temperatures_K, gas_masses_kg, oil_volumes_m3,
+                                                    temperatures_at_stop_K)
+
+
+def weighing_solver(model: VehicleModel) -> WeighingSolver:
+    """The model's WeighingSolver, built once per model object (a run weighs before and after its drive)."""
+    solver = model.__dict__.get("_weighing_solver")
+    if solver is None:
+        solver = model.__dict__["_weighing_solver"] = WeighingSolver(model)
+    return solver
 
 
 # --- what the report prints -----------------------------------------------------------------------

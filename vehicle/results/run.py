@@ -296,7 +296,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     src = scenario if isinstance(scenario, ScenarioSource) else (
         timed("reading", read_scenario, scenario) if scenario is not None else None)
     if src is not None:
-        provenance.output_is_input(out, src)          # never replace one of the run's own inputs
+        timed("output checked against the inputs", provenance.output_is_input, out, src)  # never replace an input
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():

@@ -485,3 +485,16 @@ def test_warm_up_correction_carries_the_difference_through_the_window():
     np.testing.assert_allclose(corrected, modelled_end, rtol=0, atol=1e-9)
     undecayed = simulated_end + (cross(x_start, tw) - x_warm_end)
     assert abs(undecayed[0] - modelled_end[0]) > 1.0
+
+
+def test_the_stated_errors_student_factor_is_scipy_stats_t():
+    """error_factor: the two-sided 95 % quantile of Student's t (3.18 for 3 degrees of freedom, 2.09 for 19), the
+    numbers scipy.stats.t.ppf gives, without importing scipy.stats."""
+    from scipy.stats import t as student_t
+
+    from vehicle.engines.slow_flow import ERROR_COVERAGE, error_factor
+
+    for dof in (1, 2, 3, 5, 17, 19, 60, 1000):
+        assert error_factor(dof) == student_t.ppf(0.5 + ERROR_COVERAGE / 2, dof)
+    assert error_factor(3) == pytest.approx(3.182, abs=1e-3) and error_factor(19) == pytest.approx(2.093, abs=1e-3)
+    assert error_factor(0) == error_factor(1)

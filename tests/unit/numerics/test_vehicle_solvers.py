@@ -120,10 +120,11 @@ def test_a_parameter_change_reuses_the_compiled_model(monkeypatch):
     axle a strut of its own (one more distinct strut in the model)."""
     road = build_road(RoadSpec(iso_class="D", length=140.0, seed=2))
     calls = []
-    real, real_c = solvers.compile_function, lanes.compile_c
-    monkeypatch.setattr(solvers, "compile_function", lambda fn, **kw: calls.append(fn.name()) or real(fn, **kw))
-    # the block steppers with batched calls (vehicle.numerics.lanes) are C of their own
-    monkeypatch.setattr(lanes, "compile_c", lambda code, name, *a, **kw: calls.append(name) or real_c(code, name, *a, **kw))
+    real, real_c = solvers.compile_function, lanes.compile_library
+    # (the drives hand codegen.Library objects, named before any graph is built)
+    monkeypatch.setattr(solvers, "compile_function", lambda fn, **kw: calls.append(fn.name) or real(fn, **kw))
+    # the block steppers with batched calls (vehicle.numerics.lanes) are C of their own (codegen.CLibrary)
+    monkeypatch.setattr(lanes, "compile_library", lambda lib, **kw: calls.append(lib.name) or real_c(lib, **kw))
     solvers._BLOCK_FUNCTIONS.clear()
 
     def run(overrides):

@@ -1,0 +1,47 @@
+"""hpsim's cache folder: ~/.cache/hpsim (or $HPSIM_CACHE), private to this user.
+
+It holds the compiled model libraries (vehicle.numerics.codegen, whose module docstring gives the trust model),
+this machine's compile and drive rates, and the quantities already converted to SI (`hpsim.units`). The folder
+is created with mode 0700; a folder owned by another user or writable by group/others is not trusted
+(`trusted_cache_dir` says None, and nothing is read from it or written to it).
+"""
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+CACHE_ENV = "HPSIM_CACHE"
+
+
+def configured_cache_dir() -> Path:
+    """The folder $HPSIM_CACHE names, else ~/.cache/hpsim (not checked)."""
+    return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "hpsim")
+
+
+def untrusted(d: Path) -> str | None:
+    """Why folder `d` may not hold what this process loads (None: it may)."""
+    st = d.stat()
+    if not stat.S_ISDIR(st.st_mode):
+        return "not a folder"
+    if hasattr(os, "geteuid") and st.st_uid != os.geteuid():
+        return f"owned by another user (uid {st.st_uid})"
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return f"writable by other users (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+def cache_problem() -> tuple[Path, str | None]:
+    """(the configured cache folder, created 0700 when missing; why it cannot be trusted, or None)."""
+    d = configured_cache_dir()
+    try:
+        d.mkdir(mode=0o700, parents=True, exist_ok=True)
+        return d, untrusted(d)
+    except OSError as exc:
+        return d, f"cannot be created ({exc.strerror})"
+
+
+def trusted_cache_dir() -> Path | None:
+    """The cache folder when it can be trusted, else None (quietly: the caller goes without the cache)."""
+    d, problem = cache_problem()
+    return d if problem is None else None
