@@ -41,6 +41,7 @@ import copy
 import dataclasses
 from dataclasses import dataclass, field
 import time
+import warnings
 from concurrent.futures import Future
 
 import numpy as np
@@ -96,6 +97,30 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
     out["cpu_s"] = time.process_time() - c0
     out["wall_s"] = time.perf_counter() - w0
+    return out
+
+
+def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
+    """Several segments (each item: _segment_worker's arguments) in one worker, in lockstep on the lane library:
+    each segment a lane of one `LockstepGroup` (vehicle.engines.ensemble), bit for bit what the scalar engine gives
+    it. The group's CPU time is shared out over its segments by their lengths."""
+    # imported here: the ensemble imports the engine builder, which imports this module
+    from vehicle.engines.ensemble import run_lockstep
+
+    d = inherited()
+    c0, w0 = time.process_time(), time.perf_counter()
+    r = run_lockstep(d._lane_segment, [(str(it[0]), it) for it in items], lanes)
+    out = []
+    for it in items:
+        part = r["cases"].get(str(it[0]))
+        if not isinstance(part, dict) or "x_end" not in part:
+            raise RuntimeError(f"time-parallel segment {it[0]} failed in its lane group: "
+                               f"{(part or {}).get('error', 'not run')}")
+        out.append(part)
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    span = sum(p["t1"] - p["t0"] for p in out)
+    for p in out:
+        p["cpu_s"], p["wall_s"] = cpu * (p["t1"] - p["t0"]) / span, wall
     return out
 
 
@@ -157,7 +182,7 @@ class TimeParallelDrive:
     mode = MODE
 
     def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
-                 warm_up_m: float = 50.0, correct: bool = True):
+                 lanes: int = 1, lane_library: bool = True, warm_up_m: float = 50.0, correct: bool = True):
         lo, hi = SEGMENTS_RANGE
         if not lo <= int(segments) <= hi:
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
@@ -179,6 +204,20 @@ class TimeParallelDrive:
                                  f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))}")
         self.warm_up_m = float(warm_up_m)
         self.correct = correct
+        # segments per worker: `lanes` consecutive segments run in lockstep on the lane library (lane_library
+        # False: the same segmentation, each segment on the scalar engine in its own worker)
+        self.lanes = max(1, min(int(lanes), self.segments))
+        self.lane_library = bool(lane_library) and self.lanes > 1
+        if self.lane_library:
+            t0 = time.perf_counter()
+            try:          # compiled (or fetched) here, once: the forked workers inherit it
+                from vehicle.engines.ensemble import lane_stepper
+
+                lane_stepper(model, self.settings.dt_s, self.lanes)
+            except RuntimeError as exc:
+                warnings.warn(f"time-parallel: {exc}; the segments run on the scalar engine")
+                self.lane_library = False
+            self.build_s += time.perf_counter() - t0
         self.parareal: dict = {}
 
     # --- the engine contract: the full drive's layout, start and end --------------------------------
@@ -205,7 +244,7 @@ class TimeParallelDrive:
         # warm-up + window over the D_c = (P-1)/P of the road before the last segment start; plus its per-window
         # work: COARSE_COST times the windows' own time, measured ~1.5 on the 106 km test)
         lead = 0.0
-        if P > 1:
+        if P > 1 and self.lanes == 1:       # lane groups all start after the coarse run: no lead
             D = self.settings.distance_m
             n_w = int(np.ceil(D * (P - 1) / P / self.coarse.ms.spacing_m - 1e-9))
             span_s = n_w * (self.coarse.ms.warm_up_m + self.coarse.ms.window_m) / (D / (n * sample_dt))
@@ -280,13 +319,22 @@ class TimeParallelDrive:
         return x[self.coarse.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+    def _lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+        """`_fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
+        from vehicle.engines.build import current_full_solver      # (the builder imports this module)
+
+        return self._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
+                                  solver=current_full_solver()(self.settings.dt_s))
+
+    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
         seg = copy.copy(self.fine)          # the same drive, with this segment's end and error estimate
         seg.error_estimate = None
         S = self.settings
+        if solver is not None:              # a lane of the worker's lane group (`_group_worker`)
+            seg.solver = solver.bind(self.model, seg.K, seg.M)
         sample_dt = self.fine.K * S.dt_s
         n_seg = int(round((t1 - t0) / sample_dt))
         last = t1 >= self._t_total() - 1e-9
@@ -345,31 +393,42 @@ class TimeParallelDrive:
             return self.fine.run(sink, state, progress, checkpoint_every_blocks)       # serially
         wall0 = time.perf_counter()
         t, tw = self.layout()
-        P = self.segments
-        with fork_pool(P, self) as pool:
-            # the restart's overlap: the warm-up's length after each segment start
-            marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
-            tails = marks[1:] + [None]
-            futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0])]
+        P, L = self.segments, self.lanes
+        groups = [list(range(g, min(g + L, P))) for g in range(0, P, L)]     # consecutive segments per worker
+        # the restart's overlap: the warm-up's length after each segment start
+        marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
+        tails = marks[1:] + [None]
+        with fork_pool(len(groups), self) as pool:
+            futs = []
+            if L == 1:                  # segment 0 needs no prediction: it starts at once, while the coarse run goes
+                futs.append(pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0]))
             c0 = time.perf_counter()
             cpu0 = time.process_time()
             self.coarse._slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
-            pred = self.coarse_states(list(tw[1:])) if P > 1 else []
+            pred = [None] + (self.coarse_states(list(tw[1:])) if P > 1 else [])
             coarse_s = time.perf_counter() - c0
             coarse_cpu = time.process_time() - cpu0
-            futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k], tails[k])
-                     for k in range(1, P)]
-            parts = [f.result() for f in futs]
+            args = [(k, t[k], t[k + 1], tw[k], pred[k], marks[k], tails[k]) for k in range(P)]
+            if self.lane_library:
+                futs += [pool.submit(_group_worker, [args[k] for k in g], L) for g in groups]
+            else:
+                futs += [pool.submit(_segment_worker, *args[k]) for k in range(len(futs), P)]
+            parts = []
+            for f in futs:
+                r = f.result()
+                parts += r if isinstance(r, list) else [r]
             # the join, with the pool's processes (free now) running its error checks
             j0, jw0 = time.process_time(), time.perf_counter()
             res = self._join(parts, sink, progress, pool)
             join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
         w = [p["cpu_s"] for p in parts]
-        # what the run takes with P free cores: segment 0, or the coarse run then the slowest other segment; then
+        # what the run takes with a core per worker: segment 0, or the coarse run then the slowest other worker; then
         # the join (CPU times: on a shared machine the wall times say more about the other load)
-        critical = max(w[0], coarse_cpu + max(w[1:], default=0.0)) + join_cpu
+        per_worker = [sum(w[k] for k in g) for g in groups] if L > 1 else w
+        critical = (coarse_cpu + max(per_worker) if L > 1 else
+                    max(w[0], coarse_cpu + max(w[1:], default=0.0))) + join_cpu
         self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
-                             join_wall_s=join_wall,
+                             join_wall_s=join_wall, workers=len(groups), lanes=L, lane_library=self.lane_library,
                              critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
                              boundaries_s=t.tolist())
         res.wall_s = time.perf_counter() - wall0
