@@ -6,7 +6,7 @@ from __future__ import annotations
 from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
-from vehicle.scenario.settings import resolve_segments
+from vehicle.scenario.settings import resolve_segments, resolve_time_parallel_lanes
 from vehicle.scenario.work_limits import segments_for
 from vehicle.engines.contract import Engine
 from vehicle.engines.ensemble import current_full_solver
@@ -26,13 +26,17 @@ def _multiscale(model, road, prepared) -> Engine:
 
 
 def _segments(prepared) -> int:
-    """solver.time_parallel resolved: "auto" takes one segment per CPU, at most one per MIN_SEGMENT_S of drive."""
+    """solver.time_parallel resolved (the processes): "auto" takes one per CPU, at most one per MIN_SEGMENT_S of
+    drive."""
     tp = prepared.scenario.solver.time_parallel
     return segments_for(resolve_segments(tp), tp == "auto", prepared.duration_s(), MIN_SEGMENT_S)
 
 
 def _time_parallel(model, road, prepared) -> Engine:
-    return TimeParallelDrive(model, road, prepared.settings(), _segments(prepared))
+    workers = _segments(prepared)
+    lanes = resolve_time_parallel_lanes(prepared.scenario.solver.time_parallel_lanes, workers, prepared.duration_s(),
+                                        MIN_SEGMENT_S)
+    return TimeParallelDrive(model, road, prepared.settings(), workers * lanes, lanes=lanes)
 
 
 # engine name -> builder(model, road, prepared)

@@ -82,25 +82,48 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     return out
 
 
+def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
+    """fn(*item) for every item, each in a lane thread of one `LockstepGroup` (vehicle.engines.ensemble): their
+    drives step together on the lane library, bit for bit what the scalar engine gives each. Results in order."""
+    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes)
+    out = []
+    for i in range(len(items)):
+        v = r["cases"].get(str(i))
+        if not (isinstance(v, tuple) and v[0] == "ok"):
+            raise RuntimeError(f"time-parallel: {what} {i} failed in its lane group: "
+                               f"{v.get('error') if isinstance(v, dict) else 'not run'}")
+        out.append(v[1])
+    return out
+
+
 def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
-    """Several segments (each item: _segment_worker's arguments) in one worker, in lockstep on the lane library:
-    each segment a lane of one `LockstepGroup` (vehicle.engines.ensemble), bit for bit what the scalar engine gives
-    it. The group's CPU time is shared out over its segments by their lengths."""
+    """Several segments (each item: _segment_worker's arguments) in one worker, in lockstep on the lane library.
+    The group's CPU time is shared out over its segments by their lengths."""
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
-    r = run_lockstep(d._lane_segment, [(str(it[0]), it) for it in items], lanes)
-    out = []
-    for it in items:
-        part = r["cases"].get(str(it[0]))
-        if not isinstance(part, dict) or "x_end" not in part:
-            raise RuntimeError(f"time-parallel segment {it[0]} failed in its lane group: "
-                               f"{(part or {}).get('error', 'not run')}")
-        out.append(part)
+    out = _in_lockstep(d._lane_segment, items, lanes, "segment")
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     span = sum(p["t1"] - p["t0"] for p in out)
     for p in out:
         p["cpu_s"], p["wall_s"] = cpu * (p["t1"] - p["t0"]) / span, wall
     return out
+
+
+def _check_group_worker(items: list[tuple], slaving, lanes: int) -> list[np.ndarray]:
+    """Several propagations of the join's error check (each item: (t0, t1, x)) in lockstep on the lane library."""
+    d = inherited()
+    d.coarse._S = slaving
+    return _in_lockstep(d._lane_check, items, lanes, "error check")
+
+
+class _Pick:
+    """Item i of a future's list, as a future (one propagation of a lane group of error checks)."""
+
+    def __init__(self, future: Future, i: int):
+        self.future, self.i = future, i
+
+    def result(self):
+        return self.future.result()[self.i]
 
 
 def _done(value) -> Future:
@@ -148,8 +171,10 @@ class TimeParallelDrive(SegmentJoin):
     def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
                  lanes: int = 1, lane_library: bool = True, warm_up_m: float = 50.0, correct: bool = True):
         lo, hi = SEGMENTS_RANGE
-        if not lo <= int(segments) <= hi:
-            raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
+        self.lanes = max(1, min(int(lanes), int(segments)))
+        workers = -(-int(segments) // self.lanes)
+        if not lo <= workers <= hi:
+            raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (processes) or auto, got {workers}")
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
         self.fine = Drive(model, road, settings, partial_last_sample=False)   # segments end on whole intervals
@@ -163,14 +188,14 @@ class TimeParallelDrive(SegmentJoin):
         self.segments = int(segments)
         seg_s = self.total_time_s / self.segments
         if self.segments > 1 and seg_s < MIN_SEGMENT_S:
-            raise UserInputError(f"solver.time_parallel: {self.segments} segments of a {self.total_time_s:.4g} s drive "
+            key = "solver.time_parallel" + (f" x time_parallel_lanes ({workers} x {self.lanes})" if self.lanes > 1 else "")
+            raise UserInputError(f"{key}: {self.segments} segments of a {self.total_time_s:.4g} s drive "
                                  f"are {seg_s:.3g} s each, at least {MIN_SEGMENT_S:g} s are needed: use at most "
-                                 f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))}")
+                                 f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))} segments")
         self.warm_up_m = float(warm_up_m)
         self.correct = correct
         # segments per worker: `lanes` consecutive segments run in lockstep on the lane library (lane_library
         # False: the same segmentation, each segment on the scalar engine in its own worker)
-        self.lanes = max(1, min(int(lanes), self.segments))
         self.lane_library = bool(lane_library) and self.lanes > 1
         if self.lane_library:
             t0 = time.perf_counter()
@@ -256,29 +281,49 @@ class TimeParallelDrive(SegmentJoin):
         S = self.coarse._slaving(np.asarray(x_a, float))
         return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
 
+    def _coarse_differences_submit(self, jobs: list[tuple], pool=None) -> list[list]:
+        """`_coarse_difference_submit` for every (t0, t1, x_a, x_b) of jobs; on the lane library, their propagations
+        in lockstep groups of `lanes` per pool task (bit for bit the same numbers)."""
+        if pool is None or not self.lane_library or not jobs:
+            return [self._coarse_difference_submit(*j, pool=pool) for j in jobs]
+        S = self.coarse._slaving(np.asarray(jobs[0][2], float))
+        runs = [(t0, t1, np.asarray(x, float)) for t0, t1, x_a, x_b in jobs for x in (x_a, x_b)]
+        L = self.lanes
+        futs = [pool.submit(_check_group_worker, runs[g:g + L], S, L) for g in range(0, len(runs), L)]
+        picks = [_Pick(futs[i // L], i % L) for i in range(len(runs))]
+        return [picks[2 * i: 2 * i + 2] for i in range(len(jobs))]
+
+    def _lane_check(self, t0, t1, x) -> np.ndarray:
+        """`_coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
+        c = copy.copy(self.coarse)
+        c.solver = current_full_solver()(self.settings.dt_s).bind(self.model, c.K, c.M)
+        return self._coarse_propagate(t0, t1, x, coarse=c)
+
     @staticmethod
     def _coarse_difference_result(runs: list[Future]) -> np.ndarray:
         a, b = (r.result() for r in runs)
         return b - a
 
-    def _coarse_propagate(self, t0, t1, x, n_windows: int = None) -> np.ndarray:
+    def _coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
         """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
-        start of each equal stretch of [t0, t1]), the linear slow model across the gaps."""
+        start of each equal stretch of [t0, t1]), the linear slow model across the gaps (coarse: the multiscale
+        drive that runs the windows, default the drive's own)."""
         n_windows = n_windows or CHECK_WINDOWS
-        span = self.coarse.ms.warm_up_m + CHECK_WINDOW_M
+        c = coarse or self.coarse
+        span = c.ms.warm_up_m + CHECK_WINDOW_M
         s0, s1 = float(self.fine.distance_at(t0)), float(self.fine.distance_at(t1))
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
         x = np.asarray(x, float).copy()
-        for i, c in enumerate(starts):
-            tw0 = self.coarse._time_at(c) if i else t0
-            t_end = min(self.coarse._time_at(min(c + span, s1)), t1)
-            t_warm = min(self.coarse._time_at(min(c + self.coarse.ms.warm_up_m, s1)), t_end)
-            w = self.coarse._window(self.coarse._rest_state(x), tw0, t_warm, t_end, None, [0.0])
-            t_next = self.coarse._time_at(starts[i + 1]) if i + 1 < n_windows else t1
+        for i, s in enumerate(starts):
+            tw0 = c._time_at(s) if i else t0
+            t_end = min(c._time_at(min(s + span, s1)), t1)
+            t_warm = min(c._time_at(min(s + c.ms.warm_up_m, s1)), t_end)
+            w = c._window(c._rest_state(x), tw0, t_warm, t_end, None, [0.0])
+            t_next = c._time_at(starts[i + 1]) if i + 1 < n_windows else t1
             x = w["x_end"].copy()
             Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
-            x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
-        return x[self.coarse.slow_index]
+            x[c.slow_index] = Phi @ x[c.slow_index] + forced
+        return x[c.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
     def _lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
@@ -411,6 +456,7 @@ class TimeParallelDrive(SegmentJoin):
         if not pr or "axle_temperature_K" not in pr:
             return {"attrs": {"solver_mode": "full"}, "values": {}}
         attrs = {"solver_mode": MODE, "time_parallel_segments": int(pr["segments"]),
+                 "time_parallel_lanes": int(self.lanes if self.lane_library else 1),
                  "time_parallel_coarse_s": float(pr.get("coarse_s", np.nan)),
                  "time_parallel_worker_cpu_s": float(np.sum(pr.get("worker_cpu_s", [np.nan]))),
                  "time_parallel_coarse_cpu_s": float(pr.get("coarse_cpu_s", np.nan)),

@@ -118,7 +118,7 @@ class SegmentJoin:
         """Per segment (A, its flow, e^{A T}, the start's correction delta, the error check's runs or None)."""
         slow = self.coarse.slow_index
         ns = len(slow)
-        pre, x_slow_prev = [], None
+        pre, jobs, x_slow_prev = [], [], None
         for p in parts:
             k, T = p["k"], p["t1"] - p["t0"]
             A = self._A(p["X_sub"], p["M_sub"], p["U_sub"], Sl)
@@ -129,12 +129,12 @@ class SegmentJoin:
             # a second, cheap coarse correction: the multiscale propagation of both starts over the segment on the
             # same few windows (their road noise cancels in the difference) sees how the dissipation responds to
             # the mismatch through the ride, which A (fast states slaved at rest) does not
-            check = None
             if k > 0 and self.correct and np.any(delta):
-                check = self._coarse_difference_submit(p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta,
-                                                       pool=pool)
-            pre.append((A, flow, Phi_T, delta, check))
-        return pre
+                jobs.append((len(pre), (p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta)))
+            pre.append([A, flow, Phi_T, delta, None])
+        for (i, _), check in zip(jobs, self._coarse_differences_submit([j for _, j in jobs], pool)):
+            pre[i][4] = check
+        return [tuple(p) for p in pre]
 
     def _segment_error(self, p, j: "_JoinState", Sl, Phi_T, delta, check) -> tuple:
         """(the error the linear correction leaves, the check's runs, e^{A T}, delta, the restart's error)."""
