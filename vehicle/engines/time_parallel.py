@@ -253,19 +253,26 @@ class TimeParallelDrive(SegmentJoin):
         c.settings = dataclasses.replace(self.settings, distance_m=float(self.fine.distance_at(t_end)))
         c.total_time_s = t_end
         c.state_only = True                 # only the states are wanted: no error estimate of its own
+        x0 = c.initial_state().x
         res = c.run(None)
+        log = c.window_log
         out = []
         for t in times:
             if t >= t_end - 1e-9:
                 out.append(res.state.x.copy())
                 continue
-            for w in c.window_log:
+            for i, w in enumerate(log):
                 if w["t_start"] - 1e-9 <= t <= w["t_gap_end"] + 1e-9:
-                    tau = t - w["t_end"]            # negative inside the window: back from its end, same model
-                    x = w["x_end"].copy()
-                    Phi, forced, _ = propagators(w["A"], w["b"], tau)
+                    # inside a window: forward from the window before it (its model carried on past its gap; the
+                    # drive's start for the first), not back from this window's end: e^{A tau} with tau < 0
+                    # amplifies the fast slow modes (the oil's ~2 min) by up to e^(window / 10 s)
+                    base = w if t >= w["t_end"] - 1e-9 else (log[i - 1] if i else None)
+                    x = (base["x_end"] if base else x0).copy()
+                    m = base or w
+                    tau = t - (base["t_end"] if base else 0.0)
+                    Phi, forced, _ = propagators(m["A"], m["b"], tau)
                     x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
-                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + w["q_rate"] * tau
+                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + m["q_rate"] * tau
                     out.append(x)
                     break
             else:
