@@ -387,10 +387,13 @@ class TimeParallelDrive(SegmentJoin):
             tail = seg.run(None, copy.deepcopy(res.state)).state.x[self.coarse.slow_index].copy()
             seg.error_estimate = est
         blocks = {key: np.concatenate([b[key] for b in rec.blocks], axis=-1) for key in rec.blocks[0]}
+        X_sub, M_sub, U_sub = (np.concatenate(a, axis=1) for a in (rec.Xs, rec.Ms, rec.Us))
+        # the segment's slow-state Jacobian (whole, halves) here, in parallel, not in the join (the slaving S: the
+        # drive's start's, cached, as the join's)
+        A = self._A_parts(X_sub, M_sub, U_sub, self.coarse._slaving(self.fine.initial_state().x))
         return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
                 "x_end": res.state.x.copy(), "state": res.state, "blocks": blocks, "rows": rec.rows,
-                "X_sub": np.concatenate(rec.Xs, axis=1), "M_sub": np.concatenate(rec.Ms, axis=1),
-                "U_sub": np.concatenate(rec.Us, axis=1), "integration_s": res.integration_s,
+                "X_sub": X_sub, "M_sub": M_sub, "U_sub": U_sub, "A": A, "integration_s": res.integration_s,
                 "estimate": seg.error_estimate}
 
     def _t_total(self) -> float:

@@ -56,6 +56,11 @@ class SegmentJoin:
     """Joining the segments with the correction (the module docstring)."""
 
     def _A(self, X, M, U, Sl) -> np.ndarray:
+        return self._A_parts(X, M, U, Sl)[0]
+
+    def _A_parts(self, X, M, U, Sl) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The slow states' Jacobian averaged over the samples (X, M, U), over their first and over their second
+        half (A's change along a segment), from one evaluation."""
         N = X.shape[1]
         ns = len(self.coarse.slow_index)
         Jd = self.coarse.J_slow.map(N)(X, M, U, np.repeat(self.fine.p[:, None], N, axis=1))
@@ -63,7 +68,9 @@ class SegmentJoin:
         J = np.zeros((ns, N * self.model.nx))
         J[np.asarray(sp.row(), int), np.repeat(np.arange(sp.size2()), np.diff(np.asarray(sp.colind(), int)))] = \
             np.asarray(Jd.nonzeros(), float)
-        return J.reshape(ns, N, self.model.nx).mean(axis=1) @ Sl
+        J = J.reshape(ns, N, self.model.nx)
+        half = N // 2
+        return tuple(J[:, sl].mean(axis=1) @ Sl for sl in (slice(None), slice(None, half), slice(half, None)))
 
     def _output_sensitivity(self, x, mem, u, Sl) -> dict:
         """d(output series)/d(slow states) at the state x (finite differences along the slaved directions)."""
@@ -121,7 +128,7 @@ class SegmentJoin:
         pre, jobs, x_slow_prev = [], [], None
         for p in parts:
             k, T = p["k"], p["t1"] - p["t0"]
-            A = self._A(p["X_sub"], p["M_sub"], p["U_sub"], Sl)
+            A = p["A"][0]                  # computed in the segment's worker (`_fine_segment`)
             flow = LinearFlow(A)           # e^{A t} for the many t of the series and statistics rows
             Phi_T = flow.phi(T)
             delta = np.zeros(ns) if (k == 0 or not self.correct) else x_slow_prev - p["x_start"][slow]
@@ -147,9 +154,7 @@ class SegmentJoin:
         e = np.zeros(len(slow))
         if check is not None:
             A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
-            half = X.shape[1] // 2
-            A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
-            A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
+            A1, A2 = p["A"][1:]
             e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
         # the restart: segment k's fast states at its start are not the serial run's (it started from rest
         # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first

@@ -179,7 +179,9 @@ def test_lane_segments_match_the_serial_run_within_the_estimated_error(lane_runs
         assert abs(a_p["dN_pct"] - a_s["dN_pct"]) <= eN, (a_p["dN_pct"], a_s["dN_pct"], eN)
         assert eT < 0.2 and eN < 0.3                              # (measured 0.12 K, 0.23 pp: 15x the error)
     assert np.array_equal(np.asarray(par.series("time")), np.asarray(serial.series("time")))
-    assert rp["energy_dissipated_MJ"] == pytest.approx(rs["energy_dissipated_MJ"], rel=2e-3)
+    # each join's restart (fast states started from rest a warm-up before it) adds ~0.6 kJ of dissipation: 5 joins
+    # on this 1 MJ drive +0.31 % (measured); two segments +0.05 %
+    assert rp["energy_dissipated_MJ"] == pytest.approx(rs["energy_dissipated_MJ"], rel=5e-3)
     assert "lockstep" in format_report(rp)
 
 
@@ -213,4 +215,4 @@ def test_the_coarse_prediction_inside_a_coarse_window_follows_the_serial_run(run
     t_s = np.asarray(serial.series("time"))
     for t, x in zip(times, pred):
         i = int(np.argmin(np.abs(t_s - t)))
-        assert np.max(np.abs(x[drive.T_index] - T[:, i])) < 0.2, (t, x[drive.T_index] - T[:, i])
+        assert np.max(np.abs(x[drive.T_index] - T[i])) < 0.2, (t, x[drive.T_index] - T[i])
