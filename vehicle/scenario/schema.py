@@ -182,8 +182,8 @@ class SolverSpec(Model):
     # processes at once, joined with a correction of the slow states; "auto": one per CPU; 1: serial
     time_parallel: Literal["auto"] | StrictInt | None = None
     # ... and each of these processes runs this many consecutive segments in lockstep on the lane library (one
-    # vector instruction for all, bit for bit the scalar engine's per segment); "auto" (default): one hardware
-    # vector (8 with AVX-512), fewer on a short drive; 1: one segment per process on the scalar engine
+    # vector instruction for all, bit for bit the scalar engine's per segment); "auto" (default): 4, fewer on a
+    # short drive; 1: one segment per process on the scalar engine
     time_parallel_lanes: Literal["auto"] | StrictInt | None = None
     # step-doubling error estimate (vehicle.numerics.error_estimate): the largest relative error of a strut's
     # heat (its temperature rise rate) accepted without a warning, and every how many sample blocks one output
