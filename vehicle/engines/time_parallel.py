@@ -6,9 +6,12 @@ Sci. Comput. 29(2)), one correction sweep:
 
 1. Coarse G: one multiscale run (vehicle.engines.multiscale; one 500 m window per COARSE_SPACING_M, no control
    variate) from the start to the last segment's start predicts the slow states (`model.SLOW_STATES`: thermal nodes, filtered deflection, levelling oil) at every segment
-   start. Segment 0 needs no prediction and starts at once, while G runs.
-2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in its own
-   process (forked: the built model and compiled stepper are inherited). Segment k > 0 starts from the vehicle
+   start. Segment 0 needs no prediction and (one segment per worker) starts at once, while G runs.
+2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in a worker
+   process (forked: the built model and compiled stepper are inherited). With `lanes` L > 1 (scenario
+   `solver.time_parallel_lanes`) each worker runs L consecutive segments in lockstep on the lane library
+   (vehicle.engines.ensemble: each segment a lane, bit for bit what the scalar engine gives it), P = workers x L;
+   all start after G (no lead for segment 0), and the join's error checks below run in lane groups too. Segment k > 0 starts from the vehicle
    standing in equilibrium at the predicted slow states (`MultiscaleDrive._rest_state`) a warm-up stretch
    (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
    first sample: the fast states forget their start within seconds, the slow ones do not.

@@ -1,8 +1,7 @@
 """The settings an engine runs with, and their defaults, written once: the drive (`DriveSettings`), the
 multiscale window layout (`MultiscaleSettings`) and the time-parallel split (`SEGMENTS_RANGE`,
 `resolve_segments`, `resolve_time_parallel_lanes`). The scenario schema (vehicle.scenario.schema) validates the
-user's keys and builds
-these; the engines (vehicle.engines) read them. Why each default is what it is: docs/engines.md."""
+user's keys and builds these; the engines (vehicle.engines) read them. Why each default is what it is: docs/engines.md."""
 from __future__ import annotations
 
 import os
