@@ -12,8 +12,8 @@ Sci. Comput. 29(2)), one correction sweep:
    `solver.time_parallel_lanes`) each worker runs L consecutive segments in lockstep on the lane library
    (vehicle.engines.ensemble: each segment a lane, bit for bit what the scalar engine gives it), P = workers x L;
    all start after G (no lead for segment 0), and the join's error checks below run in lane groups too.
-   Segment k > 0 starts from the vehicle standing in equilibrium at the predicted slow states (`MultiscaleDrive._rest_state`) a warm-up stretch
-   (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
+   Segment k > 0 starts from the vehicle standing in equilibrium at the predicted slow states
+   (`MultiscaleDrive._rest_state`) a warm-up stretch (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
    first sample: the fast states forget their start within seconds, the slow ones do not.
 3. Correction: the mismatch delta_k = x_s,end(k-1) (corrected) - x_s(k) at the segment start is carried
    through segment k by the slow states' linearisation dx_s/dt = r + A (x_s - xbar) (A: the mean over the
