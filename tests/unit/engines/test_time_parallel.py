@@ -216,3 +216,15 @@ def test_the_coarse_prediction_inside_a_coarse_window_follows_the_serial_run(run
     for t, x in zip(times, pred):
         i = int(np.argmin(np.abs(t_s - t)))
         assert np.max(np.abs(x[drive.T_index] - T[i])) < 0.2, (t, x[drive.T_index] - T[i])
+
+
+def test_auto_lanes_keep_every_segment_at_least_the_minimum_long():
+    from vehicle.engines.time_parallel import MIN_SEGMENT_S
+    from vehicle.numerics.lanes import default_lanes
+    from vehicle.scenario.settings import TIME_PARALLEL_LANES_AUTO, resolve_time_parallel_lanes
+
+    full = min(TIME_PARALLEL_LANES_AUTO, default_lanes())
+    assert resolve_time_parallel_lanes(None, 2, 19080.0, MIN_SEGMENT_S) == full          # the 106 km drive
+    assert resolve_time_parallel_lanes("auto", 2, 432.0, MIN_SEGMENT_S) == min(full, 3)   # 2.4 km: 3 x 2 x 72 s
+    assert resolve_time_parallel_lanes("auto", 2, 200.0, MIN_SEGMENT_S) == 1              # too short for lanes
+    assert resolve_time_parallel_lanes(8, 2, 200.0, MIN_SEGMENT_S) == 8                   # as given (refused later)
