@@ -121,6 +121,7 @@ def main(argv=None):
            "coarse_cpu_s": float(sp.get("time_parallel_coarse_cpu_s", np.nan)),
            "join_cpu_s": float(sp.get("time_parallel_join_cpu_s", np.nan)),
            "critical_cpu_s": float(sp.get("time_parallel_critical_cpu_s", np.nan)),
+           "check_cpu_s": float(sp.get("time_parallel_check_cpu_s", np.nan)),
            "T_end_serial_C": T_s.tolist(), "dT_K": (T_p - T_s).tolist(), "ddN_pp": (dN_p - dN_s).tolist(),
            "coarse_mismatch_K": float(sp.get("time_parallel_coarse_mismatch_K", np.nan)),
            "estimated_error_K": np.asarray(vals.get("estimated_error_axle_temperature", [np.nan]), float).tolist(),
@@ -150,6 +151,7 @@ def main(argv=None):
                         "coarse_s": float(sl.get("time_parallel_coarse_s", np.nan)),
                         "join_s": float(sl.get("time_parallel_join_s", np.nan)),
                         "critical_cpu_s": float(sl.get("time_parallel_critical_cpu_s", np.nan)),
+                        "check_cpu_s": float(sl.get("time_parallel_check_cpu_s", np.nan)),
                         "dT_K": (T_l - T_s).tolist(), "ddN_pp": (dN_l - dN_s).tolist(),
                         "estimated_error_K": np.asarray(vl.get("estimated_error_axle_temperature", [np.nan]),
                                                         float).tolist(),
@@ -200,7 +202,8 @@ def main(argv=None):
         print(f"    {name:44s} {L['wall_s']:7.1f} s {L['speedup']:5.2f}x  {np.max(np.abs(L['dT_K'])):.4f} K  "
               f"{np.max(np.abs(L['ddN_pp'])):.4f} pp  (estimate {np.nanmax(L['estimated_error_K']):.4f} K, "
               f"{np.nanmax(L['estimated_error_pp']):.4f} pp)")
-        print(f"    lanes: workers' CPU {L['worker_cpu_s']:.1f} s (scalar segments {out['worker_cpu_s']:.1f} s), coarse "
+        print(f"    lanes: workers' CPU {L['worker_cpu_s']:.1f} s (scalar segments {out['worker_cpu_s']:.1f} s) and "
+              f"{L['check_cpu_s']:.1f} s in the join's error checks (scalar {out['check_cpu_s']:.1f} s), coarse "
               f"{L['coarse_s']:.1f} s, join {L['join_s']:.1f} s wall, critical path in CPU {L['critical_cpu_s']:.1f} s "
               f"(scalar segments {out['critical_cpu_s']:.1f} s); dissipated energy {L['energy_rel_diff'] * 100:+.3f} %")
         if "vs_reference" in L:

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import resource
 import time
 import warnings
 from concurrent.futures import Future
@@ -127,6 +128,12 @@ class _Pick:
 
     def result(self):
         return self.future.result()[self.i]
+
+
+def _children_cpu() -> float:
+    """CPU time [s] of this process's ended (waited-for) child processes."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def _done(value) -> Future:
@@ -316,12 +323,13 @@ class TimeParallelDrive(SegmentJoin):
 
     def _coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
         """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
-        start of each equal stretch of [t0, t1]), the linear slow model across the gaps (coarse: the multiscale
-        drive that runs the windows, default the drive's own)."""
-        n_windows = n_windows or CHECK_WINDOWS
+        start of each equal stretch of [t0, t1]; default CHECK_WINDOWS, as many as fit), the linear slow model across
+        the gaps (coarse: the multiscale drive that runs the windows, default the drive's own)."""
         c = coarse or self.coarse
         span = c.ms.warm_up_m + CHECK_WINDOW_M
         s0, s1 = float(self.fine.distance_at(t0)), float(self.fine.distance_at(t1))
+        # CHECK_WINDOWS, fewer on a segment shorter than their spans (overlapping windows drive the same road again)
+        n_windows = n_windows or max(1, min(CHECK_WINDOWS, int((s1 - s0) // span)))
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
         x = np.asarray(x, float).copy()
         for i, s in enumerate(starts):
@@ -416,6 +424,7 @@ class TimeParallelDrive(SegmentJoin):
         # the restart's overlap: the warm-up's length after each segment start
         marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
         tails = marks[1:] + [None]
+        children0 = _children_cpu()
         with fork_pool(len(groups), self) as pool:
             futs = []
             if L == 1:                  # segment 0 needs no prediction: it starts at once, while the coarse run goes
@@ -440,12 +449,16 @@ class TimeParallelDrive(SegmentJoin):
             res = self._join(parts, sink, progress, pool)
             join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
         w = [p["cpu_s"] for p in parts]
+        # the error checks' CPU: the workers' (waited for when the pool closed) less their segments'
+        check_cpu = max(_children_cpu() - children0 - sum(w), 0.0)
         # what the run takes with a core per worker: segment 0, or the coarse run then the slowest other worker; then
-        # the join (CPU times: on a shared machine the wall times say more about the other load)
+        # the join, or its error checks spread over the workers (CPU times: on a shared machine the wall times say
+        # more about the other load)
         per_worker = [sum(w[k] for k in g) for g in groups] if L > 1 else w
         critical = (coarse_cpu + max(per_worker) if L > 1 else
-                    max(w[0], coarse_cpu + max(w[1:], default=0.0))) + join_cpu
+                    max(w[0], coarse_cpu + max(w[1:], default=0.0))) + max(join_cpu, check_cpu / len(groups))
         self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
+                             check_cpu_s=check_cpu,
                              join_wall_s=join_wall, workers=len(groups), lanes=L, lane_library=self.lane_library,
                              critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
                              boundaries_s=t.tolist())
@@ -474,6 +487,7 @@ class TimeParallelDrive(SegmentJoin):
                  "time_parallel_worker_cpu_s": float(np.sum(pr.get("worker_cpu_s", [np.nan]))),
                  "time_parallel_coarse_cpu_s": float(pr.get("coarse_cpu_s", np.nan)),
                  "time_parallel_join_cpu_s": float(pr.get("join_cpu_s", np.nan)),
+                 "time_parallel_check_cpu_s": float(pr.get("check_cpu_s", np.nan)),
                  "time_parallel_join_s": float(pr.get("join_wall_s", np.nan)),
                  "time_parallel_critical_cpu_s": float(pr.get("critical_cpu_s", np.nan)),
                  "time_parallel_coarse_mismatch_K": float(np.max(self.mismatch_axle_K())),
