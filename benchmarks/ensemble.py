@@ -189,7 +189,7 @@ def drives(distance: str, lanes: int, isa: str, folder: Path) -> dict:
     """The cases on the engine before vehicle.numerics.vector_math (C library calls), on today's scalar engine, one
     after the other, then in one ensemble: CPU and wall seconds, per-case results, the largest relative difference
     of the files (ensemble against today's scalar engine)."""
-    from vehicle.engines.build import full_drive_solver
+    from vehicle.engines.ensemble import full_drive_solver
     from vehicle.engines.ensemble import run_lockstep
     from vehicle.studies.sweep import run_case
 

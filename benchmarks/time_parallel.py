@@ -1,12 +1,15 @@
 """Parallel in time against the serial run, in one process: wall time and accuracy.
 
-    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--baseline]
+    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--lanes auto] [--baseline]
                                        [--reference-dt 1ms] [--dt STEP] [--json]
 
-Two runs of the same scenario into memory (vehicle.results.run.run_in_memory, what sweeps and UQ use):
+Three runs of the same scenario into memory (vehicle.results.run.run_in_memory, what sweeps and UQ use):
   serial         the full drive (compiled ROS2 at the scenario's dt) in this process;
-  time_parallel  `solver: {time_parallel: P}`: P segments in P processes, a multiscale coarse run predicting
-                 the segment starts, the slow-state correction (vehicle.engines.time_parallel).
+  time_parallel  `solver: {time_parallel: P, time_parallel_lanes: 1}`: P segments in P processes on the scalar
+                 engine, a multiscale coarse run predicting the segment starts, the slow-state correction
+                 (vehicle.engines.time_parallel);
+  lanes          `solver: {time_parallel: P}` (time_parallel_lanes --lanes, default auto): P x lanes segments, each
+                 process running its lanes in lockstep on the lane library (vehicle.numerics.lanes).
 Printed: drive wall time of each (the summary's wall_s: without building the model, the same for both) and
 their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
 temperature and wheel-load change differences (time-parallel - serial), without the correction for the
@@ -31,7 +34,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1] / "scenarios/mileage_106km.yaml"))
-    ap.add_argument("--segments", type=int, default=2)
+    ap.add_argument("--segments", type=int, default=2, help="processes of the time-parallel runs (solver.time_parallel)")
+    ap.add_argument("--lanes", default="auto",
+                    help="segments per process of the run on the lane library (solver.time_parallel_lanes; auto: one "
+                         "hardware vector); 0: leave that run out")
     ap.add_argument("--distance", default=None, help="override the scenario's distance, e.g. '10 km'")
     ap.add_argument("--baseline", action="store_true",
                     help="also run the engine of issue 11's filing serially first (Ros2(engine='baseline'), same model)")
@@ -86,7 +92,11 @@ def main(argv=None):
         baseline = summarize(drive, res_b, 0.0, time.perf_counter() - t0)
     step = {"dt": args.dt} if args.dt else {}
     serial, rs, total_s = run(step, "serial")
-    par, rp, total_p = run({**step, "time_parallel": args.segments}, "parallel")
+    par, rp, total_p = run({**step, "time_parallel": args.segments, "time_parallel_lanes": 1}, "parallel")
+    lanes = None
+    if args.lanes != "0":
+        lanes = run({**step, "time_parallel": args.segments,
+                     "time_parallel_lanes": args.lanes if args.lanes == "auto" else int(args.lanes)}, "lanes")
     reference = None
     if args.reference_dt:
         # the tight reference: the same drive at a smaller step (second order: 1 ms is 16x tighter than 4 ms)
@@ -111,6 +121,7 @@ def main(argv=None):
            "coarse_cpu_s": float(sp.get("time_parallel_coarse_cpu_s", np.nan)),
            "join_cpu_s": float(sp.get("time_parallel_join_cpu_s", np.nan)),
            "critical_cpu_s": float(sp.get("time_parallel_critical_cpu_s", np.nan)),
+           "check_cpu_s": float(sp.get("time_parallel_check_cpu_s", np.nan)),
            "T_end_serial_C": T_s.tolist(), "dT_K": (T_p - T_s).tolist(), "ddN_pp": (dN_p - dN_s).tolist(),
            "coarse_mismatch_K": float(sp.get("time_parallel_coarse_mismatch_K", np.nan)),
            "estimated_error_K": np.asarray(vals.get("estimated_error_axle_temperature", [np.nan]), float).tolist(),
@@ -128,6 +139,28 @@ def main(argv=None):
     if baseline is not None:
         out.update(baseline_wall_s=baseline["wall_s"], baseline_vs_serial=baseline["wall_s"] / out["serial_wall_s"],
                    baseline_vs_parallel=baseline["wall_s"] / out["parallel_wall_s"])
+    if lanes is not None:
+        sl, rl = lanes[0].summary_attrs(), lanes[1]
+        T_l = np.array([a["T_end_C"] for a in rl["axles"]])
+        dN_l = np.array([a["dN_pct"] for a in rl["axles"]])
+        vl = lanes[0].summary_values()
+        out["lanes"] = {"segments": int(sl.get("time_parallel_segments", 0)),
+                        "lanes": int(sl.get("time_parallel_lanes", 1)), "wall_s": float(sl["wall_s"]),
+                        "speedup": float(ss["wall_s"]) / float(sl["wall_s"]), "total_s": lanes[2],
+                        "worker_cpu_s": float(sl.get("time_parallel_worker_cpu_s", np.nan)),
+                        "coarse_s": float(sl.get("time_parallel_coarse_s", np.nan)),
+                        "join_s": float(sl.get("time_parallel_join_s", np.nan)),
+                        "critical_cpu_s": float(sl.get("time_parallel_critical_cpu_s", np.nan)),
+                        "check_cpu_s": float(sl.get("time_parallel_check_cpu_s", np.nan)),
+                        "dT_K": (T_l - T_s).tolist(), "ddN_pp": (dN_l - dN_s).tolist(),
+                        "estimated_error_K": np.asarray(vl.get("estimated_error_axle_temperature", [np.nan]),
+                                                        float).tolist(),
+                        "estimated_error_pp": np.asarray(vl.get("estimated_error_load_change", [np.nan]),
+                                                         float).tolist(),
+                        "energy_rel_diff": (rl["energy_dissipated_MJ"] - rs["energy_dissipated_MJ"])
+                        / rs["energy_dissipated_MJ"]}
+        if reference is not None:
+            out["lanes"]["vs_reference"] = against(T_l, dN_l)
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
@@ -158,6 +191,24 @@ def main(argv=None):
     print(f"  largest |dT| {np.max(np.abs(out['dT_K'])):.4f} K, |ddN| {np.max(np.abs(out['ddN_pp'])):.4f} pp; "
           f"coarse prediction mismatch at the segment start (no correction) {out['coarse_mismatch_K']:.3f} K; "
           f"dissipated energy {out['energy_rel_diff'] * 100:+.3f} %")
+    if lanes is not None:
+        L = out["lanes"]
+        print(f"  side by side (drive wall time, against the serial run: largest per-axle |dT| and |ddN|, own estimate)")
+        print(f"    {'serial, scalar engine':44s} {out['serial_wall_s']:7.1f} s  1.00x")
+        print(f"    {f'time-parallel, {args.segments} segments on the scalar engine':44s} {out['parallel_wall_s']:7.1f} s "
+              f"{out['speedup']:5.2f}x  {np.max(np.abs(out['dT_K'])):.4f} K  {np.max(np.abs(out['ddN_pp'])):.4f} pp  "
+              f"(estimate {np.nanmax(out['estimated_error_K']):.4f} K, {np.nanmax(out['estimated_error_pp']):.4f} pp)")
+        name = f"time-parallel, {L['segments']} segments, {L['lanes']} lanes x {args.segments}"
+        print(f"    {name:44s} {L['wall_s']:7.1f} s {L['speedup']:5.2f}x  {np.max(np.abs(L['dT_K'])):.4f} K  "
+              f"{np.max(np.abs(L['ddN_pp'])):.4f} pp  (estimate {np.nanmax(L['estimated_error_K']):.4f} K, "
+              f"{np.nanmax(L['estimated_error_pp']):.4f} pp)")
+        print(f"    lanes: workers' CPU {L['worker_cpu_s']:.1f} s (scalar segments {out['worker_cpu_s']:.1f} s) and "
+              f"{L['check_cpu_s']:.1f} s in the join's error checks (scalar {out['check_cpu_s']:.1f} s), coarse "
+              f"{L['coarse_s']:.1f} s, join {L['join_s']:.1f} s wall, critical path in CPU {L['critical_cpu_s']:.1f} s "
+              f"(scalar segments {out['critical_cpu_s']:.1f} s); dissipated energy {L['energy_rel_diff'] * 100:+.3f} %")
+        if "vs_reference" in L:
+            print(f"    lanes against the run at {args.reference_dt}: {L['vs_reference']['max_temperature_error_K']:.3f} K / "
+                  f"{L['vs_reference']['max_load_error_pp']:.4f} pp")
     return 0
 
 

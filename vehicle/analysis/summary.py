@@ -190,6 +190,7 @@ def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
             "T_end_K": per_axle("estimated_error_axle_temperature"),
             "dN_pct": per_axle("estimated_error_load_change"),
             "segments": int(summ.get("time_parallel_segments", 0)),
+            "lanes": int(summ.get("time_parallel_lanes", 1)),      # segments per process, in lockstep
             "coarse_mismatch_K": float(summ.get("time_parallel_coarse_mismatch_K", np.nan))}
         return out
 

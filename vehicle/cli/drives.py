@@ -40,8 +40,9 @@ def register(sub):
     pr.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     pr.add_argument("--no-progress", action="store_true", help="no progress bar")
     pr.add_argument("--time-parallel", default=None, metavar="P",
-                    help="split the drive in time into P segments run in P processes at once, joined with a "
-                         "correction of the slow states (overrides solver.time_parallel; auto: one per CPU)")
+                    help="split the drive in time into segments run in P processes at once (each running "
+                         "solver.time_parallel_lanes segments in lockstep, default 4), joined with a correction of "
+                         "the slow states (overrides solver.time_parallel; auto: one process per CPU)")
     pr.set_defaults(func=cmd_run)
 
     pp = sub.add_parser("report", help="per-axle summary of a results file (or a shareable HTML/PDF report, also "
@@ -162,7 +163,7 @@ def _with_time_parallel(scen: Path, value: str):
         except ValueError:
             v = None
         if v is None or not lo <= v <= hi:
-            raise UserInputError(f"--time-parallel: must be an integer in [{lo}, {hi}] (segments) or auto, got {value!r}")
+            raise UserInputError(f"--time-parallel: must be an integer in [{lo}, {hi}] (processes) or auto, got {value!r}")
     src = read_scenario(scen)
     src.data = apply_overrides(src.data, {"solver.time_parallel": v}, str(scen))
     return src

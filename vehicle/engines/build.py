@@ -3,45 +3,21 @@
 settings. A new engine is one module and one line in ENGINES (docs/CONTRIBUTING.md)."""
 from __future__ import annotations
 
-import contextvars
-from contextlib import contextmanager
-from typing import Callable
-
 from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
-from vehicle.scenario.settings import resolve_segments
+from vehicle.scenario.settings import resolve_segments, resolve_time_parallel_lanes
 from vehicle.scenario.work_limits import segments_for
 from vehicle.engines.contract import Engine
+from vehicle.engines.ensemble import current_full_solver
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
 from vehicle.engines.time_parallel import MIN_SEGMENT_S, TimeParallelDrive
 
 
-# the solver of full drives built in this thread (None: the compiled ROS2): a lane of an ensemble
-# (vehicle.engines.ensemble) steps with its group; a context variable, so each lane thread has its own
-_FULL_SOLVER: contextvars.ContextVar = contextvars.ContextVar("hpsim_full_solver", default=None)
-
-
-@contextmanager
-def full_drive_solver(make_solver: Callable[[float], object]):
-    """Within this block, in this thread, full drives built by `build_engine` step with make_solver(dt) (a solver
-    of vehicle.numerics.contract), as each lane of an ensemble does."""
-    token = _FULL_SOLVER.set(make_solver)
-    try:
-        yield
-    finally:
-        _FULL_SOLVER.reset(token)
-
-
-def current_full_solver() -> Callable[[float], object] | None:
-    """The solver factory of `full_drive_solver` in force in this thread, or None."""
-    return _FULL_SOLVER.get()
-
-
 def _full(model, road, prepared) -> Engine:
     settings = prepared.settings()
-    make_solver = _FULL_SOLVER.get()
+    make_solver = current_full_solver()
     return Drive(model, road, settings, solver=None if make_solver is None else make_solver(settings.dt_s))
 
 
@@ -50,13 +26,17 @@ def _multiscale(model, road, prepared) -> Engine:
 
 
 def _segments(prepared) -> int:
-    """solver.time_parallel resolved: "auto" takes one segment per CPU, at most one per MIN_SEGMENT_S of drive."""
+    """solver.time_parallel resolved (the processes): "auto" takes one per CPU, at most one per MIN_SEGMENT_S of
+    drive."""
     tp = prepared.scenario.solver.time_parallel
     return segments_for(resolve_segments(tp), tp == "auto", prepared.duration_s(), MIN_SEGMENT_S)
 
 
 def _time_parallel(model, road, prepared) -> Engine:
-    return TimeParallelDrive(model, road, prepared.settings(), _segments(prepared))
+    workers = _segments(prepared)
+    lanes = resolve_time_parallel_lanes(prepared.scenario.solver.time_parallel_lanes, workers, prepared.duration_s(),
+                                        MIN_SEGMENT_S)
+    return TimeParallelDrive(model, road, prepared.settings(), workers * lanes, lanes=lanes)
 
 
 # engine name -> builder(model, road, prepared)

@@ -21,18 +21,41 @@ them all, and each drive goes on with its own states (outputs, statistics, check
 """
 from __future__ import annotations
 
+import contextvars
 import signal
 import threading
 import time
 import traceback
 import warnings
+from contextlib import contextmanager
 from typing import Callable
 
 import numpy as np
 
 from vehicle.numerics.lanes import LaneStepper, default_lanes
 from vehicle.numerics.solvers import Ros2
-from vehicle.engines.build import full_drive_solver
+
+# the solver of full drives built in this thread (None: the compiled ROS2): a lane of an ensemble or of a
+# time-parallel worker steps with its group; a context variable, so each lane thread has its own
+_FULL_SOLVER: contextvars.ContextVar = contextvars.ContextVar("hpsim_full_solver", default=None)
+
+
+@contextmanager
+def full_drive_solver(make_solver: Callable[[float], object]):
+    """Within this block, in this thread, full drives built by `vehicle.engines.build.build_engine` (and the
+    segments of a time-parallel worker's lanes) step with make_solver(dt) (a solver of vehicle.numerics.contract),
+    as each lane of an ensemble does."""
+    token = _FULL_SOLVER.set(make_solver)
+    try:
+        yield
+    finally:
+        _FULL_SOLVER.reset(token)
+
+
+def current_full_solver() -> Callable[[float], object] | None:
+    """The solver factory of `full_drive_solver` in force in this thread, or None."""
+    return _FULL_SOLVER.get()
+
 
 _STEPPERS: dict = {}         # compiled lane block functions of this process by (structure, dt, lanes, isa)
 _STEPPERS_LOCK = threading.Lock()

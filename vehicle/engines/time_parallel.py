@@ -6,11 +6,14 @@ Sci. Comput. 29(2)), one correction sweep:
 
 1. Coarse G: one multiscale run (vehicle.engines.multiscale; one 500 m window per COARSE_SPACING_M, no control
    variate) from the start to the last segment's start predicts the slow states (`model.SLOW_STATES`: thermal nodes, filtered deflection, levelling oil) at every segment
-   start. Segment 0 needs no prediction and starts at once, while G runs.
-2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in its own
-   process (forked: the built model and compiled stepper are inherited). Segment k > 0 starts from the vehicle
-   standing in equilibrium at the predicted slow states (`MultiscaleDrive._rest_state`) a warm-up stretch
-   (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
+   start. Segment 0 needs no prediction and (one segment per worker) starts at once, while G runs.
+2. Fine F: each segment k is the real Drive (compiled ROS2, same dt, same road, same samples) in a worker
+   process (forked: the built model and compiled stepper are inherited). With `lanes` L > 1 (scenario
+   `solver.time_parallel_lanes`) each worker runs L consecutive segments in lockstep on the lane library
+   (vehicle.engines.ensemble: each segment a lane, bit for bit what the scalar engine gives it), P = workers x L;
+   all start after G (no lead for segment 0), and the join's error checks below run in lane groups too.
+   Segment k > 0 starts from the vehicle standing in equilibrium at the predicted slow states
+   (`MultiscaleDrive._rest_state`) a warm-up stretch (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
    first sample: the fast states forget their start within seconds, the slow ones do not.
 3. Correction: the mismatch delta_k = x_s,end(k-1) (corrected) - x_s(k) at the segment start is carried
    through segment k by the slow states' linearisation dx_s/dt = r + A (x_s - xbar) (A: the mean over the
@@ -39,23 +42,24 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass, field
+import resource
 import time
+import warnings
 from concurrent.futures import Future
 
 import numpy as np
-from scipy.linalg import expm
 
 from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
-from vehicle.physics.outputs import joined
 from vehicle.scenario.settings import SEGMENTS_RANGE, MultiscaleSettings
-from vehicle.engines.contract import DriveResult, DriveState
+from vehicle.engines.contract import DriveState
+from vehicle.engines.ensemble import current_full_solver, lane_stepper, run_lockstep
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
 from vehicle.engines.pool import can_fork, fork_pool, inherited
-from vehicle.engines.slow_flow import LinearFlow, propagators
+from vehicle.engines.slow_flow import propagators
+from vehicle.engines.time_parallel_join import SegmentJoin
 
 MODE = "time_parallel"
 MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
@@ -64,23 +68,6 @@ CHECK_WINDOWS = 3                 # windows of the second coarse correction over
 CHECK_WINDOW_M = 500.0            # their averaged stretch (after the coarse run's warm-up)
 COARSE_SPACING_M = 10_000.0      # one coarse window per this much road
 COARSE_COST = 1.5                 # the coarse run's wall time / the full model's over the road its windows drive
-PIECE_SAMPLES = 500               # samples per block handed to the sink when the segments are joined
-
-
-def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate | None:
-    """One step-doubling estimate from the segments' (the windows of all segments pooled)."""
-    parts = [p for p in parts if p is not None]
-    if not parts:
-        return None
-    out = copy.deepcopy(parts[0])
-    for p in parts[1:]:
-        out.cost_s += p.cost_s
-        for a, b in zip(out.levels, p.levels):
-            a.diff_heat_J = a.diff_heat_J + b.diff_heat_J
-            a.heat_J = a.heat_J + b.heat_J
-            a.max_deflection_diff_m = max(a.max_deflection_diff_m, b.max_deflection_diff_m)
-            a.windows += b.windows
-    return out
 
 
 def _check_worker(t0, t1, x, n_windows, slaving):
@@ -97,6 +84,56 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     out["cpu_s"] = time.process_time() - c0
     out["wall_s"] = time.perf_counter() - w0
     return out
+
+
+def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
+    """fn(*item) for every item, each in a lane thread of one `LockstepGroup` (vehicle.engines.ensemble): their
+    drives step together on the lane library, bit for bit what the scalar engine gives each. Results in order."""
+    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes)
+    out = []
+    for i in range(len(items)):
+        v = r["cases"].get(str(i))
+        if not (isinstance(v, tuple) and v[0] == "ok"):
+            raise RuntimeError(f"time-parallel: {what} {i} failed in its lane group: "
+                               f"{v.get('error') if isinstance(v, dict) else 'not run'}")
+        out.append(v[1])
+    return out
+
+
+def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
+    """Several segments (each item: _segment_worker's arguments) in one worker, in lockstep on the lane library.
+    The group's CPU time is shared out over its segments by their lengths."""
+    d = inherited()
+    c0, w0 = time.process_time(), time.perf_counter()
+    out = _in_lockstep(d._lane_segment, items, lanes, "segment")
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    span = sum(p["t1"] - p["t0"] for p in out)
+    for p in out:
+        p["cpu_s"], p["wall_s"] = cpu * (p["t1"] - p["t0"]) / span, wall
+    return out
+
+
+def _check_group_worker(items: list[tuple], slaving, lanes: int) -> list[np.ndarray]:
+    """Several propagations of the join's error check (each item: (t0, t1, x)) in lockstep on the lane library."""
+    d = inherited()
+    d.coarse._S = slaving
+    return _in_lockstep(d._lane_check, items, lanes, "error check")
+
+
+class _Pick:
+    """Item i of a future's list, as a future (one propagation of a lane group of error checks)."""
+
+    def __init__(self, future: Future, i: int):
+        self.future, self.i = future, i
+
+    def result(self):
+        return self.future.result()[self.i]
+
+
+def _children_cpu() -> float:
+    """CPU time [s] of this process's ended (waited-for) child processes."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def _done(value) -> Future:
@@ -133,22 +170,7 @@ class _SegmentRecorder:
                       for s_end, duration, dq, x_end, gas in intervals]
 
 
-@dataclass
-class _JoinState:
-    """What the join carries from one segment to the next."""
-
-    Q: np.ndarray                                 # quadratures at the previous segment's end (absolute)
-    x_true: np.ndarray | None = None              # corrected end of the previous segment
-    x_raw_prev: np.ndarray | None = None          # uncorrected end of the previous segment
-    carry: tuple | None = None                    # (duration, dq, gas_sum, gas_n) of the interval left open
-    prev_tail: np.ndarray | None = None           # the previous segment's slow states past the join
-    prev_end_raw: np.ndarray | None = None
-    mismatch: list = field(default_factory=list)
-    rows: list = field(default_factory=list)
-    n_samples: int = 0
-
-
-class TimeParallelDrive:
+class TimeParallelDrive(SegmentJoin):
     """A full drive split into `segments` segments in time, run in parallel processes and joined with a correction
     of the slow states (module docstring). It composes two engines on one model, road and settings: the full
     drive (`fine`, each segment) and a multiscale drive (`coarse`: the prediction at the segment starts and the
@@ -157,10 +179,12 @@ class TimeParallelDrive:
     mode = MODE
 
     def __init__(self, model, road, settings, segments: int, *, coarse: MultiscaleSettings | None = None,
-                 warm_up_m: float = 50.0, correct: bool = True):
+                 lanes: int = 1, lane_library: bool = True, warm_up_m: float = 50.0, correct: bool = True):
         lo, hi = SEGMENTS_RANGE
-        if not lo <= int(segments) <= hi:
-            raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (segments) or auto, got {segments}")
+        self.lanes = max(1, min(int(lanes), int(segments)))
+        workers = -(-int(segments) // self.lanes)
+        if not lo <= workers <= hi:
+            raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (processes) or auto, got {workers}")
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
         self.fine = Drive(model, road, settings, partial_last_sample=False)   # segments end on whole intervals
@@ -174,11 +198,23 @@ class TimeParallelDrive:
         self.segments = int(segments)
         seg_s = self.total_time_s / self.segments
         if self.segments > 1 and seg_s < MIN_SEGMENT_S:
-            raise UserInputError(f"solver.time_parallel: {self.segments} segments of a {self.total_time_s:.4g} s drive "
+            key = "solver.time_parallel" + (f" x time_parallel_lanes ({workers} x {self.lanes})" if self.lanes > 1 else "")
+            raise UserInputError(f"{key}: {self.segments} segments of a {self.total_time_s:.4g} s drive "
                                  f"are {seg_s:.3g} s each, at least {MIN_SEGMENT_S:g} s are needed: use at most "
-                                 f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))}")
+                                 f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))} segments")
         self.warm_up_m = float(warm_up_m)
         self.correct = correct
+        # segments per worker: `lanes` consecutive segments run in lockstep on the lane library (lane_library
+        # False: the same segmentation, each segment on the scalar engine in its own worker)
+        self.lane_library = bool(lane_library) and self.lanes > 1
+        if self.lane_library:
+            t0 = time.perf_counter()
+            try:          # compiled (or fetched) here, once: the forked workers inherit it
+                lane_stepper(model, self.settings.dt_s, self.lanes)
+            except RuntimeError as exc:
+                warnings.warn(f"time-parallel: {exc}; the segments run on the scalar engine")
+                self.lane_library = False
+            self.build_s += time.perf_counter() - t0
         self.parareal: dict = {}
 
     # --- the engine contract: the full drive's layout, start and end --------------------------------
@@ -205,7 +241,7 @@ class TimeParallelDrive:
         # warm-up + window over the D_c = (P-1)/P of the road before the last segment start; plus its per-window
         # work: COARSE_COST times the windows' own time, measured ~1.5 on the 106 km test)
         lead = 0.0
-        if P > 1:
+        if P > 1 and self.lanes == 1:       # lane groups all start after the coarse run: no lead
             D = self.settings.distance_m
             n_w = int(np.ceil(D * (P - 1) / P / self.coarse.ms.spacing_m - 1e-9))
             span_s = n_w * (self.coarse.ms.warm_up_m + self.coarse.ms.window_m) / (D / (n * sample_dt))
@@ -227,19 +263,26 @@ class TimeParallelDrive:
         c.settings = dataclasses.replace(self.settings, distance_m=float(self.fine.distance_at(t_end)))
         c.total_time_s = t_end
         c.state_only = True                 # only the states are wanted: no error estimate of its own
+        x0 = c.initial_state().x
         res = c.run(None)
+        log = c.window_log
         out = []
         for t in times:
             if t >= t_end - 1e-9:
                 out.append(res.state.x.copy())
                 continue
-            for w in c.window_log:
+            for i, w in enumerate(log):
                 if w["t_start"] - 1e-9 <= t <= w["t_gap_end"] + 1e-9:
-                    tau = t - w["t_end"]            # negative inside the window: back from its end, same model
-                    x = w["x_end"].copy()
-                    Phi, forced, _ = propagators(w["A"], w["b"], tau)
+                    # inside a window: forward from the window before it (its model carried on past its gap; the
+                    # drive's start for the first), not back from this window's end: e^{A tau} with tau < 0
+                    # amplifies the fast slow modes (the oil's ~2 min) by up to e^(window / 10 s)
+                    base = w if t >= w["t_end"] - 1e-9 else (log[i - 1] if i else None)
+                    x = (base["x_end"] if base else x0).copy()
+                    m = base or w
+                    tau = t - (base["t_end"] if base else 0.0)
+                    Phi, forced, _ = propagators(m["A"], m["b"], tau)
                     x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
-                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + w["q_rate"] * tau
+                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + m["q_rate"] * tau
                     out.append(x)
                     break
             else:
@@ -255,38 +298,66 @@ class TimeParallelDrive:
         S = self.coarse._slaving(np.asarray(x_a, float))
         return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
 
+    def _coarse_differences_submit(self, jobs: list[tuple], pool=None) -> list[list]:
+        """`_coarse_difference_submit` for every (t0, t1, x_a, x_b) of jobs; on the lane library, their propagations
+        in lockstep groups of `lanes` per pool task (bit for bit the same numbers)."""
+        if pool is None or not self.lane_library or not jobs:
+            return [self._coarse_difference_submit(*j, pool=pool) for j in jobs]
+        S = self.coarse._slaving(np.asarray(jobs[0][2], float))
+        runs = [(t0, t1, np.asarray(x, float)) for t0, t1, x_a, x_b in jobs for x in (x_a, x_b)]
+        L = self.lanes
+        futs = [pool.submit(_check_group_worker, runs[g:g + L], S, L) for g in range(0, len(runs), L)]
+        picks = [_Pick(futs[i // L], i % L) for i in range(len(runs))]
+        return [picks[2 * i: 2 * i + 2] for i in range(len(jobs))]
+
+    def _lane_check(self, t0, t1, x) -> np.ndarray:
+        """`_coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
+        c = copy.copy(self.coarse)
+        c.solver = current_full_solver()(self.settings.dt_s).bind(self.model, c.K, c.M)
+        return self._coarse_propagate(t0, t1, x, coarse=c)
+
     @staticmethod
     def _coarse_difference_result(runs: list[Future]) -> np.ndarray:
         a, b = (r.result() for r in runs)
         return b - a
 
-    def _coarse_propagate(self, t0, t1, x, n_windows: int = None) -> np.ndarray:
+    def _coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
         """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
-        start of each equal stretch of [t0, t1]), the linear slow model across the gaps."""
-        n_windows = n_windows or CHECK_WINDOWS
-        span = self.coarse.ms.warm_up_m + CHECK_WINDOW_M
+        start of each equal stretch of [t0, t1]; default CHECK_WINDOWS, as many as fit), the linear slow model across
+        the gaps (coarse: the multiscale drive that runs the windows, default the drive's own)."""
+        c = coarse or self.coarse
+        span = c.ms.warm_up_m + CHECK_WINDOW_M
         s0, s1 = float(self.fine.distance_at(t0)), float(self.fine.distance_at(t1))
+        # CHECK_WINDOWS, fewer on a segment shorter than their spans (overlapping windows drive the same road again)
+        n_windows = n_windows or max(1, min(CHECK_WINDOWS, int((s1 - s0) // span)))
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
         x = np.asarray(x, float).copy()
-        for i, c in enumerate(starts):
-            tw0 = self.coarse._time_at(c) if i else t0
-            t_end = min(self.coarse._time_at(min(c + span, s1)), t1)
-            t_warm = min(self.coarse._time_at(min(c + self.coarse.ms.warm_up_m, s1)), t_end)
-            w = self.coarse._window(self.coarse._rest_state(x), tw0, t_warm, t_end, None, [0.0])
-            t_next = self.coarse._time_at(starts[i + 1]) if i + 1 < n_windows else t1
+        for i, s in enumerate(starts):
+            tw0 = c._time_at(s) if i else t0
+            t_end = min(c._time_at(min(s + span, s1)), t1)
+            t_warm = min(c._time_at(min(s + c.ms.warm_up_m, s1)), t_end)
+            w = c._window(c._rest_state(x), tw0, t_warm, t_end, None, [0.0])
+            t_next = c._time_at(starts[i + 1]) if i + 1 < n_windows else t1
             x = w["x_end"].copy()
             Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
-            x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
-        return x[self.coarse.slow_index]
+            x[c.slow_index] = Phi @ x[c.slow_index] + forced
+        return x[c.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+    def _lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+        """`_fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
+        return self._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
+                                  solver=current_full_solver()(self.settings.dt_s))
+
+    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
         seg = copy.copy(self.fine)          # the same drive, with this segment's end and error estimate
         seg.error_estimate = None
         S = self.settings
+        if solver is not None:              # a lane of the worker's lane group (`_group_worker`)
+            seg.solver = solver.bind(self.model, seg.K, seg.M)
         sample_dt = self.fine.K * S.dt_s
         n_seg = int(round((t1 - t0) / sample_dt))
         last = t1 >= self._t_total() - 1e-9
@@ -327,10 +398,13 @@ class TimeParallelDrive:
             tail = seg.run(None, copy.deepcopy(res.state)).state.x[self.coarse.slow_index].copy()
             seg.error_estimate = est
         blocks = {key: np.concatenate([b[key] for b in rec.blocks], axis=-1) for key in rec.blocks[0]}
+        X_sub, M_sub, U_sub = (np.concatenate(a, axis=1) for a in (rec.Xs, rec.Ms, rec.Us))
+        # the segment's slow-state Jacobian (whole, halves) here, in parallel, not in the join (the slaving S: the
+        # drive's start's, cached, as the join's)
+        A = self._A_parts(X_sub, M_sub, U_sub, self.coarse._slaving(self.fine.initial_state().x))
         return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
                 "x_end": res.state.x.copy(), "state": res.state, "blocks": blocks, "rows": rec.rows,
-                "X_sub": np.concatenate(rec.Xs, axis=1), "M_sub": np.concatenate(rec.Ms, axis=1),
-                "U_sub": np.concatenate(rec.Us, axis=1), "integration_s": res.integration_s,
+                "X_sub": X_sub, "M_sub": M_sub, "U_sub": U_sub, "A": A, "integration_s": res.integration_s,
                 "estimate": seg.error_estimate}
 
     def _t_total(self) -> float:
@@ -345,258 +419,51 @@ class TimeParallelDrive:
             return self.fine.run(sink, state, progress, checkpoint_every_blocks)       # serially
         wall0 = time.perf_counter()
         t, tw = self.layout()
-        P = self.segments
-        with fork_pool(P, self) as pool:
-            # the restart's overlap: the warm-up's length after each segment start
-            marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
-            tails = marks[1:] + [None]
-            futs = [pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0])]
+        P, L = self.segments, self.lanes
+        groups = [list(range(g, min(g + L, P))) for g in range(0, P, L)]     # consecutive segments per worker
+        # the restart's overlap: the warm-up's length after each segment start
+        marks = [None] + [t[k] + (t[k] - tw[k]) for k in range(1, P)]
+        tails = marks[1:] + [None]
+        children0 = _children_cpu()
+        with fork_pool(len(groups), self) as pool:
+            futs = []
+            if L == 1:                  # segment 0 needs no prediction: it starts at once, while the coarse run goes
+                futs.append(pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0]))
             c0 = time.perf_counter()
             cpu0 = time.process_time()
             self.coarse._slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
-            pred = self.coarse_states(list(tw[1:])) if P > 1 else []
+            pred = [None] + (self.coarse_states(list(tw[1:])) if P > 1 else [])
             coarse_s = time.perf_counter() - c0
             coarse_cpu = time.process_time() - cpu0
-            futs += [pool.submit(_segment_worker, k, t[k], t[k + 1], tw[k], pred[k - 1], marks[k], tails[k])
-                     for k in range(1, P)]
-            parts = [f.result() for f in futs]
+            args = [(k, t[k], t[k + 1], tw[k], pred[k], marks[k], tails[k]) for k in range(P)]
+            if self.lane_library:
+                futs += [pool.submit(_group_worker, [args[k] for k in g], L) for g in groups]
+            else:
+                futs += [pool.submit(_segment_worker, *args[k]) for k in range(len(futs), P)]
+            parts = []
+            for f in futs:
+                r = f.result()
+                parts += r if isinstance(r, list) else [r]
             # the join, with the pool's processes (free now) running its error checks
             j0, jw0 = time.process_time(), time.perf_counter()
             res = self._join(parts, sink, progress, pool)
             join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
         w = [p["cpu_s"] for p in parts]
-        # what the run takes with P free cores: segment 0, or the coarse run then the slowest other segment; then
-        # the join (CPU times: on a shared machine the wall times say more about the other load)
-        critical = max(w[0], coarse_cpu + max(w[1:], default=0.0)) + join_cpu
+        # the error checks' CPU: the workers' (waited for when the pool closed) less their segments'
+        check_cpu = max(_children_cpu() - children0 - sum(w), 0.0)
+        # what the run takes with a core per worker: segment 0, or the coarse run then the slowest other worker; then
+        # the join, or its error checks spread over the workers (CPU times: on a shared machine the wall times say
+        # more about the other load)
+        per_worker = [sum(w[k] for k in g) for g in groups] if L > 1 else w
+        critical = (coarse_cpu + max(per_worker) if L > 1 else
+                    max(w[0], coarse_cpu + max(w[1:], default=0.0))) + max(join_cpu, check_cpu / len(groups))
         self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
-                             join_wall_s=join_wall,
+                             check_cpu_s=check_cpu,
+                             join_wall_s=join_wall, workers=len(groups), lanes=L, lane_library=self.lane_library,
                              critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
                              boundaries_s=t.tolist())
         res.wall_s = time.perf_counter() - wall0
         return res
-
-    # --- joining the segments with the correction --------------------------------------------------
-    def _A(self, X, M, U, Sl) -> np.ndarray:
-        N = X.shape[1]
-        ns = len(self.coarse.slow_index)
-        Jd = self.coarse.J_slow.map(N)(X, M, U, np.repeat(self.fine.p[:, None], N, axis=1))
-        sp = Jd.sparsity()             # sparse -> dense through the nonzeros (a dense DM converts slowly)
-        J = np.zeros((ns, N * self.model.nx))
-        J[np.asarray(sp.row(), int), np.repeat(np.arange(sp.size2()), np.diff(np.asarray(sp.colind(), int)))] = \
-            np.asarray(Jd.nonzeros(), float)
-        return J.reshape(ns, N, self.model.nx).mean(axis=1) @ Sl
-
-    def _output_sensitivity(self, x, mem, u, Sl) -> dict:
-        """d(output series)/d(slow states) at the state x (finite differences along the slaved directions)."""
-        ns = Sl.shape[1]
-        h = 1e-3
-        X = np.column_stack([x] + [x + h * Sl[:, j] for j in range(ns)])
-        m = self.model
-        Y, _, heights = self.fine.outputs.map(ns + 1)(X, np.repeat(mem[:, None], ns + 1, axis=1),
-                                                 np.repeat(u[:, None], ns + 1, axis=1),
-                                                 np.repeat(self.fine.p[:, None], ns + 1, axis=1))
-        outs = m.split_outputs(np.asarray(Y))
-        outs["axle_height_change_m"] = np.asarray(heights)
-        return {key: (np.asarray(outs[key])[:, 1:] - np.asarray(outs[key])[:, :1]) / h for key in joined("output")
-                if key in outs}
-
-    def _join(self, parts, sink, progress, pool=None) -> DriveResult:
-        """The segments joined in order: each corrected for its start's mismatch (the corrected end of the one
-        before), its series and statistics rows handed to the sink, the correction's error estimated."""
-        Sl = self.coarse._slaving(parts[0]["x_end"])
-        # the corrections first (each segment's delta needs the corrected end of the one before), so that the error
-        # checks' coarse propagations can start in the pool while the series are corrected and written here
-        pre = self._corrections(parts, Sl, pool)
-        j = _JoinState(Q=np.zeros(len(self.coarse.ext_index)))
-        errors = []                   # per segment: (e without the check, check, Phi_T, delta, e_restart)
-        for p, (A, flow, Phi_T, delta, check) in zip(parts, pre):
-            errors.append(self._segment_error(p, j, Sl, Phi_T, delta, check))
-            dX = self._write_series(p, j, flow, delta, Sl, sink)
-            self._join_rows(p, j, flow, delta, Sl, dX)
-            # the corrected end state: slow states (and the fast ones slaved to them) moved, quadratures offset
-            ext = self.coarse.ext_index
-            x_raw = p["x_end"].copy()
-            j.x_raw_prev = x_raw
-            j.x_true = x_raw + Sl @ (Phi_T @ delta)
-            j.x_true[ext] = x_raw[ext] - p["x_start"][ext] + j.Q
-            j.Q = j.x_true[ext].copy()
-            if progress is not None:
-                s1 = float(self.fine.distance_at(p["t1"]))
-                progress(s1, float(self.settings.speed.speed(s1)), p["t1"])
-        if sink is not None and j.rows:
-            sink.stats(j.rows)
-        c0 = time.perf_counter()
-        seg_err, err_end = [], np.zeros(len(self.coarse.slow_index))   # the correction's error, carried to the end
-        for e, check, Phi_T, delta, e_restart in errors:
-            if check is not None:
-                e = np.maximum(e, np.abs(self._coarse_difference_result(check) - Phi_T @ delta))
-            seg_err.append(e + np.abs(Phi_T) @ e_restart)
-            err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
-        coarse_check_s = time.perf_counter() - c0          # the wait for the checks (their own cost if run here)
-        return self._joined_result(parts, j, sink, seg_err, err_end, coarse_check_s)
-
-    def _corrections(self, parts, Sl, pool) -> list[tuple]:
-        """Per segment (A, its flow, e^{A T}, the start's correction delta, the error check's runs or None)."""
-        slow = self.coarse.slow_index
-        ns = len(slow)
-        pre, x_slow_prev = [], None
-        for p in parts:
-            k, T = p["k"], p["t1"] - p["t0"]
-            A = self._A(p["X_sub"], p["M_sub"], p["U_sub"], Sl)
-            flow = LinearFlow(A)           # e^{A t} for the many t of the series and statistics rows
-            Phi_T = flow.phi(T)
-            delta = np.zeros(ns) if (k == 0 or not self.correct) else x_slow_prev - p["x_start"][slow]
-            x_slow_prev = p["x_end"][slow] + (Sl @ (Phi_T @ delta))[slow]
-            # a second, cheap coarse correction: the multiscale propagation of both starts over the segment on the
-            # same few windows (their road noise cancels in the difference) sees how the dissipation responds to
-            # the mismatch through the ride, which A (fast states slaved at rest) does not
-            check = None
-            if k > 0 and self.correct and np.any(delta):
-                check = self._coarse_difference_submit(p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta,
-                                                       pool=pool)
-            pre.append((A, flow, Phi_T, delta, check))
-        return pre
-
-    def _segment_error(self, p, j: "_JoinState", Sl, Phi_T, delta, check) -> tuple:
-        """(the error the linear correction leaves, the check's runs, e^{A T}, delta, the restart's error)."""
-        slow = self.coarse.slow_index
-        k, T = p["k"], p["t1"] - p["t0"]
-        X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
-        if k > 0:
-            j.mismatch.append(j.x_raw_prev[slow] - p["x_start"][slow])
-        # the error the linear correction leaves: A's change with the slow states and along the segment
-        e = np.zeros(len(slow))
-        if check is not None:
-            A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
-            half = X.shape[1] // 2
-            A1 = self._A(X[:, :half], M[:, :half], U[:, :half], Sl)
-            A2 = self._A(X[:, half:], M[:, half:], U[:, half:], Sl)
-            e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
-        # the restart: segment k's fast states at its start are not the serial run's (it started from rest
-        # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first
-        # warm-up length: the difference of their slow-state changes there is what the different fast states
-        # do after the join (they synchronise with the road within it); an error at the segment start,
-        # carried through the segment like the errors before it
-        e_restart = np.zeros(len(slow))
-        if k > 0 and j.prev_tail is not None and p["mark"] is not None:
-            e_restart = np.abs((j.prev_tail - j.prev_end_raw[slow]) - (p["mark"] - p["x_start"][slow]))
-        j.prev_tail, j.prev_end_raw = p["tail"], p["x_end"]
-        return e, check, Phi_T, delta, e_restart
-
-    def _write_series(self, p, j: "_JoinState", flow, delta, Sl, sink) -> np.ndarray:
-        """Segment p's series corrected (the output table's join: slow-state correction e^{A tau} delta at every
-        sample on the states and outputs, quadratures offset by the segments before) and handed to the sink.
-        Returns the states' correction at the samples (nx, samples)."""
-        sample_dt = self.fine.K * self.settings.dt_s
-        quad_pos = {int(q): i for i, q in enumerate(self.coarse.ext_index)}
-        B = p["blocks"]
-        ts = np.asarray(B["t_s"], float)
-        E1 = flow.phi(sample_dt)
-        D = np.empty((len(self.coarse.slow_index), len(ts)))
-        d = flow.phi(ts[0] - p["t0"]) @ delta
-        for i in range(len(ts)):
-            D[:, i] = d
-            d = E1 @ d
-        dX = Sl @ D                                         # (nx, samples)
-        X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
-        if np.any(delta):
-            for key in joined("state"):
-                if key in B:
-                    idx = np.atleast_1d(self.fine.series_rows[key])
-                    B[key] = B[key] + (dX[idx] if B[key].ndim > 1 else dX[idx[0]])
-            G = self._output_sensitivity(X[:, X.shape[1] // 2], M[:, M.shape[1] // 2], U[:, U.shape[1] // 2], Sl)
-            for key, g in G.items():
-                if key in B:
-                    B[key] = B[key] + (g @ D).reshape(B[key].shape)
-        for key in joined("quadrature"):
-            if key in B:
-                idx = self.fine.series_rows[key]
-                B[key] = B[key] + j.Q[[quad_pos[int(i)] for i in np.atleast_1d(idx)]].reshape(-1, 1)
-        if sink is not None:
-            for a in range(0, len(ts), PIECE_SAMPLES):
-                sink.samples({key: v[..., a:a + PIECE_SAMPLES] for key, v in B.items()})
-        j.n_samples += len(ts)
-        return dX
-
-    def _join_rows(self, p, j: "_JoinState", flow, delta, Sl, dX) -> None:
-        """Segment p's statistics rows with the temperatures corrected; an interval cut by a boundary is joined
-        from both sides (what stays open at the segment's end is carried to the next)."""
-        sample_dt = self.fine.K * self.settings.dt_s
-        T_gas = self.fine.T_gas_index
-        t0, t1 = p["t0"], p["t1"]
-        t_prev = t0
-        for i, (s_end, dur, dq, x_end, gas) in enumerate(p["rows"]):
-            t_b = t_prev + dur
-            t_prev = t_b
-            dxb = Sl @ (flow.phi(t_b - t0) @ delta)
-            x_end = x_end + dxb
-            gas = None if gas is None else gas + dxb[T_gas]
-            if i == 0 and j.carry is not None:
-                c_dur, c_dq, c_gs, c_gn = j.carry
-                nb = max(int(round(dur / sample_dt)), 1)
-                if gas is not None and c_gn:
-                    gas = (c_gs + gas * nb) / (c_gn + nb)
-                dur, dq = dur + c_dur, dq + c_dq
-                j.carry = None
-            j.rows.append(self.fine._stats_row(s_end, dur, dq, x_end, gas))
-        # what stays open at the segment's end (nothing for the last)
-        fs = p["state"]
-        open_dq = p["x_end"][self.fine.quad_index] - np.asarray(fs.last_stats["q"], float)
-        open_dur = t1 - float(fs.last_stats["t_s"])
-        gsum = np.asarray(fs.last_stats.get("gas_sum", 0.0), float) * 1.0
-        gn = int(fs.last_stats.get("gas_n", 0))
-        if gn:
-            gsum = gsum + gn * dX[T_gas, -1]
-        if not p["rows"] and j.carry is not None:
-            c_dur, c_dq, c_gs, c_gn = j.carry
-            j.carry = (c_dur + open_dur, c_dq + open_dq, c_gs + gsum, c_gn + gn)
-        else:
-            j.carry = (open_dur, open_dq, gsum, gn)
-
-    def _joined_result(self, parts, j: "_JoinState", sink, seg_err, err_end, coarse_check_s) -> DriveResult:
-        """The corrected final state (checkpointed), the after-drive equilibrium and the correction's error."""
-        last = parts[-1]
-        fs = last["state"]
-        qi = self.fine.quad_index
-        q_last = np.asarray(fs.last_stats["q"], float) + (j.x_true[qi] - last["x_end"][qi])
-        final = DriveState(t_s=float(fs.t_s), s_m=float(fs.s_m), x=j.x_true, next_stats_m=fs.next_stats_m,
-                           last_stats={"t_s": float(fs.last_stats["t_s"]), "q": q_last,
-                                       "gas_sum": np.asarray(fs.last_stats.get("gas_sum", 0.0), float),
-                                       "gas_n": int(fs.last_stats.get("gas_n", 0))},
-                           sample_index=j.n_samples, solver_memory=np.asarray(fs.solver_memory, float))
-        if sink is not None:
-            sink.checkpoint(final.as_dict())
-        after = self.coarse.equilibrium_solver.solve(j.x_true[self.fine.T_oil_index], self.gas_masses,
-                                                     j.x_true[self.coarse.oil_index])
-        T_err, dN_err = self._error_bounds(j.x_true, after, err_end)
-        self.parareal = {"segments": len(parts), "uncorrected_final_x": j.x_raw_prev, "final_x": j.x_true,
-                         "mismatch": j.mismatch, "segment_error": seg_err, "error_end": err_end,
-                         "strut_temperature_K": T_err, "axle_temperature_K": self._axle_matrix() @ T_err,
-                         "load_change_pct": dN_err, "t_total_s": self._t_total(), "coarse_check_s": coarse_check_s}
-        est = merge_estimates([p["estimate"] for p in parts])
-        integ = float(sum(p["integration_s"] for p in parts))
-        return DriveResult(state=final, after=after, wall_s=0.0, integration_s=integ,
-                           solver_error=None if est is None else est.summary(integ))
-
-    def _axle_matrix(self) -> np.ndarray:
-        m = self.model
-        n_ax = m.params.n_axles
-        axle_of = np.array([m.params.station_axle(i) for i in range(m.n)])
-        W = np.zeros((n_ax, m.n))
-        for i in range(m.n):
-            W[axle_of[i], i] = 1.0 / np.sum(axle_of == axle_of[i])
-        return W
-
-    def _error_bounds(self, x_end, after, err_end) -> tuple[np.ndarray, np.ndarray]:
-        """Per station the reported temperature's estimated error [K] and per axle the wheel-load change's [pp]:
-        the slow states' error magnitudes added with the magnitudes of the after-drive equilibrium's
-        sensitivities (as if all had the same sign: a bound, not an interval)."""
-        pos = {int(j): k for k, j in enumerate(self.coarse.slow_index)}
-        T_err = err_end[[pos[int(j)] for j in self.T_index]]
-        G = self.coarse._load_sensitivity(x_end, after, self._axle_matrix())
-        e = np.concatenate([err_end[[pos[int(j)] for j in self.fine.T_oil_index]],
-                            err_end[[pos[int(j)] for j in self.coarse.oil_index]]])
-        return T_err, np.abs(G) @ e
 
     # --- what the results add ------------------------------------------------------------------
     def mismatch_axle_K(self) -> np.ndarray:
@@ -615,10 +482,12 @@ class TimeParallelDrive:
         if not pr or "axle_temperature_K" not in pr:
             return {"attrs": {"solver_mode": "full"}, "values": {}}
         attrs = {"solver_mode": MODE, "time_parallel_segments": int(pr["segments"]),
+                 "time_parallel_lanes": int(self.lanes if self.lane_library else 1),
                  "time_parallel_coarse_s": float(pr.get("coarse_s", np.nan)),
                  "time_parallel_worker_cpu_s": float(np.sum(pr.get("worker_cpu_s", [np.nan]))),
                  "time_parallel_coarse_cpu_s": float(pr.get("coarse_cpu_s", np.nan)),
                  "time_parallel_join_cpu_s": float(pr.get("join_cpu_s", np.nan)),
+                 "time_parallel_check_cpu_s": float(pr.get("check_cpu_s", np.nan)),
                  "time_parallel_join_s": float(pr.get("join_wall_s", np.nan)),
                  "time_parallel_critical_cpu_s": float(pr.get("critical_cpu_s", np.nan)),
                  "time_parallel_coarse_mismatch_K": float(np.max(self.mismatch_axle_K())),

@@ -50,7 +50,9 @@ def format_report(rep: dict) -> str:
                     "the surface temperature and dN only, not the oil and gas end temperatures (the gas's "
                     "last-interval mean follows the last window's road: 1.1-1.4 K off a full run, docs/validation.md)")
     if rep.get("solver_mode") == "time_parallel" and est:
-        tail.append(f"solver mode time_parallel: {est['segments']} segments in parallel processes, slow states "
+        lanes = est.get("lanes", 1)
+        how = (f" ({lanes} per process in lockstep on the lane library)" if lanes > 1 else "")
+        tail.append(f"solver mode time_parallel: {est['segments']} segments in parallel processes{how}, slow states "
                     f"corrected at the joins (coarse prediction off by up to {est['coarse_mismatch_K']:.3f} K); "
                     "estimated error of the correction: T end "
                     + ", ".join("-" if x is None else f"{x:.3f}" for x in est["T_end_K"]) + " K, dN "

@@ -37,7 +37,8 @@ from vehicle.physics.model import VehicleModel
 from vehicle.physics.outputs import ALWAYS_STORED, series_keys
 from vehicle.physics.params import COMPENSATION_RANGES, VehicleParams, strut_reference, vehicle_file
 from vehicle.physics.vehicle_check import pre_drive_check
-from vehicle.scenario.settings import DT_RANGE_S, SEGMENTS_RANGE, DriveSettings, MultiscaleSettings
+from vehicle.scenario.settings import (DT_RANGE_S, SEGMENTS_RANGE, TIME_PARALLEL_LANES_RANGE, DriveSettings,
+                                       MultiscaleSettings)
 from vehicle.scenario.speed import build_speed_profile, parse_speed_spec
 from vehicle.scenario.speed_limits import PROFILE_LIMIT_RANGES, check_profile
 from vehicle.scenario.work_limits import check_interval, check_scenario, drive_duration_s
@@ -177,9 +178,13 @@ class SolverSpec(Model):
     # multiscale: the control variate's proxy of each window's dissipation: linear_model (default: the linearised
     # vehicle's squared strut velocity under the whole road) or road_rate (the band-passed road rate under each tyre)
     proxy: Literal["road_rate", "linear_model"] | None = None
-    # parallel in time (vehicle.engines.time_parallel): the full drive split into this many segments run in as many
+    # parallel in time (vehicle.engines.time_parallel): the full drive split into segments run in this many
     # processes at once, joined with a correction of the slow states; "auto": one per CPU; 1: serial
     time_parallel: Literal["auto"] | StrictInt | None = None
+    # ... and each of these processes runs this many consecutive segments in lockstep on the lane library (one
+    # vector instruction for all, bit for bit the scalar engine's per segment); "auto" (default): 4, fewer on a
+    # short drive; 1: one segment per process on the scalar engine
+    time_parallel_lanes: Literal["auto"] | StrictInt | None = None
     # step-doubling error estimate (vehicle.numerics.error_estimate): the largest relative error of a strut's
     # heat (its temperature rise rate) accepted without a warning, and every how many sample blocks one output
     # sample is integrated again at dt/2 (cost about 2 / (samples_per_block * error_check_every); 0: no estimate)
@@ -207,10 +212,20 @@ class SolverSpec(Model):
                              f"or auto, got {v}")
         return v
 
+    @field_validator("time_parallel_lanes", mode="after")
+    @classmethod
+    def _time_parallel_lanes(cls, v):
+        lo, hi = TIME_PARALLEL_LANES_RANGE
+        if isinstance(v, int) and not lo <= v <= hi:
+            raise ValueError(f"must be in [{lo}, {hi}] (segments per process) or auto, got {v}")
+        return v
+
     @model_validator(mode="after")
     def _multiscale_keys(self):
         if self.time_parallel not in (None, 1) and self.mode != "full":
             raise ValueError(f"time_parallel: only with mode: full (mode is {self.mode!r})")
+        if self.time_parallel_lanes is not None and self.time_parallel is None:
+            raise ValueError("time_parallel_lanes: only with time_parallel (the processes; 2 or more, or auto)")
         given = [k for k in MULTISCALE_KEYS if getattr(self, k) is not None]
         if self.mode != "multiscale":
             if given:

@@ -1,7 +1,7 @@
 """The settings an engine runs with, and their defaults, written once: the drive (`DriveSettings`), the
 multiscale window layout (`MultiscaleSettings`) and the time-parallel split (`SEGMENTS_RANGE`,
-`resolve_segments`). The scenario schema (vehicle.scenario.schema) validates the user's keys and builds
-these; the engines (vehicle.engines) read them. Why each default is what it is: docs/engines.md."""
+`resolve_segments`, `resolve_time_parallel_lanes`). The scenario schema (vehicle.scenario.schema) validates the
+user's keys and builds these; the engines (vehicle.engines) read them. Why each default is what it is: docs/engines.md."""
 from __future__ import annotations
 
 import os
@@ -15,7 +15,10 @@ from hpsim.validators import check_range
 from vehicle.scenario.speed import SpeedProfile
 
 DT_RANGE_S = (1e-4, 0.02)                     # solver.dt: 0.1 .. 20 ms
-SEGMENTS_RANGE = (1, 64)                      # solver.time_parallel: segments, one process each
+SEGMENTS_RANGE = (1, 64)                      # solver.time_parallel: processes (with 1 lane: one segment each)
+TIME_PARALLEL_LANES_RANGE = (1, 16)           # solver.time_parallel_lanes: segments per process, in lockstep
+TIME_PARALLEL_LANES_DEFAULT = "auto"          # solver.time_parallel_lanes not given
+TIME_PARALLEL_LANES_AUTO = 4                  # "auto": at most this many (one AVX2 vector; docs/engines.md)
 
 
 @dataclass
@@ -133,3 +136,17 @@ def resolve_segments(value) -> int:
     if value == "auto":
         return max(1, min(os.cpu_count() or 1, SEGMENTS_RANGE[1]))
     return int(value)
+
+
+def resolve_time_parallel_lanes(value, workers: int, duration_s: float, min_segment_s: float) -> int:
+    """solver.time_parallel_lanes: segments per time-parallel process, run in lockstep on the lane library. An int
+    in TIME_PARALLEL_LANES_RANGE as given; "auto" (None: TIME_PARALLEL_LANES_DEFAULT): TIME_PARALLEL_LANES_AUTO
+    or one hardware vector of doubles if shorter, at most as many as keep every one of the workers x lanes
+    segments at least min_segment_s long."""
+    value = TIME_PARALLEL_LANES_DEFAULT if value is None else value
+    if value != "auto":
+        return int(value)
+    from vehicle.numerics.lanes import default_lanes
+
+    fit = int(duration_s // (max(1, workers) * min_segment_s))
+    return max(1, min(TIME_PARALLEL_LANES_AUTO, default_lanes(), fit))

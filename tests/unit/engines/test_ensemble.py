@@ -19,7 +19,7 @@ from vehicle.engines.ensemble import eligible, group_size, grouped_jobs, run_loc
 from vehicle.numerics.codegen import compile_function
 from vehicle.numerics.lanes import LaneStepper, default_lanes
 from tests.helpers import REPO as HELPERS_REPO
-from vehicle.engines.build import current_full_solver, full_drive_solver
+from vehicle.engines.ensemble import current_full_solver, full_drive_solver
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import run_case
 
