@@ -155,6 +155,9 @@ class Library:
     name: str
     key: tuple
     build: Callable[[], ca.Function]
+    # the C library's exp/log/pow/tanh instead of vehicle.numerics.vector_math's (the baseline engine of the
+    # benchmarks: the engine as it was)
+    c_library_math: bool = False
 
     def graph(self) -> ca.Function:
         fn = self.build()
@@ -178,7 +181,7 @@ def _same_signature(a: ca.Function, b: ca.Function) -> bool:
             and all(a.sparsity_out(i) == b.sparsity_out(i) for i in range(a.n_out())))
 
 
-def _generate_c(fn: ca.Function) -> bytes:
+def _generate_c(fn: ca.Function, c_library_math: bool = False) -> bytes:
     with tempfile.TemporaryDirectory() as tmp:
         src_name = f"{fn.name()}.c"
         cg = ca.CodeGenerator(src_name, {"with_header": False})
@@ -189,7 +192,8 @@ def _generate_c(fn: ca.Function) -> bytes:
             cg.generate()
         finally:
             os.chdir(cwd)
-        return vector_math.with_scalar_math((Path(tmp) / src_name).read_bytes())
+        code = (Path(tmp) / src_name).read_bytes()
+        return code if c_library_math else vector_math.with_scalar_math(code)
 
 
 def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str, meta: dict | None = None):
@@ -416,7 +420,7 @@ def _library_job(lib: Library, cc: str, opt_level: str, d: Path, stem: str, key:
     """The graph of a `Library` missing from the cache, and its build job (cc, flags, code, code_sha, d, stem, record
     entries)."""
     graph = lib.graph()
-    code = _generate_c(graph)
+    code = _generate_c(graph, lib.c_library_math)
     meta = {"lookup_key": key, "signature": _signature(graph)}
     return graph, (cc, [opt_level, *COMPILER_FLAGS[1:]], code, hashlib.sha256(code).hexdigest(), d, stem, meta)
 

@@ -258,7 +258,8 @@ class Ros2:
     compiled function then serves one parameter set; only the run parameters are an input), no common
     subexpression elimination, the K steps of a sample folded (`Function.fold`) with the run parameters
     repeated for every step, and the block outputs evaluated in CasADi's virtual machine (the drive's
-    `legacy_outputs`). Same method, same results to rounding.
+    `legacy_outputs`), the C library's exp, log, pow and tanh (not vehicle.numerics.vector_math's), no batched
+    calls. Same method, same results to rounding.
     """
 
     name = "ros2"
@@ -339,7 +340,9 @@ class Ros2:
             return _GRAPHS[key]
         # the baseline's parameter values are in its code: in the key as a digest
         lib_key = key[1:] if self.engine != "baseline" else key[1:-1] + (hashlib.sha256(key[-1]).hexdigest(),)
-        return Library(self._block_name(model, K, M), (model.structure, *lib_key), build)
+        baseline = self.engine == "baseline"          # as it was: the C library's exp, log, pow, tanh
+        return Library(self._block_name(model, K, M), (model.structure, *lib_key, baseline), build,
+                       c_library_math=baseline)
 
     def _graph(self, model) -> ca.Function:
         """The uncompiled block function of this engine for (self.K, self.M)."""
