@@ -420,7 +420,7 @@ def _library_job(lib: Library, cc: str, opt_level: str, d: Path, stem: str, key:
     """The graph of a `Library` missing from the cache, and its build job (cc, flags, code, code_sha, d, stem, record
     entries)."""
     graph = lib.graph()
-    code = _generate_c(graph, lib.c_library_math)
+    code = _generate_c(graph, c_library_math=lib.c_library_math)
     meta = {"lookup_key": key, "signature": _signature(graph)}
     return graph, (cc, [opt_level, *COMPILER_FLAGS[1:]], code, hashlib.sha256(code).hexdigest(), d, stem, meta)
 

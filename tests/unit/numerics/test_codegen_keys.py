@@ -29,7 +29,8 @@ def test_a_library_is_found_by_its_key_without_building_its_graph(tmp_path, monk
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache"))
     generated = []
     real_generate = codegen._generate_c
-    monkeypatch.setattr(codegen, "_generate_c", lambda fn: generated.append(fn.name()) or real_generate(fn))
+    monkeypatch.setattr(codegen, "_generate_c",
+                        lambda fn, *a, **kw: generated.append(fn.name()) or real_generate(fn, *a, **kw))
     builds: list = []
     name = "hpsim_keytest_f"
     first = codegen.compile_function(codegen.Library(name, ("structure-a", 4), _toy(name, builds)))
@@ -89,7 +90,7 @@ def test_a_drive_with_its_libraries_in_the_cache_builds_no_graph(monkeypatch):
     monkeypatch.setattr(solvers.Ros2, "_graph", lambda self, model: graphs.append("block") or real_graph(self, model))
     monkeypatch.setattr(solvers, "_outputs_function",
                         lambda model, n: graphs.append("outputs") or real_outputs(model, n))
-    monkeypatch.setattr(codegen, "_generate_c", lambda fn: pytest.fail("C generated for a cached library"))
+    monkeypatch.setattr(codegen, "_generate_c", lambda fn, *a, **kw: pytest.fail("C generated for a cached library"))
     real_step = solvers.Ros2.step_functions          # the batched block stepper's C is written from it
     monkeypatch.setattr(solvers.Ros2, "step_functions", lambda self, model: graphs.append("step") or real_step(self, model))
     solvers._BLOCK_FUNCTIONS.clear()
