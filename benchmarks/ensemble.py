@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -80,19 +79,10 @@ def libm_block(model, solver):
     library's exp, log, pow and tanh (the engine of the issue's filing, flags as today): (function, library)."""
     import casadi as ca
 
-    from vehicle.numerics.codegen import compile_c
+    from vehicle.numerics.codegen import compile_c, generate_c
 
     graph = solver._graph(model)
-    with tempfile.TemporaryDirectory() as tmp:
-        cg = ca.CodeGenerator(f"{graph.name()}.c", {"with_header": False})
-        cg.add(graph)
-        cwd = os.getcwd()
-        os.chdir(tmp)
-        try:
-            cg.generate()
-        finally:
-            os.chdir(cwd)
-        code = (Path(tmp) / f"{graph.name()}.c").read_bytes()
+    code = generate_c([graph], f"{graph.name()}.c", c_library_math=True)
     lib, error = compile_c(code, f"{graph.name()}_libm")
     if lib is None:
         raise RuntimeError(error)

@@ -27,9 +27,7 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import os
 import sys
-import tempfile
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -41,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from struts.model import StrutInputs                                                 # noqa: E402
 from vehicle.numerics import lanes                                                  # noqa: E402
-from vehicle.numerics.codegen import compile_c                                      # noqa: E402
+from vehicle.numerics.codegen import compile_c, generate_c                          # noqa: E402
 from vehicle.numerics.solvers import (GAMMA, Ros2, SparseLU, divisions_as_reciprocals,  # noqa: E402
                                       explicit_reciprocals)
 from vehicle.physics import thermal                                                 # noqa: E402
@@ -246,17 +244,7 @@ double slbench_kernel(int n, kfun k, const double* in, const double* pw, double*
 
 def scalar_library(fns, lanes_n: int):
     """The scalar functions (CasADi's C generator, the engine's flags) and the C driver in one library."""
-    with tempfile.TemporaryDirectory() as tmp:
-        cg = ca.CodeGenerator("strut_lanes_scalar.c", {"with_header": False})
-        for f in fns:
-            cg.add(f)
-        cwd = os.getcwd()
-        os.chdir(tmp)
-        try:
-            cg.generate()
-        finally:
-            os.chdir(cwd)
-        code = (Path(tmp) / "strut_lanes_scalar.c").read_text()
+    code = generate_c(list(fns), "strut_lanes_scalar.c").decode()
     code += _DRIVER % {"nw": max(f.sz_w() for f in fns) + 16, "niw": max(f.sz_iw() for f in fns) + 16,
                        "lanes": lanes_n}
     lib, error = compile_c(code.encode(), "hpsim_strut_lanes_scalar")

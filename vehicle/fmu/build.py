@@ -26,7 +26,7 @@ import casadi as ca
 
 from hpsim.errors import UserInputError
 from vehicle.fmu.description import model_description
-from vehicle.numerics import vector_math
+from vehicle.numerics import codegen
 from vehicle.numerics.codegen import compile_source
 
 WRAPPER = Path(__file__).with_name("fmi2_wrapper.c")
@@ -100,21 +100,13 @@ def generate_c(spec: FmuSpec, folder: Path) -> Path:
     """<id>_model.c in `folder`: hp_step, hp_param, hp_outputs, hp_init (and hp_run) as CasADi C (its helper
     functions are named after the file: <id>_model_sq, ...), with vehicle.numerics.vector_math's exp/log/pow/tanh."""
     file_name = f"{spec.identifier}_model.c"
-    cg = ca.CodeGenerator(file_name, {"with_header": False})
-    for fn, name in ((spec.step, "hp_step"), (spec.parametric, "hp_param"), (spec.outputs, "hp_outputs"),
-                     (spec.initial, "hp_init"), (spec.run, "hp_run")):
-        if fn is not None:
-            cg.add(_renamed(fn, name))
-    cwd = os.getcwd()
-    os.chdir(folder)
-    try:
-        cg.generate()
-    finally:
-        os.chdir(cwd)
+    fns = [_renamed(fn, name) for fn, name in ((spec.step, "hp_step"), (spec.parametric, "hp_param"),
+                                               (spec.outputs, "hp_outputs"), (spec.initial, "hp_init"),
+                                               (spec.run, "hp_run")) if fn is not None]
     # exp, log, pow and tanh as the engine computes them (GCC and Clang; other compilers: the C library), so that
     # the FMU's arithmetic is the engine's
     path = folder / file_name
-    path.write_bytes(vector_math.with_scalar_math(path.read_bytes()))
+    path.write_bytes(codegen.generate_c(fns, file_name))
     return path
 
 

@@ -181,19 +181,25 @@ def _same_signature(a: ca.Function, b: ca.Function) -> bool:
             and all(a.sparsity_out(i) == b.sparsity_out(i) for i in range(a.n_out())))
 
 
-def _generate_c(fn: ca.Function, c_library_math: bool = False) -> bytes:
+def generate_c(fns: list[ca.Function], file_name: str, *, c_library_math: bool = False) -> bytes:
+    """CasADi's C of the functions `fns` in one file named `file_name` (its helpers are named after it), with
+    vehicle.numerics.vector_math's exp, log, pow and tanh (c_library_math=True: the C library's, as before)."""
     with tempfile.TemporaryDirectory() as tmp:
-        src_name = f"{fn.name()}.c"
-        cg = ca.CodeGenerator(src_name, {"with_header": False})
-        cg.add(fn)
+        cg = ca.CodeGenerator(file_name, {"with_header": False})
+        for fn in fns:
+            cg.add(fn)
         cwd = os.getcwd()
-        os.chdir(tmp)
+        os.chdir(tmp)                     # CasADi writes into the working folder
         try:
             cg.generate()
         finally:
             os.chdir(cwd)
-        code = (Path(tmp) / src_name).read_bytes()
-        return code if c_library_math else vector_math.with_scalar_math(code)
+        code = (Path(tmp) / file_name).read_bytes()
+    return code if c_library_math else vector_math.with_scalar_math(code)
+
+
+def _generate_c(fn: ca.Function, c_library_math: bool = False) -> bytes:
+    return generate_c([fn], f"{fn.name()}.c", c_library_math=c_library_math)
 
 
 def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str, meta: dict | None = None):

@@ -244,22 +244,27 @@ def emit_function(fn: ca.Function, cname: str) -> str:
         if sp.nnz() != sp.numel():
             raise ValueError(f"emit_function: input {dense_in} of {fn.name()} is sparse")
     for k in range(fn.n_instructions()):
-        op = fn.instruction_id(k)
         i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            lines.append(f"  a{i_out[0]}=i{i_in[0]} ? i{i_in[0]}[{i_in[1]}] : BC(0.);")
-        elif op == ca.OP_OUTPUT:
-            lines.append(f"  if (o{i_out[0]}!=0) o{i_out[0]}[{rows_out[i_out[0]][i_out[1]]}]=a{i_in[0]};")
-        elif op == ca.OP_CONST:
-            lines.append(f"  a{i_out[0]}=BC({_constant(fn.instruction_constant(k))});")
-        elif op in _BINARY:
-            lines.append(f"  a{i_out[0]}=" + _BINARY[op].format(f"a{i_in[0]}", f"a{i_in[1]}") + ";")
-        elif op in _UNARY:
-            lines.append(f"  a{i_out[0]}=" + _UNARY[op].format(f"a{i_in[0]}") + ";")
-        else:
-            raise NotImplementedError(f"emit_function: operation {op} of {fn.name()} has no lane form")
+        lines.append(_statement(fn, k, f"a{i_out[0]}", [f"a{i}" for i in i_in[:2]], rows_out))
     lines.append("}")
     return "\n".join(lines)
+
+
+def _statement(fn: ca.Function, k: int, target: str, args: list[str], rows_out) -> str:
+    """C of instruction k of `fn`: its value into `target` (a register, or a declaration) from the operands `args`
+    (C names; an output writes args[0])."""
+    op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+    if op == ca.OP_INPUT:
+        return f"  {target}=i{i_in[0]} ? i{i_in[0]}[{i_in[1]}] : BC(0.);"
+    if op == ca.OP_OUTPUT:
+        return f"  if (o{i_out[0]}!=0) o{i_out[0]}[{rows_out[i_out[0]][i_out[1]]}]={args[0]};"
+    if op == ca.OP_CONST:
+        return f"  {target}=BC({_constant(fn.instruction_constant(k))});"
+    if op in _BINARY:
+        return f"  {target}=" + _BINARY[op].format(*args) + ";"
+    if op in _UNARY:
+        return f"  {target}=" + _UNARY[op].format(*args) + ";"
+    raise NotImplementedError(f"operation {op} of {fn.name()} has no lane form")
 
 
 _TRANSCENDENTAL = {ca.OP_EXP: "exp", ca.OP_LOG: "log", ca.OP_TANH: "tanh", ca.OP_POW: "pow", ca.OP_CONSTPOW: "pow"}
@@ -327,20 +332,7 @@ def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
             op, reads = values[k]
             if op in _TRANSCENDENTAL:
                 continue
-            i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
-            w = [f"w{r}" for r in reads]
-            if op == ca.OP_INPUT:
-                lines.append(f"  V w{k}=i{i_in[0]} ? i{i_in[0]}[{i_in[1]}] : BC(0.);")
-            elif op == ca.OP_OUTPUT:
-                lines.append(f"  if (o{i_out[0]}!=0) o{i_out[0]}[{rows_out[i_out[0]][i_out[1]]}]={w[0]};")
-            elif op == ca.OP_CONST:
-                lines.append(f"  V w{k}=BC({_constant(fn.instruction_constant(k))});")
-            elif op in _BINARY:
-                lines.append(f"  V w{k}=" + _BINARY[op].format(*w) + ";")
-            elif op in _UNARY:
-                lines.append(f"  V w{k}=" + _UNARY[op].format(*w) + ";")
-            else:
-                raise NotImplementedError(f"emit_batched: operation {op} of {fn.name()} has no lane form")
+            lines.append(_statement(fn, k, f"V w{k}", [f"w{r}" for r in reads], rows_out))
     lines.append("}")
     return "\n".join(lines)
 
