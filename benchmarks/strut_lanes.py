@@ -244,7 +244,8 @@ double slbench_kernel(int n, kfun k, const double* in, const double* pw, double*
 
 def scalar_library(fns, lanes_n: int):
     """The scalar functions (CasADi's C generator, the engine's flags) and the C driver in one library."""
-    code = generate_c(list(fns), "strut_lanes_scalar.c").decode()
+    # the C library's exp/log/pow/tanh, as CasADi's C had them (today's engine: the batched step, benchmarks/ensemble.py)
+    code = generate_c(list(fns), "strut_lanes_scalar.c", c_library_math=True).decode()
     code += _DRIVER % {"nw": max(f.sz_w() for f in fns) + 16, "niw": max(f.sz_iw() for f in fns) + 16,
                        "lanes": lanes_n}
     lib, error = compile_c(code.encode(), "hpsim_strut_lanes_scalar")
