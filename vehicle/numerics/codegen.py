@@ -411,13 +411,10 @@ def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = N
         job = _clibrary_job(lib, cc, opt_level, d, stem, key)
         compile_time.announce([len(job[2])], 1, d)
         t0 = time.perf_counter()
-        error = _build(*job)
+        error = _cache_build(job, key)
         if error is not None:
             return None, error
         compile_time.compiled_s += time.perf_counter() - t0
-        evict(d, cache_limit_bytes(), keep=(stem,))
-        if not _verified(so, record, job[3], key):
-            return None, f"{so.name} changed while it was built"
     _touch(record)
     return so, ""
 
@@ -501,16 +498,10 @@ def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_
     stem = _c_stem(code, name, flags, cc)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
-        error = _build(cc, flags, code, code_sha, d, stem)
+        error = _cache_build((cc, flags, code, code_sha, d, stem))
         if error is not None:
             return None, error
-        evict(d, cache_limit_bytes(), keep=(stem,))
-        if not _verified(lib, record, code_sha):
-            return None, f"{lib.name} changed while it was built"
-    try:
-        os.utime(record)
-    except OSError:
-        pass
+    _touch(record)
     return lib, ""
 
 
@@ -584,6 +575,20 @@ def _compile_announced(name: str, job, verbose: bool) -> str | None:
     return None
 
 
+def _cache_build(job, lookup_key: str | None = None) -> str | None:
+    """Build one job ((cc, flags, code, code_sha, folder, stem[, record entries])) into the cache, trim the cache and
+    check what is there now: None when the library is the one built, else why not (the compiler's error, or
+    replaced by someone else in between)."""
+    error = _build(*job)
+    if error is not None:
+        return error
+    d, stem = job[4], job[5]
+    evict(d, cache_limit_bytes(), keep=(stem,))
+    if not _verified(d / f"{stem}.so", d / f"{stem}.json", job[3], lookup_key):
+        return f"{stem}.so changed while it was built"
+    return None
+
+
 def _touch(record: Path) -> None:
     try:
         os.utime(record)                # last use, for the eviction order
@@ -594,24 +599,11 @@ def _touch(record: Path) -> None:
 def compile_source(code: bytes, name: str, extra_flags: tuple[str, ...] = ()) -> Path:
     """Compile a self-contained C translation unit into a shared library in the cache (built once, verified like
     the model libraries: see the module's trust model) and return its path. For C that is not one CasADi
-    function (the FMU binaries of vehicle.fmu); raises RuntimeError without a compiler or when it fails."""
-    cc = _compiler()
-    if cc is None:
+    function (the FMU binaries of vehicle.fmu): `compile_c`, raising RuntimeError without a compiler or when it
+    fails."""
+    if _compiler() is None:
         raise RuntimeError("no C compiler found (gcc, cc or clang; or set CC)")
-    flags = [*COMPILER_FLAGS, *extra_flags]
-    code_sha = hashlib.sha256(code).hexdigest()
-    key = hashlib.sha256(code + " ".join(flags).encode() + cc.encode()).hexdigest()[:20]
-    d, stem = cache_dir(), f"{name}_{key}"
-    lib, record = d / f"{stem}.so", d / f"{stem}.json"
-    if not _verified(lib, record, code_sha):
-        error = _build(cc, flags, code, code_sha, d, stem)
-        if error is not None:
-            raise RuntimeError(f"C compilation of {name} failed: {error}")
-        evict(d, cache_limit_bytes(), keep=(stem,))
-        if not _verified(lib, record, code_sha):
-            raise RuntimeError(f"compile cache {d}: {lib.name} changed while it was built")
-    try:
-        os.utime(record)
-    except OSError:
-        pass
+    lib, error = compile_c(code, name, tuple(extra_flags))
+    if lib is None:
+        raise RuntimeError(f"C compilation of {name} failed: {error}")
     return lib
