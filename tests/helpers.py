@@ -110,3 +110,20 @@ def make_drive(distance_m=200.0, road=None, vehicle="apc_8x8", overrides=None, s
         road = build_road(RoadSpec(iso_class="D", length=distance_m + 20.0, seed=3))
     s = DriveSettings(distance_m=distance_m, speed=SpeedProfile.constant(speed_kmh / 3.6), **settings)
     return Drive(model, road, s)
+
+
+def quarter_car_at_wheel(model, temperature_K: float, gas_mass_kg: float) -> tuple[float, float, float]:
+    """The first strut's linearised stiffness and damping at the equilibrium, from its own laws, referred to the wheel
+    (r^2 k, r^2 c), and the strut's damping c_strut: the static gas force differentiated by central differences,
+    the valve's linear coefficient A_valve^2 / (dq/ddp) from its flow law. (k_s, c_s, c_strut)."""
+    from struts import valves
+
+    strut = model.struts[0]
+    x0, h = model.x_charged, 1e-6
+    k_strut = float(strut.static_gas_force(x0 + h, temperature_K, gas_mass_kg)
+                    - strut.static_gas_force(x0 - h, temperature_K, gas_mass_kg)) / (2 * h)
+    kw = strut.valve_arguments(temperature_K)
+    dq = float(valves.valve_flow(1.0, **kw) - valves.valve_flow(-1.0, **kw)) / 2.0
+    c_strut = strut.p.geometry.valve_area ** 2 / dq
+    r = model.r[0]
+    return r * r * k_strut, r * r * c_strut, c_strut

@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 
 from struts import friction as fr
-from struts import valves
 from struts.params import load_strut
 from vehicle.physics import linear
 from vehicle.physics.params import load_vehicle
+
+from tests.helpers import quarter_car_at_wheel
 
 from .test_vehicle_quarter_car import LINEAR_STRUT
 
@@ -36,17 +37,9 @@ def _quarter_car(lin):
     """(k_s, c_s, k_t, c_t, m_s, m_u) at the wheel, from the strut's own laws at the equilibrium."""
     m = lin.model
     P = m.params
-    strut = m.struts[0]
-    T = lin.temperatures_K[0]
     from vehicle.physics.equilibrium import charge_gas_masses
-    m_gas = charge_gas_masses(m)[0]
-    x0, h = m.x_charged, 1e-6
-    k_strut = float(strut.static_gas_force(x0 + h, T, m_gas) - strut.static_gas_force(x0 - h, T, m_gas)) / (2 * h)
-    kw = strut.valve_arguments(T)
-    dq = float(valves.valve_flow(1.0, **kw) - valves.valve_flow(-1.0, **kw)) / 2.0
-    c_strut = strut.p.geometry.valve_area ** 2 / dq
-    r = m.r[0]
-    return r * r * k_strut, r * r * c_strut, P.tyre.stiffness, P.tyre.damping, m.M / m.n, m.m_u[0]
+    ks, cs, _ = quarter_car_at_wheel(m, lin.temperatures_K[0], charge_gas_masses(m)[0])
+    return ks, cs, P.tyre.stiffness, P.tyre.damping, m.M / m.n, m.m_u[0]
 
 
 def test_quarter_car_transfer_functions(quarter):

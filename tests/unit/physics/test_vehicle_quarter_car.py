@@ -12,14 +12,14 @@ import math
 import numpy as np
 import pytest
 
-from struts import valves
 from terrain import RoadSpec, build_road
 from vehicle.engines.full import Drive
 from vehicle.scenario.settings import DriveSettings
 from vehicle.scenario.speed import SpeedProfile
-from vehicle.physics.equilibrium import charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle
+
+from tests.helpers import quarter_car_at_wheel
 
 LINEAR_STRUT = {
     "friction.F0_compression": 0.0, "friction.F0_rebound": 0.0, "friction.pressure_coefficient": 0.0,
@@ -49,16 +49,7 @@ def setup():
 
 def analytic_heave(model, drive, f_hz):
     P = model.params
-    strut = model.struts[0]
-    T = P.charging.temperature
-    m_gas = drive.gas_masses[0]
-    x0, h = model.x_charged, 1e-6
-    k_strut = float(strut.static_gas_force(x0 + h, T, m_gas) - strut.static_gas_force(x0 - h, T, m_gas)) / (2 * h)
-    kw = strut.valve_arguments(T)
-    dq = float(valves.valve_flow(1.0, **kw) - valves.valve_flow(-1.0, **kw)) / 2.0
-    c_strut = strut.p.geometry.valve_area ** 2 / dq
-    r = model.r[0]
-    ks, cs = r * r * k_strut, r * r * c_strut
+    ks, cs, c_strut = quarter_car_at_wheel(model, P.charging.temperature, drive.gas_masses[0])
     kt, ct = P.tyre.stiffness, P.tyre.damping
     ms, mu = model.M / model.n, model.m_u[0]
     w = 2 * math.pi * f_hz
