@@ -23,6 +23,8 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from hpsim.threads import beside_map
+
 N0_CYCLE_PER_M = 0.1  # reference spatial frequency n0 [cycle/m], ISO 8608 §5
 WAVINESS_ISO = 2.0  # w for the class definitions, ISO 8608 §5
 DEFAULT_BAND_CYCLE_PER_M = (0.011, 2.83)  # ISO 8608 spatial band (wavelengths 91 m .. 0.35 m), REFERENCE §5
@@ -129,9 +131,15 @@ def shaping_filters(gd_n0_m3: float, waviness: float, spacing_m: float, band: tu
         gamma = np.clip(coherence(n), 0.0, 1.0)
         taps["right_coherent"] = _design_fir(gain * gamma, n_design)
         taps["right_independent"] = _design_fir(gain * np.sqrt(1.0 - gamma ** 2), n_design)
-    spectra = {k: np.fft.rfft(v, fft_size) for k, v in taps.items()}
+    spectra = dict(zip(taps, beside_map(lambda h: np.fft.rfft(h, fft_size), taps.values())))
     return ShapingFilters(n_taps, fft_size, spectra["left"], spectra.get("right_coherent"),
                           spectra.get("right_independent"))
+
+
+def _noise_spectrum(rng: np.random.Generator, tail: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:
+    """(segment, its rfft): the overlap-save input segment, the previous segment's tail then `block` new samples."""
+    seg = np.concatenate([tail, rng.standard_normal(block)])
+    return seg, np.fft.rfft(seg)
 
 
 def _noise_streams(seed: int, count: int) -> list[np.random.Generator]:
@@ -154,25 +162,22 @@ def iter_track_blocks(gd_n0_m3: float, waviness: float, spacing_m: float, n_poin
     block = filt.fft_size - m + 1  # new outputs per overlap-save block
     rng1, rng2 = _noise_streams(seed, 2)
     need_w2 = coherence != "identical"
-    tail1 = rng1.standard_normal(m - 1)
-    tail2 = rng2.standard_normal(m - 1) if need_w2 else None
+    tails = [rng1.standard_normal(m - 1)] + ([rng2.standard_normal(m - 1)] if need_w2 else [])
+    rngs = [rng1, rng2][:len(tails)]
     start = 0
     while start < n_points:
-        seg1 = np.concatenate([tail1, rng1.standard_normal(block)])
-        w1 = np.fft.rfft(seg1)
-        left = np.fft.irfft(w1 * filt.left, filt.fft_size)[m - 1:]
+        # each track's noise stream and transform on its own thread (numpy leaves Python's lock)
+        (seg1, w1), *second = beside_map(lambda k: _noise_spectrum(rngs[k], tails[k], block), range(len(tails)))
         if coherence == "identical":
+            left = np.fft.irfft(w1 * filt.left, filt.fft_size)[m - 1:]
             right = left
         else:
-            seg2 = np.concatenate([tail2, rng2.standard_normal(block)])
-            w2 = np.fft.rfft(seg2)
-            if coherence == "independent":
-                right = np.fft.irfft(w2 * filt.left, filt.fft_size)[m - 1:]
-            else:
-                right = np.fft.irfft(w1 * filt.right_coherent + w2 * filt.right_independent,
-                                     filt.fft_size)[m - 1:]
-            tail2 = seg2[block:]
-        tail1 = seg1[block:]
+            seg2, w2 = second[0]
+            spectra = [w1 * filt.left, w2 * filt.left if coherence == "independent" else
+                       w1 * filt.right_coherent + w2 * filt.right_independent]
+            left, right = (a[m - 1:] for a in beside_map(lambda w: np.fft.irfft(w, filt.fft_size), spectra))
+            tails[1] = seg2[block:]
+        tails[0] = seg1[block:]
         take = min(block, n_points - start)
         yield start, left[:take], right[:take]
         start += take

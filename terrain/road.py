@@ -25,6 +25,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from hpsim.errors import UserInputError
+from hpsim.threads import beside_map
 
 from .envelope import envelope_profile
 from .passes import PassSpec, pass_profile, pass_spec
@@ -249,10 +250,15 @@ class Road:
         info = dict(self.info, contact_length_m=float(contact_length_m))
         level = None if self._level is None else \
             tuple(envelope_profile(a, contact_length_m, self._spacing) for a in self._level)
-        return Road(self._spacing,
-                    envelope_profile(self._z[0], contact_length_m, self._spacing),
-                    envelope_profile(self._z[1], contact_length_m, self._spacing), info=info, copy=False,
-                    passes=self.passes, level_m=level)
+        left, right = beside_map(lambda z: envelope_profile(z, contact_length_m, self._spacing), self._z)
+        return Road(self._spacing, left, right, info=info, copy=False, passes=self.passes, level_m=level)
+
+    def prepare(self, pass_indices: Iterable[int] = (0,)) -> "Road":
+        """Compute the spline slopes (`knot_slopes`) of both tracks on these passes' surfaces now, the two tracks on
+        two threads, instead of on the first `evaluate` of each; returns the road."""
+        for k in dict.fromkeys(pass_indices):
+            beside_map(lambda track: self.knot_slopes(track, k), (0, 1))
+        return self
 
     # -- files ---------------------------------------------------------------------
     def to_csv(self, path: str | Path) -> None:

@@ -69,8 +69,10 @@ def equilibrium_temperature(eq: dict):
     return eq["oil_temperature"] if "oil_temperature" in eq else eq["strut_temperature"]
 
 
-def report(path: str | Path) -> dict:
-    with open_results(path) as r:
+def report(path: str | Path, check: bool = True) -> dict:
+    """The report of a results file. check=False: the file was just written by this process (`hpsim run`), so the
+    child-process read check for damaged files (`open_results`) is skipped."""
+    with open_results(path, check=check) as r:
         return report_from(r, str(path))
 
 
@@ -202,6 +204,7 @@ def solver_mode_summary(r: ResultsView, summ: dict, n_axles: int) -> dict:
         "window_m": float(summ.get("multiscale_window_m", np.nan)),
         "spacing_m": float(summ.get("multiscale_spacing_m", np.nan)),
         "covered_km": float(summ.get("multiscale_covered_km", np.nan)),
+        "paired": int(summ.get("multiscale_paired_windows", 0)),     # from a predicted start, beside the one before
         "control_variate": bool(summ.get("multiscale_control_variate", False)),
         "proxy": str(summ.get("multiscale_proxy", "road_rate" if summ.get("multiscale_control_variate") else "none"))}
     return out

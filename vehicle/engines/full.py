@@ -61,6 +61,9 @@ class Drive:
             if L not in envelopes:
                 envelopes[L] = road.enveloped(L) if L > 0 else road
             self.station_roads.append(envelopes[L])
+        for surface in {id(r): r for r in self.station_roads}.values():    # the splines of what the tyres read
+            surface.prepare(sorted({model.params.station_axle(i) for i in range(model.n)
+                                    if self.station_roads[i] is surface}))
         self.road = self.station_roads[0]
         t0 = time.perf_counter()
         self.gas_masses = charge_gas_masses(model) if gas_masses is None else np.asarray(gas_masses, float)

@@ -5,6 +5,7 @@ with the measurements behind each choice: docs/engines.md, "Multiscale mode"."""
 from __future__ import annotations
 
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from vehicle.scenario.settings import MultiscaleSettings
 from vehicle.engines.full import Drive, DriveResult, DriveState
 from vehicle.engines.control_variate import (band_power_cumulative, control_variate, linear_strut_velocity, on_grid,
                                              station_patterns, stratified_error_covariance, variance_ratio)
+from vehicle.engines.window_pair import WindowPair
 from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
                                        warm_up_correction, window_forcings)
 
@@ -83,7 +85,14 @@ class MultiscaleDrive(Drive):
         return S
 
     # --- the road proxy of the control variate ------------------------------------------------------
-    def _linear_proxy_setup(self, match=None):
+    def _linear_proxy_inputs(self) -> tuple:
+        """What `_linear_proxy_setup` needs from the drive's solvers (the initial strut temperatures and the vehicle
+        standing at them, the same for every friction velocity), computed on the calling thread: the set-up itself
+        may then run on another one."""
+        T0 = self.initial_state().x[self.T_oil_index]
+        return T0, self.equilibrium_solver.solve(T0, self.gas_masses)
+
+    def _linear_proxy_setup(self, match=None, inputs=None):
         """The linear-model proxy: each station's squared strut velocity of the linearised vehicle
         (`vehicle.physics.linear`, at the drive's initial strut temperatures, the seal friction by its describing-
         function damping at a strut velocity amplitude V) driven by the whole road under all tyres
@@ -96,10 +105,13 @@ class MultiscaleDrive(Drive):
         Statistical Linearization, 1990, ch. 5). The linear vehicle's damping stands for the seal friction and the
         valves' non-linear (orifice, blow-off) damping together, which the laminar-bleed linearisation alone does
         not give. Two secant steps in log V from LINEAR_PROXY_FRICTION_VELOCITY_M_S (RMS ~ V^alpha); V kept within
-        LINEAR_PROXY_V_RANGE_M_S. match=None: V = LINEAR_PROXY_FRICTION_VELOCITY_M_S."""
+        LINEAR_PROXY_V_RANGE_M_S. match=None: V = LINEAR_PROXY_FRICTION_VELOCITY_M_S.
+
+        inputs: `_linear_proxy_inputs()` (computed here when None). The set-up reads the model, the road and the
+        time grid only, so it runs beside the windows (`run`)."""
         m, ms = self.model, self.ms
         t0 = time.perf_counter()
-        T0 = self.initial_state().x[self.T_oil_index]
+        T0, standing = self._linear_proxy_inputs() if inputs is None else inputs
         rate = ms.LINEAR_PROXY_RATE_HZ
         t_end = float(np.interp(self.settings.distance_m, self.s_grid, self.t_grid))
         pad = 30.0                                    # s of road before and after (the linear vehicle's memory)
@@ -110,7 +122,6 @@ class MultiscaleDrive(Drive):
             road, track = self.station_roads[i], ("left" if i % 2 == 0 else "right")
             roads[i] = np.interp(s - m.a[i], road.distance_m, road.heights(track, m.params.station_axle(i)))
 
-        standing = self.equilibrium_solver.solve(T0, self.gas_masses)     # the same for every friction velocity
 
         def velocities(V, sl=slice(None)):
             lin = linear.linearise(m.params, T0, friction_velocity_m_s=V, gas_masses=self.gas_masses,
@@ -221,38 +232,56 @@ class MultiscaleDrive(Drive):
         return float(np.interp(s_m, self.s_grid, self.t_grid))
 
     # --- one window ------------------------------------------------------------------------------
-    def _window(self, x0, t0, t_warm, t_end, sink, integ):
-        """Drive the full model from (x0, t0) to t_end (whole sample intervals); returns the window record."""
+    def integrate(self, solver, x0, t0, t_end) -> dict:
+        """The full model on `solver` from (x0, t0) to t_end (whole sample intervals): the blocks (states, sample
+        times, the solver's memory and the inputs at the samples) and the integration's wall time. Reads the model,
+        the road and the settings only, so a window integrates on a thread beside another (`paired_windows`).
+        Stops after a block with a non-finite state (`_window` reports it)."""
         S = self.settings
         dt, K, M = S.dt_s, self.K, self.M
         sample_dt = K * dt
-        self.solver.set_state(np.zeros_like(self.solver.get_state()))
+        solver.set_state(np.zeros_like(solver.get_state()))
         n_samples = max(int(np.ceil((t_end - t0) / sample_dt - 1e-9)), 1)
-        n_warm = min(int(np.ceil((t_warm - t0) / sample_dt - 1e-9)), n_samples - 1)
-        xs, ts, mems, Us = [x0[:, None]], [np.array([t0])], [np.zeros((self.model.n_memory, 1))], []
+        blocks, wall = [], 0.0
         x, t = x0, t0
         done = 0
         while done < n_samples:
             t_cols = t + dt * np.arange(K * M + 1)
             U = self.inputs(t_cols)
             ti = time.perf_counter()
-            X = self.solver.advance(x, U, self.p)
-            memory = self.solver.memory_samples
-            integ[0] += time.perf_counter() - ti
+            X = solver.advance(x, U, self.p)
+            wall += time.perf_counter() - ti
+            take = min(M, n_samples - done)
             t_s = t + sample_dt * np.arange(1, M + 1)
+            blocks.append((X, t_s, solver.memory_samples, U[:, K * np.arange(1, take + 1)], take))
+            if not np.all(np.isfinite(X)):
+                break
+            x, t = X[:, take - 1].copy(), float(t_s[take - 1])
+            done += take
+        return {"x0": x0, "blocks": blocks, "integration_s": wall}
+
+    def _window(self, t0, t_warm, t_end, integ, run):
+        """The window integrated from run["x0"] at t0 to t_end (whole sample intervals, `integrate`): its record
+        (the averaged slow model, the end state, ...), with its samples for the sink (`_to_sink`)."""
+        S = self.settings
+        sample_dt = self.K * S.dt_s
+        x0 = run["x0"]                   # where the window was integrated from (a predicted start, when paired)
+        integ[0] += run["integration_s"]
+        n_samples = max(int(np.ceil((t_end - t0) / sample_dt - 1e-9)), 1)
+        n_warm = min(int(np.ceil((t_warm - t0) / sample_dt - 1e-9)), n_samples - 1)
+        xs, ts, mems, Us = [x0[:, None]], [np.array([t0])], [np.zeros((self.model.n_memory, 1))], []
+        samples = []
+        x = x0
+        for X, t_s, memory, U_s, take in run["blocks"]:
             s_s = self.distance_at(t_s)
             self._check(X, t_s, s_s, x)
-            take = min(M, n_samples - done)
             X, t_s, s_s, memory = X[:, :take], t_s[:take], s_s[:take], memory[:, :take]
-            U_s = U[:, K * np.arange(1, take + 1)]
-            if sink is not None:
-                sink.samples(self._block_outputs(X, U_s, t_s, s_s, memory))
+            samples.append((X, U_s, t_s, s_s, memory))
             xs.append(X)
             ts.append(t_s)
             mems.append(memory)
             Us.append(U_s)
-            x, t = X[:, -1].copy(), float(t_s[-1])
-            done += take
+            x = X[:, -1]
         X = np.concatenate(xs, axis=1)
         T = np.concatenate(ts)
         MEM = np.concatenate(mems, axis=1)
@@ -278,24 +307,58 @@ class MultiscaleDrive(Drive):
         row["window_start_m"] = float(self.distance_at(T[a]))
         return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
                 "A": A, "r": r, "xbar": xbar,
-                "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy()}
+                "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy(), "samples": samples}
 
-    # --- the drive -------------------------------------------------------------------------------
-    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
-        if state is not None and state.s_m > 0:
-            raise UserInputError("solver.mode multiscale: a multiscale run cannot be resumed (it takes seconds): "
-                                 "run it again with --overwrite")
+    def _to_sink(self, sink, records: list) -> None:
+        """The processed windows' samples, statistics rows and checkpoints to the sink, in order (emptied). Called
+        while the next windows integrate: the outputs are evaluated beside them."""
+        while records:
+            w = records.pop(0)
+            for block in w.pop("samples"):
+                sink.samples(self._block_outputs(*block))
+            sink.stats([w["row"]])
+            st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=self.settings.distance_m + 1.0,
+                            last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
+                            solver_memory=w["memory"])
+            sink.checkpoint(st.as_dict())
+
+    def _predicted_start(self, x: np.ndarray, t_from: float, w_prev: dict, s_next_m: float) -> np.ndarray:
+        """The vehicle at rest at the start of the window at s_next_m, predicted from the state x at t_from (the start
+        of the window before it) by the averaged slow model of the window before that (`w_prev`): the slow states by
+        its linear flow, the totals by its rates (`paired_windows`)."""
+        tau = max(self._time_at(s_next_m) - t_from, 0.0)
+        flow, xp = w_prev["flow"], x.copy()
+        xp[self.slow_index] = flow.phi(tau) @ x[self.slow_index] + flow.gamma(tau) @ w_prev["b"]
+        xp[self.ext_index] = x[self.ext_index] + w_prev["q_rate"] * tau
+        return self._rest_state(xp)
+
+    def _start_proxy(self, w: dict) -> Future:
+        """The linear-model proxy set up on a thread beside the windows after the first (`_linear_proxy_setup`,
+        matched to this first window's RMS strut velocity); it is read only after the last window."""
+        iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
+        match = ((w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
+                 if self.ms.LINEAR_PROXY_MATCH_RMS else None)
+        beside = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy")
+        job = beside.submit(timed, "drive: the proxy's set-up", self._linear_proxy_setup, match,
+                            self._linear_proxy_inputs())
+        beside.shutdown(wait=False)
+        self._linear_proxy_pending = False
+        return job
+
+    def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
+        """Every window in order, the slow states carried across the gaps between them: (the window records, the
+        state at the drive's end, the proxy's set-up job or None). With `paired_windows` the window after each
+        odd one integrates beside it from a predicted start (`_predicted_start`); its warm-up correction carries it
+        to its true start. The processed windows wait in `unwritten` and go to the sink while the next ones
+        integrate."""
         S = self.settings
         D = S.distance_m
-        # the drive ends at the last output sample within the distance, as a full drive does
-        sample_dt = self.K * S.dt_s
-        t_total = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
-        wall0 = time.perf_counter()
-        integ = [0.0]
-        st = self.initial_state()
-        x = st.x.copy()
+        x = self.initial_state().x.copy()
         windows = self.ms.windows(D)
         records = []
+        proxy_job = None
+        pending = None                   # the next window, integrating beside the current one
         k = -1
         while k + 1 < len(windows):
             k += 1
@@ -305,14 +368,28 @@ class MultiscaleDrive(Drive):
                 x = self._rest_state(x)
             t_end = min(self._time_at(c1), t_total)
             t_warm = min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end)
-            w = self._window(x, t0, t_warm, t_end, sink, integ)
+            run = None
+            if pending is not None:      # integrated beside the window before, from a predicted start
+                run, pending = pending.result(), None
+                if not self._close_enough(run["x0"], x):
+                    run = None           # integrated again, from its true start
+            predicted = run is not None
+            if run is None:
+                job = pair.submit(0, x, t0, t_end)
+                # the last window is integrated from its true start: it ends with the drive, whose short memories
+                # (the oil against its wall, the gas) it simulates rather than samples
+                if self.ms.paired_windows and records and k + 2 < len(windows):
+                    nxt = windows[k + 1]
+                    pending = pair.submit(1, self._predicted_start(x, t0, records[-1], nxt[0]),
+                                          self._time_at(nxt[0]), min(self._time_at(nxt[1]), t_total))
+                if sink is not None:
+                    self._to_sink(sink, unwritten)        # while they integrate
+                run = job.result()
+            w = self._window(t0, t_warm, t_end, integ, run)
             w["flow"] = LinearFlow(w["A"])
+            w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
             if k == 0 and self._linear_proxy_pending:
-                iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
-                timed("drive: the proxy's set-up", self._linear_proxy_setup,
-                      (w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
-                      if self.ms.LINEAR_PROXY_MATCH_RMS else None)
-                self._linear_proxy_pending = False
+                proxy_job = self._start_proxy(w)
             if k == 0 and self.ms.placement == "weighted":
                 lam = np.linalg.eigvals(w["A"]).real
                 lam = lam[lam < -1e-12]
@@ -327,7 +404,8 @@ class MultiscaleDrive(Drive):
                 # at the warm-up's end (modelled - simulated) is carried through the averaged stretch by the same
                 # model, e^{A L}: the simulated stretch started from the simulated state, and a difference in a
                 # state with a short memory (the oil against its wall, ~2 min) has partly decayed by the window's
-                # end (in a linear model exactly: x_end(x_a + d) = x_end(x_a) + e^{A L} d; docs/engines.md, "Warm-up")
+                # end (in a linear model exactly: x_end(x_a + d) = x_end(x_a) + e^{A L} d; docs/engines.md, "Warm-up").
+                # A window integrated from a predicted start (paired) is carried to its true start, x, the same way
                 x_start = x
                 tw = w["t_avg0"] - t0
                 w["x_end"][self.slow_index] += warm_up_correction(w["flow"], w["b"], x_start[self.slow_index],
@@ -343,19 +421,56 @@ class MultiscaleDrive(Drive):
             x[self.ext_index] = x[self.ext_index] + w["q_rate"] * tau
             w.update(t_start=t0, t_gap_end=t_next, tau=tau, s_start=c0, s_end=float(self.distance_at(w["t_end"])),
                      s_gap_end=float(self.distance_at(t_next)), s_avg0=float(self.distance_at(w["t_avg0"])))
-            # the road proxy over the averaged stretch and over what the window stands for (warm-up, gap)
-            w.update(tw=(w["t_avg0"] - t0) if k > 0 else 0.0, p_win=self.proxy(w["s_avg0"], w["s_end"]),
-                     p_warm=self.proxy(c0, w["s_avg0"]), p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
+            w["tw"] = (w["t_avg0"] - t0) if k > 0 else 0.0
             records.append(w)
-            if sink is not None:
-                sink.stats([w["row"]])
-                st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=D + 1.0,
-                                last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
-                                            "gas_sum": np.zeros(self.model.n), "gas_n": 0},
-                                solver_memory=w["memory"])
-                sink.checkpoint(st.as_dict())
+            unwritten.append(w)
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
+        return records, x, proxy_job
+
+    def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair) -> tuple:
+        """`_drive_windows`, every processed window written to the sink at the end, or when the drive fails, before
+        the failure is raised (nothing computed is lost)."""
+        unwritten: list = []
+        try:
+            out = self._drive_windows(sink, progress, t_total, integ, pair, unwritten)
+        except BaseException:
+            if sink is not None:
+                self._to_sink(sink, unwritten)
+            raise
+        if sink is not None:
+            self._to_sink(sink, unwritten)
+        return out
+
+    def _close_enough(self, x_predicted: np.ndarray, x_true: np.ndarray) -> bool:
+        """A paired window's predicted start is used (carried to the true start by the window's linear model) when no
+        strut temperature is further than PAIRED_START_TOLERANCE_K from the true start's: the carry is exact to first
+        order, its remainder grows with the offset squared."""
+        nodes = np.concatenate([self.node_index[node] for node in self.node_index])
+        return bool(np.max(np.abs(x_predicted[nodes] - x_true[nodes])) <= self.ms.PAIRED_START_TOLERANCE_K)
+
+    # --- the drive -------------------------------------------------------------------------------
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+        if state is not None and state.s_m > 0:
+            raise UserInputError("solver.mode multiscale: a multiscale run cannot be resumed (it takes seconds): "
+                                 "run it again with --overwrite")
+        S = self.settings
+        D = S.distance_m
+        # the drive ends at the last output sample within the distance, as a full drive does
+        sample_dt = self.K * S.dt_s
+        t_total = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
+        wall0 = time.perf_counter()
+        integ = [0.0]
+        pair = WindowPair(self)
+        try:
+            records, x, proxy_job = self._drive_windows_to(sink, progress, t_total, integ, pair)
+        finally:
+            pair.close()
+        if proxy_job is not None:
+            proxy_job.result()
+        for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
+            w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
+                     p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
         cv = None
         if self.ms.control_variate and len(records) >= self.MIN_CV_WINDOWS:
             cv = self._control_variate(records, t_total)
@@ -542,6 +657,7 @@ class MultiscaleDrive(Drive):
                  "multiscale_window_m": float(ms.window_m), "multiscale_spacing_m": float(ms.spacing_m),
                  "multiscale_warm_up_m": float(ms.warm_up_m), "multiscale_placement": ms.placement,
                  "multiscale_covered_km": float(e.get("covered_m", 0.0)) / 1e3,
+                 "multiscale_paired_windows": sum(bool(w.get("predicted_start")) for w in self.window_log),
                  "multiscale_control_variate": bool(e.get("control_variate", False)),
                  "multiscale_proxy": ms.proxy if e.get("control_variate", False) else "none",
                  "estimated_error_sigmas": float(e.get("sigmas", np.nan)),

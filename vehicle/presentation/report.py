@@ -41,7 +41,9 @@ def format_report(rep: dict) -> str:
             v = [x for x in v if x is not None]
             return max(v) if v else float("nan")
         tail.append(f"solver mode multiscale: {est['windows']} windows of {est['window_m']:.0f} m, one per "
-                    f"{est['spacing_m'] / 1e3:.3g} km ({est['covered_km']:.3g} km driven with the full model); "
+                    f"{est['spacing_m'] / 1e3:.3g} km ({est['covered_km']:.3g} km driven with the full model"
+                    + (f"; {est['paired']} of the windows from a predicted start, beside the one before"
+                       if est.get("paired") else "") + "); "
                     f"estimated error (95 %, {est['sigmas']:.2g} sigma, road sampling"
                     f"{', with the control variate on the ' + est.get('proxy', 'road_rate').replace('_', '-') + ' proxy' if est.get('control_variate') else ''}): T surface end "
                     + ", ".join("-" if x is None else f"{x:.2f}" for x in est["T_end_K"]) + " K, dN "

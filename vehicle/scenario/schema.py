@@ -55,7 +55,7 @@ STRUT_T_RANGE_K = (273.15 - 60, 273.15 + 200)  # -60 .. 200 degC
 # multiscale window layout (solver.window, .spacing, .warm_up): a window must hold some seconds of ride
 # (50 m: 9 s at 20 km/h); at most the longest drive
 MULTISCALE_RANGES_M = {"window": (50.0, 1000e3), "spacing": (100.0, 1000e3), "warm_up": (0.0, 10e3)}
-MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control_variate", "proxy")
+MULTISCALE_KEYS = ("window", "spacing", "warm_up", "placement", "seed", "control_variate", "proxy", "paired_windows")
 MULTISCALE_MIN_WINDOWS = 3                    # the error estimate needs the scatter of the windows
 TOLERANCE_RANGE = (1e-4, 1.0)                 # solver.tolerance: 0.01 .. 100 % relative error of the strut heat
 
@@ -178,6 +178,9 @@ class SolverSpec(Model):
     # multiscale: the control variate's proxy of each window's dissipation: linear_model (default: the linearised
     # vehicle's squared strut velocity under the whole road) or road_rate (the band-passed road rate under each tyre)
     proxy: Literal["road_rate", "linear_model"] | None = None
+    # multiscale: the windows in pairs, the second of each from the start the slow model predicts, integrated beside
+    # the first (two cores) and carried to its true start by its linear model (default true); false: one by one
+    paired_windows: StrictBool | None = None
     # parallel in time (vehicle.engines.time_parallel): the full drive split into segments run in this many
     # processes at once, joined with a correction of the slow states; "auto": one per CPU; 1: serial
     time_parallel: Literal["auto"] | StrictInt | None = None
@@ -252,7 +255,7 @@ class SolverSpec(Model):
     def multiscale_settings(self) -> MultiscaleSettings:
         given = {"window_m": self.window, "spacing_m": self.spacing, "warm_up_m": self.warm_up,
                  "placement": self.placement, "seed": self.seed, "control_variate": self.control_variate,
-                 "proxy": self.proxy}
+                 "proxy": self.proxy, "paired_windows": self.paired_windows}
         return MultiscaleSettings(**{k: v for k, v in given.items() if v is not None})
 
     @field_validator("tolerance", mode="before")

@@ -138,3 +138,22 @@ def test_reproducible_in_a_fresh_process():
             "print(hashlib.sha256(r.left_m.tobytes() + r.right_m.tobytes()).hexdigest())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == _digest(road)
+
+
+def test_the_two_tracks_on_two_threads_give_the_same_bits_as_one_after_the_other(monkeypatch):
+    """The tracks' noise and transforms run beside each other (hpsim.threads.beside_map); the same operations one
+    after the other on this thread give the same road bit for bit, its envelope and spline slopes too."""
+    from terrain import iso8608, road as road_module
+
+    spec = RoadSpec(iso_class="D", length="3 km", seed=5, coherence="isotropic")
+    threaded = build_road(spec)
+    threaded_env = threaded.enveloped(0.3).prepare()
+    serial_map = lambda fn, items: [fn(x) for x in items]            # noqa: E731
+    monkeypatch.setattr(iso8608, "beside_map", serial_map)
+    monkeypatch.setattr(road_module, "beside_map", serial_map)
+    serial = build_road(spec)
+    serial_env = serial.enveloped(0.3)
+    assert np.array_equal(threaded.left_m, serial.left_m) and np.array_equal(threaded.right_m, serial.right_m)
+    for track in ("left", "right"):
+        assert np.array_equal(threaded_env.heights(track), serial_env.heights(track))
+        assert np.array_equal(threaded_env.knot_slopes(track), serial_env.knot_slopes(track))   # lazily, here

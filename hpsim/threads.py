@@ -1,0 +1,49 @@
+"""Work beside the main thread: numpy's FFTs, random generators and most array loops, LAPACK's banded solves and
+the compiled step (ctypes) leave Python's global lock, so two such pieces of work on threads use two cores.
+
+    left, right = beside_map(envelope, (left_track, right_track))
+
+Threads, not processes: the pieces share their inputs without copies and start in microseconds. The same operations
+run either way, so the results are the same bits as one after the other.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, Iterable, TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+THREADS = 2        # the pieces at once: the work this is for comes in pairs (two tracks, two windows)
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _pool() -> ThreadPoolExecutor:
+    """One pool per process, made on first use and kept: no threads started and joined per call (a Ctrl-C then
+    never lands in a pool's teardown)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=THREADS, thread_name_prefix="hpsim-beside")
+        return _POOL
+
+
+def _forget_pool() -> None:
+    """In a forked child: the parent's threads are not there (a new pool on first use)."""
+    global _POOL, _POOL_LOCK
+    _POOL, _POOL_LOCK = None, threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def beside_map(fn: Callable[[T], R], items: Iterable[T]) -> list[R]:
+    """[fn(item) for item in items], THREADS at a time on threads (one item: on this thread). Not nested: the items'
+    work must not call beside_map itself (the pool's threads would wait for themselves)."""
+    items = list(items)
+    if len(items) < 2:
+        return [fn(x) for x in items]
+    return list(_pool().map(fn, items))

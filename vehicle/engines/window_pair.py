@@ -1,0 +1,35 @@
+"""Two multiscale windows integrated at once (`solver.paired_windows`, vehicle.engines.multiscale): a window from
+its true start and the next one from a predicted start, each on a thread with a solver of its own. How the pair's
+second window is carried to its true start, and what it was measured to change: docs/engines.md, "Paired windows"."""
+from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+
+
+class WindowPair:
+    """Windows integrated on threads (`integrate`), two at once: slot 0 a window from its true start, slot 1 the
+    next one from a predicted start (`paired_windows`), each on a solver of its own (the same compiled step; its
+    integration leaves Python's lock). Where the drive's solver cannot be copied, each runs at once on it (the
+    numerics are the same either way: only the wall time differs)."""
+
+    def __init__(self, drive):
+        self.drive = drive               # a MultiscaleDrive: its `integrate`, solver, model and block shape
+        self.pool = None
+        self.solvers: list = []
+
+    def submit(self, slot: int, x0: np.ndarray, t0: float, t_end: float) -> Future:
+        d = self.drive
+        if self.pool is None and hasattr(d.solver, "refined_solver"):
+            self.solvers = [d.solver] + [d.solver.refined_solver(1).bind(d.model, d.K, d.M)]
+            self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hpsim-window")
+        if self.pool is None:
+            done = Future()
+            done.set_result(d.integrate(d.solver, x0, t0, t_end))
+            return done
+        return self.pool.submit(d.integrate, self.solvers[slot], x0, t0, t_end)
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
