@@ -184,8 +184,10 @@ class Road:
         t2 = t * t
         t3 = t2 * t
         dz = z1 - z0
-        height = z0 + m0 * t + (3.0 * dz - 2.0 * m0 - m1) * t2 + (m0 + m1 - 2.0 * dz) * t3
-        slope = (m0 + 2.0 * (3.0 * dz - 2.0 * m0 - m1) * t + 3.0 * (m0 + m1 - 2.0 * dz) * t2) / self._spacing
+        c2 = 3.0 * dz - 2.0 * m0 - m1          # the Hermite cubic's t^2 and t^3 coefficients, used twice
+        c3 = m0 + m1 - 2.0 * dz
+        height = z0 + m0 * t + c2 * t2 + c3 * t3
+        slope = (m0 + 2.0 * c2 * t + 3.0 * c3 * t2) / self._spacing
         return height, slope
 
     def evaluate_axles(self, s_m, offsets_m: Iterable[float], track, passes: bool = False):

@@ -157,11 +157,14 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     J = _jacobian_function(model, outputs)
     z0 = np.zeros(model.nz)
     for _ in range(20):                     # the valve pressure drops at the equilibrium (0 at rest)
-        *_, gx, gz, gu, r, _ = (np.asarray(v, float) for v in J(x0, z0, u0, p))
+        values = [np.asarray(v, float) for v in J(x0, z0, u0, p)]
+        *_, gx, gz, gu, r, _ = values
         if model.nz == 0 or np.max(np.abs(r)) < 1e-12:
-            break
+            break                           # the Jacobians at this z0 are the ones wanted
         z0 = z0 - np.linalg.solve(gz, r.ravel())
-    fx, fz, fu, yx, yz, yu, gx, gz, gu, _, rates = (np.asarray(v, float) for v in J(x0, z0, u0, p))
+    else:
+        values = [np.asarray(v, float) for v in J(x0, z0, u0, p)]
+    fx, fz, fu, yx, yz, yu, gx, gz, gu, _, rates = values
     if model.nz:
         zx, zu = -np.linalg.solve(gz, gx), -np.linalg.solve(gz, gu)
         fx, fu, yx, yu = fx + fz @ zx, fu + fz @ zu, yx + yz @ zx, yu + yz @ zu
