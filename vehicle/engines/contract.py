@@ -24,6 +24,7 @@ class Engine(Protocol):
     total_time_s     the drive's duration [s]
     build_s          set-up wall time [s] (model, compilation, proxies)
     T_index          the state indices of the reported strut temperatures (the surface node, per station)
+    resumable        False: an interrupted run is not continued but started again (`--overwrite`)
     """
 
     mode: str
@@ -33,6 +34,7 @@ class Engine(Protocol):
     total_time_s: float
     build_s: float
     T_index: np.ndarray
+    resumable: bool = True
 
     def initial_equilibrium(self):
         """The standing vehicle before the drive (vehicle.physics.equilibrium.Equilibrium)."""

@@ -30,6 +30,7 @@ class MultiscaleDrive(Drive):
 
     partial_last_sample = False       # windows end on whole output intervals
     mode = MODE
+    resumable = False                 # it takes seconds: an interrupted run starts again
     MIN_CV_WINDOWS = 5      # the control variate needs a few residual degrees of freedom (windows less 3)
 
     def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):

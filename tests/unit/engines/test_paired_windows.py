@@ -103,3 +103,26 @@ def test_bad_paired_windows_keys_exit_2(tmp_path, capsys, solver, key, words):
     p.write_text(f"vehicle: {{name: apc_8x8}}\nroad: {{iso_class: D, seed: 1}}\nspeed: 20 km/h\ndistance: 3 km\n"
                  f"ambient_temperature: 25 degC\nsolver: {solver}\n")
     assert_bad_scenario_exits_2(p, key, words, capsys)
+
+
+def test_an_interrupted_multiscale_run_keeps_its_windows_and_says_to_start_again(tmp_path, monkeypatch):
+    """Ctrl-C (a checkpoint hook, as a sweep worker's) in the third window: the windows before it are in the file
+    (written while the next ones integrate, and on the way out), the status says interrupted, and the message says
+    to start again (a multiscale run is not resumed)."""
+    from vehicle.results import sinks
+    from vehicle.results.reader import open_results
+    from vehicle.results.run import RunInterrupted, run_scenario
+
+    calls = []
+    monkeypatch.setattr(sinks, "_HOOKS", [lambda: calls.append(1) or len(calls) >= 3])
+    scen = tmp_path / "ms.yaml"
+    scen.write_text(yaml.safe_dump({**BASE, "solver": {**BASE["solver"], "paired_windows": True}}))
+    out = tmp_path / "ms.h5"
+    with pytest.raises(RunInterrupted) as info:
+        run_scenario(scen, out, progress=False)
+    assert "--overwrite" in str(info.value) and "--resume" not in str(info.value)
+    with open_results(out) as r:
+        assert r.status() == "interrupted"
+        t = np.asarray(r.series("time"))
+        # three windows of 240 m at 20 km/h (43 s each, 1 s samples) were processed before the stop
+        assert 3 * 40 <= len(t) <= 3 * 45 and np.all(np.diff(t) > 0)
