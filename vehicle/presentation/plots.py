@@ -11,6 +11,7 @@ import numpy as np
 from hpsim.errors import UserInputError
 
 from vehicle.physics.outputs import variable_name
+from vehicle.physics.ride import COMFORT_BANDS
 from vehicle.analysis.psd import response_psd
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import equilibrium_temperature
@@ -194,11 +195,13 @@ def _panel_comfort(a, d):
     km, names, aw = rr["km"], rr["seats"], rr["weighted_rms_acceleration_m_s2"]
     for k, name in enumerate(names):
         a.plot(km, aw[:, k], marker="o" if len(km) < 30 else None, ms=3, label=name)
-    for lim, text in ((0.315, "not uncomfortable"), (0.63, "a little unc."), (1.0, "fairly unc.")):
+    # ISO 2631-1 Annex C (vehicle.physics.ride.COMFORT_BANDS): each band's name under its upper limit, inside the
+    # band it names (so never above the axes)
+    for _, lim, text in COMFORT_BANDS:
         if lim < 1.6 * max(float(np.max(aw)), 0.3):
             a.axhline(lim, color="0.6", lw=0.7, ls=":")
-            a.annotate(text, (1.0, lim), xycoords=("axes fraction", "data"), fontsize=7, color="0.4", va="bottom",
-                       ha="right", xytext=(-3, 1), textcoords="offset points")
+            a.annotate(text, (1.0, lim), xycoords=("axes fraction", "data"), fontsize=7, color="0.4", va="top",
+                       ha="right", xytext=(-3, -1), textcoords="offset points")
     a.set(xlabel="distance [km]", ylabel="weighted RMS acceleration a_w [m/s$^2$]",
           title="ride: ISO 2631-1 Wk at the seats, per statistics interval", ylim=(0, None))
     a.title.set_fontsize(9)
