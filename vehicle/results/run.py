@@ -422,12 +422,22 @@ def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_eve
     return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)
 
 
+SAME_CTRL_C_S = 1.0      # SIGINTs this close together are one Ctrl-C (a study's worker gets it from the terminal
+#                          and again from its parent, vehicle.engines.pool.stop_workers)
+
+
 def _catch_sigint(sink: H5Sink):
     """First Ctrl-C: finish the current block and checkpoint, then stop (a KeyboardInterrupt raised at
-    an arbitrary point can be swallowed by a weakref callback inside h5py); second: stop at once."""
+    an arbitrary point can be swallowed by a weakref callback inside h5py); second, more than SAME_CTRL_C_S
+    later: stop at once."""
+    first = []
+
     def handler(signum, frame):
-        if sink.stop_requested:
+        now = time.monotonic()
+        if sink.stop_requested and first and now - first[0] > SAME_CTRL_C_S:
             raise KeyboardInterrupt
+        if not first:
+            first.append(now)
         sink.stop_requested = True
 
     try:
