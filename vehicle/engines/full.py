@@ -395,7 +395,7 @@ class Drive:
                     f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
                     f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
                     f"{X[m.idx(f'T_oil[{i}]'), col] - 273.15:.1f} degC (oil); {self._advice()}")
-        T = X[np.concatenate([self.node_index[node] for node in thermal.NODES])]
+        T = X[self.heat_nodes_index]
         lo, hi = self.PHYSICAL_TEMPERATURE_K
         bad = (T < lo) | (T > hi)
         if np.any(bad):

@@ -434,20 +434,16 @@ class MultiscaleDrive(Drive):
         the failure is raised (nothing computed is lost)."""
         unwritten: list = []
         try:
-            out = self._drive_windows(sink, progress, t_total, integ, pair, unwritten)
-        except BaseException:
+            return self._drive_windows(sink, progress, t_total, integ, pair, unwritten)
+        finally:
             if sink is not None:
                 self._to_sink(sink, unwritten)
-            raise
-        if sink is not None:
-            self._to_sink(sink, unwritten)
-        return out
 
     def _close_enough(self, x_predicted: np.ndarray, x_true: np.ndarray) -> bool:
         """A paired window's predicted start is used (carried to the true start by the window's linear model) when no
         strut temperature is further than PAIRED_START_TOLERANCE_K from the true start's: the carry is exact to first
         order, its remainder grows with the offset squared."""
-        nodes = np.concatenate([self.node_index[node] for node in self.node_index])
+        nodes = self.heat_nodes_index
         return bool(np.max(np.abs(x_predicted[nodes] - x_true[nodes])) <= self.ms.PAIRED_START_TOLERANCE_K)
 
     # --- the drive -------------------------------------------------------------------------------

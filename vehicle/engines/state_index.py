@@ -18,6 +18,7 @@ class StateIndex:
                       the hull's squared accelerations, then the ride integrals (VehicleModel.ride_index)
     ride_slots        ride integral name -> its positions in quad_index
     node_index        heat node (vehicle.physics.thermal.NODES) -> its state per station
+    heat_nodes_index  every heat node's states, node by node in NODES' order (node k // n of station k % n)
     T_index, T_wall_index, T_oil_index   the surface (what a pyrometer reads: "strut temperature" in results),
                       wall and oil nodes per station
     T_gas_index       the gas node per station: the strut's T_gas state (energy-equation gas), else its oil
@@ -28,6 +29,7 @@ class StateIndex:
     quad_index: np.ndarray
     ride_slots: dict
     node_index: dict
+    heat_nodes_index: np.ndarray
     T_index: np.ndarray
     T_wall_index: np.ndarray
     T_oil_index: np.ndarray
@@ -53,7 +55,8 @@ class StateIndex:
                           else model.idx(f"T_oil[{i}]") for i in range(n)])
         series = {key: v.series for key, v in VARIABLES.items() if v.series is not None}
         rows = {key: r for key, f in series.items() if (r := series_rows(model, nodes, f)) is not None}
-        return cls(quad_index=quad, ride_slots=ride_slots, node_index=nodes, T_index=nodes["surface"],
+        return cls(quad_index=quad, ride_slots=ride_slots, node_index=nodes,
+                   heat_nodes_index=np.concatenate([nodes[node] for node in thermal.NODES]), T_index=nodes["surface"],
                    T_wall_index=nodes["wall"], T_oil_index=nodes["oil"], T_gas_index=T_gas,
                    heat_index=[model.energy_index[e] for e in DISSIPATION_TERMS], series=series, series_rows=rows)
 
