@@ -501,7 +501,7 @@ def open_for_append(out: Path, wait_s: float = LOCKED_RETRY_S) -> h5py.File:
 def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
     total_km = prep.scenario.distance / 1e3
     resume_cmd = f"hpsim run {prep.source.name} -o {out} " + ("--resume" if getattr(drive, "resumable", True) else
-                                                              "--overwrite (a multiscale run starts again)")
+                                                              f"--overwrite (a {drive.mode} run starts again)")
     bar = cb = None
     if progress:
         from tqdm import tqdm
