@@ -146,6 +146,8 @@ def _scenario(tmp_path, solver: str):
     ("{control_variate: false}", "solver", ["only with mode: multiscale"]),
     ("{mode: multiscale, proxy: linear}", "solver.proxy", ["'road_rate'", "'linear_model'", "linear"]),
     ("{proxy: road_rate}", "solver", ["only with mode: multiscale"]),
+    ("{mode: multiscale, paired_windows: sometimes}", "solver.paired_windows", ["boolean", "sometimes"]),
+    ("{paired_windows: false}", "solver", ["only with mode: multiscale"]),
 ])
 def test_bad_multiscale_keys_exit_2(tmp_path, capsys, solver, key, words):
     assert_bad_scenario_exits_2(_scenario(tmp_path, solver), key, words, capsys)

@@ -7,7 +7,8 @@ carries it to its true start (exact to first order in the offset).
 - the threads change nothing either: run on the drive's own solver one after the other, the same bits;
 - with the default tolerance the paired result stays a small fraction of the stated error from the one-by-one
   result, the last window is never predicted, and the report says how many were;
-- the key is checked like the other multiscale keys.
+- the key is checked with the other multiscale keys (test_multiscale.py);
+- an interrupted run keeps its windows and says to start again.
 """
 from __future__ import annotations
 
@@ -20,8 +21,6 @@ from vehicle.engines import window_pair
 from vehicle.results.run import run_in_memory
 from vehicle.scenario.schema import read_scenario_text
 from vehicle.scenario.settings import MultiscaleSettings
-
-from tests.helpers import assert_bad_scenario_exits_2
 
 # the struts start away from their running temperatures (they cool and warm over the drive): the slow states move
 # between windows, so a predicted start is off
@@ -92,17 +91,6 @@ def test_paired_windows_stay_within_a_small_part_of_the_stated_error(one_by_one)
 def multiscale_report_line(rep: dict) -> str:
     from vehicle.presentation.report import format_report
     return next(line for line in format_report(rep).splitlines() if line.startswith("solver mode multiscale"))
-
-
-@pytest.mark.parametrize("solver, key, words", [
-    ("{mode: multiscale, paired_windows: sometimes}", "solver.paired_windows", ["boolean", "sometimes"]),
-    ("{paired_windows: false}", "solver", ["only with mode: multiscale"]),
-])
-def test_bad_paired_windows_keys_exit_2(tmp_path, capsys, solver, key, words):
-    p = tmp_path / "bad.yaml"
-    p.write_text(f"vehicle: {{name: apc_8x8}}\nroad: {{iso_class: D, seed: 1}}\nspeed: 20 km/h\ndistance: 3 km\n"
-                 f"ambient_temperature: 25 degC\nsolver: {solver}\n")
-    assert_bad_scenario_exits_2(p, key, words, capsys)
 
 
 def test_an_interrupted_multiscale_run_keeps_its_windows_and_says_to_start_again(tmp_path, monkeypatch):
