@@ -105,29 +105,52 @@ def band_power_cumulative(slope: np.ndarray, spacing_m: float, speed_m_s: np.nda
     return c
 
 
-def linear_strut_velocity(H_of_f, roads: np.ndarray, rate_hz: float, n_frequencies: int) -> np.ndarray:
-    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights `roads` (n, N) [m]
-    under each tyre sampled at rate_hz (their delays, the wheelbase and the two tracks, are in the signals):
-    V_i(f) = sum_j H_ij(f) R_j(f) by the FFT (H_of_f(f) -> (n_f, n, n), `linear.strut_velocity_response`, on
-    n_frequencies points up to rate_hz / 2, interpolated). The signals are taken periodic: the caller pads them
-    (the vehicle's memory: seconds). Parseval: the time-domain variance of the result equals the FFT sum of
-    |V(f)|^2 (tests/test_multiscale.py checks it against a time-domain simulation of the same linear model)."""
-    from scipy.fft import irfft, next_fast_len, rfft
+def road_spectrum(roads: np.ndarray) -> tuple:
+    """The road heights under each tyre (n, N) [m], less their means, by the real FFT on a fast length L >= N (the
+    signals taken periodic, zero-padded to L): (R (n, L//2+1), L, N). What `strut_velocity_from_spectrum` reads."""
+    from scipy.fft import next_fast_len, rfft
 
     n, N = roads.shape
     L = next_fast_len(N, real=True)
-    R = rfft(roads - roads.mean(axis=1, keepdims=True), n=L, axis=1)          # (n, L//2+1)
+    padded = np.zeros((n, L))                    # written once: no centred copy, no padded copy inside the FFT
+    np.subtract(roads, roads.mean(axis=1, keepdims=True), out=padded[:, :N])
+    return rfft(padded, axis=1, overwrite_x=True), L, N
+
+
+def strut_velocity_from_spectrum(H_of_f, spectrum: tuple, rate_hz: float, n_frequencies: int) -> np.ndarray:
+    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road whose `road_spectrum` is
+    given (sampled at rate_hz): V_i(f) = sum_j H_ij(f) R_j(f), H on n_frequencies points up to rate_hz / 2
+    (H_of_f(f) -> (n_f, n, n), `linear.strut_velocity_response`) and linearly interpolated between them. Within
+    each interval [f_k, f_k+1] of that grid H = H_k + w dH_k, so V = H_k R + w (dH_k R): two (n, n) matrix products
+    per interval over all its FFT lines."""
+    from scipy.fft import irfft
+
+    R, L, N = spectrum
     f = np.fft.rfftfreq(L, 1.0 / rate_hz)
     fc = np.linspace(0.0, rate_hz / 2, n_frequencies)
     Hc = H_of_f(fc)                                                            # (nc, n, n)
     x = f / fc[1]                                                              # linear interpolation on fc
     k = np.minimum(x.astype(np.intp), n_frequencies - 2)
     w = x - k
-    V = np.zeros_like(R)
-    for i in range(n):
-        for j in range(n):
-            V[i] += (Hc[k, i, j] * (1.0 - w) + Hc[k + 1, i, j] * w) * R[j]
+    dH = Hc[1:] - Hc[:-1]
+    edges = np.searchsorted(k, np.arange(n_frequencies))                      # the FFT lines of interval q
+    V = np.empty_like(R)
+    for q in range(n_frequencies - 1):
+        a, b = edges[q], edges[q + 1]
+        if b > a:
+            Rq = R[:, a:b]
+            V[:, a:b] = Hc[q] @ Rq + w[a:b] * (dH[q] @ Rq)
     return irfft(V, n=L, axis=1)[:, :N]
+
+
+def linear_strut_velocity(H_of_f, roads: np.ndarray, rate_hz: float, n_frequencies: int) -> np.ndarray:
+    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights `roads` (n, N) [m]
+    under each tyre sampled at rate_hz (their delays, the wheelbase and the two tracks, are in the signals):
+    V_i(f) = sum_j H_ij(f) R_j(f) by the FFT (`road_spectrum`, `strut_velocity_from_spectrum`). The signals are
+    taken periodic: the caller pads them (the vehicle's memory: seconds). Parseval: the time-domain variance of the
+    result equals the FFT sum of |V(f)|^2 (tests/test_multiscale.py checks it against a time-domain simulation of
+    the same linear model)."""
+    return strut_velocity_from_spectrum(H_of_f, road_spectrum(roads), rate_hz, n_frequencies)
 
 
 def on_grid(c: np.ndarray, spacing_m: float, s_m: float) -> float:
@@ -135,6 +158,15 @@ def on_grid(c: np.ndarray, spacing_m: float, s_m: float) -> float:
     x = min(max(s_m / spacing_m, 0.0), c.size - 1.0)
     i = min(int(x), c.size - 2)
     return float(c[i] + (x - i) * (c[i + 1] - c[i]))
+
+
+def on_grid_array(c: np.ndarray, spacing_m: float, s_m: np.ndarray) -> np.ndarray:
+    """`on_grid` at many points: c (on a uniform grid from 0) linearly interpolated at each s, held at its ends (the
+    grid index by a division, where np.interp searches the grid's positions)."""
+    x = np.clip(np.asarray(s_m, float) / spacing_m, 0.0, c.size - 1.0)
+    i = np.minimum(x.astype(np.intp), c.size - 2)
+    x -= i
+    return c[i] + x * (c[i + 1] - c[i])
 
 
 def variance_ratio(res: np.ndarray, res0: np.ndarray, slots: np.ndarray) -> float:

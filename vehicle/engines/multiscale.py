@@ -9,15 +9,15 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from hpsim.errors import UserInputError
+from hpsim.errors import SimulationError, UserInputError
 from hpsim.stages import timed
 
-from vehicle.physics import linear
 from vehicle.physics.model import DISSIPATION_TERMS
 from vehicle.scenario.settings import MultiscaleSettings
 from vehicle.engines.full import Drive, DriveResult, DriveState
-from vehicle.engines.control_variate import (band_power_cumulative, control_variate, linear_strut_velocity, on_grid,
-                                             station_patterns, stratified_error_covariance, variance_ratio)
+from vehicle.engines.control_variate import (band_power_cumulative, control_variate, on_grid, station_patterns,
+                                             stratified_error_covariance, variance_ratio)
+from vehicle.engines.linear_proxy import LinearProxy
 from vehicle.engines.window_pair import WindowPair
 from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
                                        warm_up_correction, window_forcings)
@@ -45,6 +45,8 @@ class MultiscaleDrive(Drive):
         self._J_sums: dict = {}
         self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
         self._proxy_setup()
+        # the linear-model proxy's first part starts now, beside what comes before the drive (`_start_proxy`)
+        self._proxy_start = self._start_proxy() if self._linear_proxy_pending else None
         self.build_s += time.perf_counter() - t0
         self.estimate: dict | None = None
         self.window_log: list[dict] = []
@@ -94,67 +96,19 @@ class MultiscaleDrive(Drive):
         return T0, self.equilibrium_solver.solve(T0, self.gas_masses)
 
     def _linear_proxy_setup(self, match=None, inputs=None):
-        """The linear-model proxy: each station's squared strut velocity of the linearised vehicle
-        (`vehicle.physics.linear`, at the drive's initial strut temperatures, the seal friction by its describing-
-        function damping at a strut velocity amplitude V) driven by the whole road under all tyres
-        (`linear_strut_velocity`), its time integral cumulated on the time grid: the mean over a stretch is
-        (C(t1) - C(t0)) / (t1 - t0).
+        """The linear-model proxy (`LinearProxy`) set up at once, its friction velocity amplitude matched to
+        match = (t_a, t_b, rms) or LINEAR_PROXY_FRICTION_VELOCITY_M_S (match=None). inputs: `_linear_proxy_inputs()`
+        (computed here when None). The drive sets it up in two parts beside its windows (`_start_proxy`)."""
+        proxy = LinearProxy(self, self._linear_proxy_inputs() if inputs is None else inputs)
+        proxy.prepare()
+        proxy.match(match)
+        self._use_linear_proxy(proxy, proxy.finish())
 
-        match = (t_a, t_b, rms): V such that the linear vehicle's RMS strut velocity (mean square over the
-        stations) over [t_a, t_b] equals `rms`, the full model's over the same stretch (the first window): the
-        equivalent linearisation that reproduces the response's variance (Roberts & Spanos, Random Vibration and
-        Statistical Linearization, 1990, ch. 5). The linear vehicle's damping stands for the seal friction and the
-        valves' non-linear (orifice, blow-off) damping together, which the laminar-bleed linearisation alone does
-        not give. Two secant steps in log V from LINEAR_PROXY_FRICTION_VELOCITY_M_S (RMS ~ V^alpha); V kept within
-        LINEAR_PROXY_V_RANGE_M_S. match=None: V = LINEAR_PROXY_FRICTION_VELOCITY_M_S.
-
-        inputs: `_linear_proxy_inputs()` (computed here when None). The set-up reads the model, the road and the
-        time grid only, so it runs beside the windows (`run`)."""
-        m, ms = self.model, self.ms
-        t0 = time.perf_counter()
-        T0, standing = self._linear_proxy_inputs() if inputs is None else inputs
-        rate = ms.LINEAR_PROXY_RATE_HZ
-        t_end = float(np.interp(self.settings.distance_m, self.s_grid, self.t_grid))
-        pad = 30.0                                    # s of road before and after (the linear vehicle's memory)
-        t = np.arange(-pad, t_end + pad, 1.0 / rate)
-        s = np.interp(t, self.t_grid, self.s_grid, left=0.0)
-        roads = np.empty((m.n, t.size))
-        for i in range(m.n):              # the grid heights under each tyre, linearly interpolated (held at the ends)
-            road, track = self.station_roads[i], ("left" if i % 2 == 0 else "right")
-            roads[i] = np.interp(s - m.a[i], road.distance_m, road.heights(track, m.params.station_axle(i)))
-
-
-        def velocities(V, sl=slice(None)):
-            lin = linear.linearise(m.params, T0, friction_velocity_m_s=V, gas_masses=self.gas_masses,
-                                   equilibrium=standing)
-            return linear_strut_velocity(lambda f: linear.strut_velocity_response(lin, f), roads[:, sl], rate,
-                                         ms.LINEAR_PROXY_FREQUENCIES)
-        V = ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S
-        if match is not None:
-            t_a, t_b, target = match
-            sl = slice(max(int((t_a + pad) * rate) - int(pad * rate), 0), int((t_b + pad) * rate) + int(pad * rate))
-            inside = (t[sl] >= t_a) & (t[sl] <= t_b)
-
-            def rms(Vx):
-                return float(np.sqrt(np.mean(velocities(Vx, sl)[:, inside] ** 2)))
-            lo, hi = ms.LINEAR_PROXY_V_RANGE_M_S
-            alpha = 0.5                       # first guess: RMS ~ V^0.5 (friction-dominated damping ~ 1/V)
-            r = rms(V)
-            for _ in range(2):
-                V_new = float(np.clip(V * (target / r) ** (1.0 / alpha), lo, hi))
-                if abs(np.log(V_new / V)) < 1e-3:
-                    break
-                r_new = rms(V_new)
-                if r_new != r:
-                    alpha = float(np.clip(np.log(r_new / r) / np.log(V_new / V), 0.05, 2.0))
-                V, r = V_new, r_new
-            V = float(np.clip(V * (target / r) ** (1.0 / alpha), lo, hi))
-        v = velocities(V)
-        c = np.concatenate([np.zeros((m.n, 1)), np.cumsum(0.5 * (v[:, 1:] ** 2 + v[:, :-1] ** 2), axis=1) / rate],
-                           axis=1)
+    def _use_linear_proxy(self, proxy: LinearProxy, result: tuple) -> None:
+        t, c, V = result
         self._proxy_t = (t, c)
         self.proxy_friction_velocity_m_s = V
-        self.proxy_setup_s = time.perf_counter() - t0
+        self.proxy_setup_s = proxy.setup_s
 
     def _proxy_setup(self):
         """Per station: the cumulative band-passed squared road rate of the road it reads (`band_power_cumulative`,
@@ -167,6 +121,7 @@ class MultiscaleDrive(Drive):
         t0 = time.perf_counter()
         n_windows = int(np.ceil(self.settings.distance_m / self.ms.spacing_m - 1e-9))
         # the linear-model proxy is set up after the first window, whose RMS strut velocity it matches
+        self._proxy_thread = None        # the linear-model proxy's thread while it is set up (`_start_proxy`)
         self._linear_proxy_pending = (self.ms.control_variate and self.ms.proxy == "linear_model"
                                       and n_windows >= self.MIN_CV_WINDOWS)
         if self._linear_proxy_pending:
@@ -233,11 +188,12 @@ class MultiscaleDrive(Drive):
         return float(np.interp(s_m, self.s_grid, self.t_grid))
 
     # --- one window ------------------------------------------------------------------------------
-    def integrate(self, solver, x0, t0, t_end) -> dict:
+    def integrate(self, solver, x0, t0, t_end, t_warm=None) -> dict:
         """The full model on `solver` from (x0, t0) to t_end (whole sample intervals): the blocks (states, sample
-        times, the solver's memory and the inputs at the samples) and the integration's wall time. Reads the model,
-        the road and the settings only, so a window integrates on a thread beside another (`paired_windows`).
-        Stops after a block with a non-finite state (`_window` reports it)."""
+        times, the solver's memory and the inputs at the samples) and the integration's wall time; with the
+        warm-up's end t_warm also the window's arrays (`_window_arrays`), computed here rather than on the drive's
+        thread. Reads the model, the road and the settings only, so a window integrates on a thread beside another
+        (`paired_windows`). Stops after a block with a non-finite state (`_window` reports it)."""
         S = self.settings
         dt, K, M = S.dt_s, self.K, self.M
         sample_dt = K * dt
@@ -259,32 +215,42 @@ class MultiscaleDrive(Drive):
                 break
             x, t = X[:, take - 1].copy(), float(t_s[take - 1])
             done += take
-        return {"x0": x0, "blocks": blocks, "integration_s": wall}
+        run = {"x0": x0, "blocks": blocks, "integration_s": wall}
+        if t_warm is not None:
+            run["arrays"] = self._window_arrays(t0, t_warm, t_end, run)
+        return run
 
-    def _window(self, t0, t_warm, t_end, integ, run):
-        """The window integrated from run["x0"] at t0 to t_end (whole sample intervals, `integrate`): its record
-        (the averaged slow model, the end state, ...), with its samples for the sink (`_to_sink`)."""
-        S = self.settings
-        sample_dt = self.K * S.dt_s
+    def _window_times(self, c0: float, c1: float, t_total: float) -> tuple:
+        """(start, warm-up end, end) [s] of the window from c0 to c1 [m]."""
+        t0 = self._time_at(c0)
+        t_end = min(self._time_at(c1), t_total)
+        return t0, min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end), t_end
+
+    def _window_arrays(self, t0, t_warm, t_end, run) -> dict:
+        """The window's samples checked (`_check`; its error kept, raised by `_window`: a window integrated from a
+        predicted start may be integrated again) and joined: states X, times T, solver memory MEM, inputs U, the
+        first sample of the averaged stretch a, and J, the sum of the slow rates' Jacobian over that stretch."""
+        sample_dt = self.K * self.settings.dt_s
         x0 = run["x0"]                   # where the window was integrated from (a predicted start, when paired)
-        integ[0] += run["integration_s"]
         n_samples = max(int(np.ceil((t_end - t0) / sample_dt - 1e-9)), 1)
         n_warm = min(int(np.ceil((t_warm - t0) / sample_dt - 1e-9)), n_samples - 1)
         xs, ts, mems, Us = [x0[:, None]], [np.array([t0])], [np.zeros((self.model.n_memory, 1))], []
         samples = []
         x = x0
-        for X, t_s, memory, U_s, take in run["blocks"]:
-            s_s = self.distance_at(t_s)
-            self._check(X, t_s, s_s, x)
-            X, t_s, s_s, memory = X[:, :take], t_s[:take], s_s[:take], memory[:, :take]
-            samples.append((X, U_s, t_s, s_s, memory))
-            xs.append(X)
-            ts.append(t_s)
-            mems.append(memory)
-            Us.append(U_s)
-            x = X[:, -1]
+        try:
+            for X, t_s, memory, U_s, take in run["blocks"]:
+                s_s = self.distance_at(t_s)
+                self._check(X, t_s, s_s, x)
+                X, t_s, s_s, memory = X[:, :take], t_s[:take], s_s[:take], memory[:, :take]
+                samples.append((X, U_s, t_s, s_s, memory))
+                xs.append(X)
+                ts.append(t_s)
+                mems.append(memory)
+                Us.append(U_s)
+                x = X[:, -1]
+        except SimulationError as exc:
+            return {"error": exc}
         X = np.concatenate(xs, axis=1)
-        T = np.concatenate(ts)
         MEM = np.concatenate(mems, axis=1)
         U = np.concatenate(Us, axis=1)
         a = n_warm                       # first sample of the averaged stretch (index into X, T)
@@ -295,6 +261,17 @@ class MultiscaleDrive(Drive):
         if J_sum is None:
             J_sum = self._J_sums[N] = self.J_slow.map("J_slow_sum", "serial", N, [3], [0])
         J = np.asarray(J_sum(X[:, avg], MEM[:, avg], U[:, a:], self.p))
+        return {"error": None, "samples": samples, "X": X, "T": np.concatenate(ts), "MEM": MEM, "a": a, "N": N,
+                "J": J}
+
+    def _window(self, t0, t_warm, t_end, integ, run):
+        """The window integrated from run["x0"] at t0 to t_end (whole sample intervals, `integrate`): its record
+        (the averaged slow model, the end state, ...), with its samples for the sink (`_to_sink`)."""
+        integ[0] += run["integration_s"]
+        arrays = run.get("arrays") or self._window_arrays(t0, t_warm, t_end, run)
+        if arrays["error"] is not None:
+            raise arrays["error"]
+        X, T, MEM, a, N, J = (arrays[k] for k in ("X", "T", "MEM", "a", "N", "J"))
         # d(slow rates)/d(all states), averaged, times how the state moves with the slow states (fast states
         # slaved to them: a gas temperature follows its strut's): A = mean(J) S
         A = (J / N) @ self._slaving(X[:, -1])
@@ -307,8 +284,8 @@ class MultiscaleDrive(Drive):
                               X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
         return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
-                "A": A, "r": r, "xbar": xbar,
-                "b": r - A @ xbar, "q_rate": q_rate, "row": row, "memory": MEM[:, -1].copy(), "samples": samples}
+                "A": A, "r": r, "xbar": xbar, "b": r - A @ xbar, "q_rate": q_rate, "row": row,
+                "memory": MEM[:, -1].copy(), "samples": arrays["samples"]}
 
     def _to_sink(self, sink, records: list) -> None:
         """The processed windows' samples, statistics rows and checkpoints to the sink, in order (emptied). Called
@@ -334,18 +311,30 @@ class MultiscaleDrive(Drive):
         xp[self.ext_index] = x[self.ext_index] + w_prev["q_rate"] * tau
         return self._rest_state(xp)
 
-    def _start_proxy(self, w: dict) -> Future:
-        """The linear-model proxy set up on a thread beside the windows after the first (`_linear_proxy_setup`,
-        matched to this first window's RMS strut velocity); it is read only after the last window."""
+    def _start_proxy(self) -> tuple:
+        """The linear-model proxy's first part (`LinearProxy.prepare`) started on a thread of its own when the drive
+        is built: it runs beside the output file's set-up and the first window, on the core they leave idle.
+        (the thread, the proxy)."""
+        beside = self._proxy_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy")
+        proxy = LinearProxy(self, self._linear_proxy_inputs())
+        beside.submit(timed, "drive: the proxy's set-up", proxy.prepare)
+        self._linear_proxy_pending = False
+        return beside, proxy
+
+    def _match_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy, w: dict) -> None:
+        """The proxy's friction velocity amplitude matched to this first window's RMS strut velocity
+        (`LinearProxy.match`), on the proxy's thread after its first part."""
         iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
         match = ((w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
                  if self.ms.LINEAR_PROXY_MATCH_RMS else None)
-        beside = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy")
-        job = beside.submit(timed, "drive: the proxy's set-up", self._linear_proxy_setup, match,
-                            self._linear_proxy_inputs())
-        beside.shutdown(wait=False)
-        self._linear_proxy_pending = False
-        return job
+        beside.submit(timed, "drive: the proxy's set-up", proxy.match, match)
+
+    def _finish_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy) -> Future:
+        """The proxy over the whole road (`LinearProxy.finish`) on its thread, started beside the last window, which
+        runs alone (the windows before it run two at once): it is read only after the last window."""
+        def finish():
+            self._use_linear_proxy(proxy, proxy.finish())
+        return beside.submit(timed, "drive: the proxy's set-up", finish)
 
     def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
@@ -359,16 +348,15 @@ class MultiscaleDrive(Drive):
         windows = self.ms.windows(D)
         records = []
         proxy_job = None
+        proxy_start, self._proxy_start = self._proxy_start, None
         pending = None                   # the next window, integrating beside the current one
         k = -1
         while k + 1 < len(windows):
             k += 1
             c0, c1 = windows[k]
-            t0 = self._time_at(c0)
+            t0, t_warm, t_end = self._window_times(c0, c1, t_total)
             if k > 0:
                 x = self._rest_state(x)
-            t_end = min(self._time_at(c1), t_total)
-            t_warm = min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end)
             run = None
             if pending is not None:      # integrated beside the window before, from a predicted start
                 run, pending = pending.result(), None
@@ -376,21 +364,22 @@ class MultiscaleDrive(Drive):
                     run = None           # integrated again, from its true start
             predicted = run is not None
             if run is None:
-                job = pair.submit(0, x, t0, t_end)
+                job = pair.submit(0, x, t0, t_warm, t_end)
+                if proxy_start is not None and k == len(windows) - 1:
+                    proxy_job = self._finish_proxy(*proxy_start)
                 # the last window is integrated from its true start: it ends with the drive, whose short memories
                 # (the oil against its wall, the gas) it simulates rather than samples
                 if self.ms.paired_windows and records and k + 2 < len(windows):
-                    nxt = windows[k + 1]
-                    pending = pair.submit(1, self._predicted_start(x, t0, records[-1], nxt[0]),
-                                          self._time_at(nxt[0]), min(self._time_at(nxt[1]), t_total))
+                    nxt = self._window_times(*windows[k + 1], t_total)
+                    pending = pair.submit(1, self._predicted_start(x, t0, records[-1], windows[k + 1][0]), *nxt)
                 if sink is not None:
                     self._to_sink(sink, unwritten)        # while they integrate
                 run = job.result()
             w = self._window(t0, t_warm, t_end, integ, run)
             w["flow"] = LinearFlow(w["A"])
             w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
-            if k == 0 and self._linear_proxy_pending:
-                proxy_job = self._start_proxy(w)
+            if k == 0 and proxy_start is not None:
+                self._match_proxy(*proxy_start, w)
             if k == 0 and self.ms.placement == "weighted":
                 lam = np.linalg.eigvals(w["A"]).real
                 lam = lam[lam < -1e-12]
@@ -463,6 +452,9 @@ class MultiscaleDrive(Drive):
             records, x, proxy_job = self._drive_windows_to(sink, progress, t_total, integ, pair)
         finally:
             pair.close()
+            if self._proxy_thread is not None:         # its jobs end (or, the drive failed, are dropped) by themselves
+                self._proxy_thread.shutdown(wait=False, cancel_futures=True)
+                self._proxy_thread = None
         if proxy_job is not None:
             proxy_job.result()
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)

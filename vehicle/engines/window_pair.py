@@ -19,16 +19,16 @@ class WindowPair:
         self.pool = None
         self.solvers: list = []
 
-    def submit(self, slot: int, x0: np.ndarray, t0: float, t_end: float) -> Future:
+    def submit(self, slot: int, x0: np.ndarray, t0: float, t_warm: float, t_end: float) -> Future:
         d = self.drive
         if self.pool is None and hasattr(d.solver, "refined_solver"):
             self.solvers = [d.solver] + [d.solver.refined_solver(1).bind(d.model, d.K, d.M)]
             self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hpsim-window")
         if self.pool is None:
             done = Future()
-            done.set_result(d.integrate(d.solver, x0, t0, t_end))
+            done.set_result(d.integrate(d.solver, x0, t0, t_end, t_warm))
             return done
-        return self.pool.submit(d.integrate, self.solvers[slot], x0, t0, t_end)
+        return self.pool.submit(d.integrate, self.solvers[slot], x0, t0, t_end, t_warm)
 
     def close(self) -> None:
         if self.pool is not None:

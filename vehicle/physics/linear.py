@@ -114,25 +114,41 @@ def mechanical_states(model: VehicleModel) -> list[str]:
     return names + list(HULL) + list(HULL_RATES)
 
 
+# the outputs `linearise` keeps: the tyre loads and the strut velocities
+LINEARISED_OUTPUTS = ("wheel_load", "strut_velocity")
+
+
+def jacobian_graph(model: VehicleModel, outputs: tuple[str, ...] = LINEARISED_OUTPUTS) -> ca.Function:
+    """(x, z, u, p) -> the Jacobians `_model_jacobians` reads (CasADi AD of the model's DAE form), named
+    `jacobian_name(model, outputs)`: the same for every model of one structure (the parameter values are its input
+    p), so a caller may keep it (the multiscale proxy keeps it in the compile cache, serialized)."""
+    f, g, y = model.dae_functions
+    x, z, u = ca.SX.sym("x", model.nx), ca.SX.sym("z", model.nz), ca.SX.sym("u", model.nu)
+    p = ca.SX.sym("p", model.np)
+    dx, res, out_all = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
+    ys = []
+    for name in outputs:
+        j = list(model.OUTPUT_NAMES).index(name)
+        ys.append(out_all[j * model.n:(j + 1) * model.n])
+    yv = ca.vertcat(*ys)
+    return ca.Function(jacobian_name(model, outputs), [x, z, u, p],
+                       [ca.jacobian(dx, x), ca.jacobian(dx, z), ca.jacobian(dx, u),
+                        ca.jacobian(yv, x), ca.jacobian(yv, z), ca.jacobian(yv, u),
+                        ca.jacobian(res, x), ca.jacobian(res, z), ca.jacobian(res, u), res, dx])
+
+
+def jacobian_name(model: VehicleModel, outputs: tuple[str, ...] = LINEARISED_OUTPUTS) -> str:
+    return f"hpsim_linear_jacobians_{model.structure}_{len(outputs)}" + "".join(f"_{o}" for o in outputs)
+
+
 def _jacobian_function(model: VehicleModel, outputs: tuple[str, ...]) -> ca.Function:
-    """(x, z, u, p) -> the Jacobians of `_model_jacobians`, built once per model structure and outputs: models that
-    differ in parameter values only (the equivalent-linear friction at several velocity amplitudes, as the
-    multiscale proxy's matching asks for) share it."""
+    """`jacobian_graph`, built once per model structure and outputs: models that differ in parameter values only
+    (the equivalent-linear friction at several velocity amplitudes, as the multiscale proxy's matching asks for)
+    share it."""
     key = (model.structure, tuple(outputs))
     J = _JACOBIANS.get(key)
     if J is None:
-        f, g, y = model.dae_functions
-        x, z, u = ca.SX.sym("x", model.nx), ca.SX.sym("z", model.nz), ca.SX.sym("u", model.nu)
-        p = ca.SX.sym("p", model.np)
-        dx, res, out_all = f(x, z, u, p), g(x, z, u, p), y(x, z, u, p)[0]
-        ys = []
-        for name in outputs:
-            j = list(model.OUTPUT_NAMES).index(name)
-            ys.append(out_all[j * model.n:(j + 1) * model.n])
-        yv = ca.vertcat(*ys)
-        J = ca.Function("J", [x, z, u, p], [ca.jacobian(dx, x), ca.jacobian(dx, z), ca.jacobian(dx, u),
-                                            ca.jacobian(yv, x), ca.jacobian(yv, z), ca.jacobian(yv, u),
-                                            ca.jacobian(res, x), ca.jacobian(res, z), ca.jacobian(res, u), res, dx])
+        J = jacobian_graph(model, outputs)
         if len(_JACOBIANS) >= 8:
             _JACOBIANS.pop(next(iter(_JACOBIANS)))
         _JACOBIANS[key] = J
@@ -144,7 +160,7 @@ _JACOBIANS: dict = {}
 
 
 def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray,
-                     outputs: tuple[str, ...] = ("wheel_load",)):
+                     outputs: tuple[str, ...] = ("wheel_load",), J: ca.Function | None = None):
     """(df/dx, df/du, [(dy/dx, dy/du) per output], f) at (x0, u0) for run parameters p; y: the per-station
     outputs `outputs` (names in VehicleModel.OUTPUT_NAMES, default the tyre load).
 
@@ -154,7 +170,7 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     ODE form eliminates them by a warm-started, clamped Newton step whose derivative is
     ill-defined exactly at rest, where the clamp's bounds meet.)
     """
-    J = _jacobian_function(model, outputs)
+    J = _jacobian_function(model, outputs) if J is None else J
     z0 = np.zeros(model.nz)
     for _ in range(20):                     # the valve pressure drops at the equilibrium (0 at rest)
         values = [np.asarray(v, float) for v in J(x0, z0, u0, p)]
@@ -173,12 +189,14 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
 
 
 def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s: float | None = None,
-              speed_m_per_s: float = 0.0, gas_masses=None, equilibrium=None) -> LinearVehicle:
+              speed_m_per_s: float = 0.0, gas_masses=None, equilibrium=None,
+              jacobians: ca.Function | None = None) -> LinearVehicle:
     """The vehicle linearised at its standing equilibrium (struts at `temperatures_K`, default the
     charging temperature; charged as in a drive, or with the given `gas_masses`, a drive's own [kg]).
     See the module doc for the friction option. `equilibrium`: that standing equilibrium when the caller has
     solved it (an `EquilibriumSolver.solve` of this vehicle at these temperatures and gas masses: the seal
-    friction does not enter the static balance, so one serves every friction velocity)."""
+    friction does not enter the static balance, so one serves every friction velocity). `jacobians`: this
+    vehicle's `jacobian_graph` when the caller keeps one (default: built here, once per model structure)."""
     model = None
     if gas_masses is None:
         model = VehicleModel(params)
@@ -196,7 +214,7 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     # standing road, constant speed (no acceleration), ambient = strut temperature: no heat flow
     u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
     p = model.run_parameters(gas_masses, False)
-    A, B, ((C, D), (Cv, Dv)), rates = _model_jacobians(model, x0, u0, p, ("wheel_load", "strut_velocity"))
+    A, B, ((C, D), (Cv, Dv)), rates = _model_jacobians(model, x0, u0, p, LINEARISED_OUTPUTS, jacobians)
     names = mechanical_states(model)
     keep = [model.idx(nm) for nm in names]
     residual = np.max(np.abs(rates[keep]))

@@ -355,6 +355,46 @@ def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehic
     assert np.max(np.abs(v_fft - v_sim)) < 0.01 * np.max(np.abs(v_sim))
 
 
+def test_spectral_product_by_interval_equals_the_interpolated_transfer_functions():
+    """`strut_velocity_from_spectrum` forms V = H_k R + w (dH_k R) per interval of the transfer functions' grid:
+    the same sums as interpolating each H_ij to every FFT line first (the reference below), to rounding."""
+    from vehicle.engines.control_variate import road_spectrum, strut_velocity_from_spectrum
+
+    rng = np.random.default_rng(3)
+    n, N, nf, rate = 4, 5003, 41, 25.0
+    roads = rng.normal(size=(n, N))
+    Hc = rng.normal(size=(nf, n, n)) + 1j * rng.normal(size=(nf, n, n))
+    R, L, _ = spec = road_spectrum(roads)
+    got = strut_velocity_from_spectrum(lambda f: Hc, spec, rate, nf)
+    f = np.fft.rfftfreq(L, 1.0 / rate)
+    x = f / (rate / 2 / (nf - 1))
+    k = np.minimum(x.astype(np.intp), nf - 2)
+    w = x - k
+    V = np.zeros_like(R)
+    for i in range(n):
+        for j in range(n):
+            V[i] += (Hc[k, i, j] * (1.0 - w) + Hc[k + 1, i, j] * w) * R[j]
+    ref = np.fft.irfft(V, n=L, axis=1)[:, :N]
+    assert np.max(np.abs(got - ref)) < 1e-12 * np.max(np.abs(ref))
+
+
+def test_on_grid_array_interpolates_a_uniform_grid_as_np_interp():
+    """The proxy's road under each tyre: a uniform grid indexed by division (`on_grid_array`) against np.interp on
+    the grid's positions: equal to the rounding of the position (s ~ 1e5 m), held at both ends."""
+    from vehicle.engines.control_variate import on_grid, on_grid_array
+
+    rng = np.random.default_rng(4)
+    h = 0.05
+    z = rng.normal(size=200_001)
+    s = np.concatenate([[-3.0, 0.0], np.sort(rng.uniform(0.0, (z.size - 1) * h, 5000)), [(z.size - 1) * h, 1e4]])
+    got = on_grid_array(z, h, s)
+    ref = np.interp(s, np.arange(z.size) * h, z)
+    position_ulp = np.spacing((z.size - 1) * h) / h          # index units
+    assert np.max(np.abs(got - ref)) <= 4 * position_ulp * np.max(np.abs(np.diff(z)))
+    assert got[0] == z[0] and abs(got[-1] - z[-1]) <= 2 * np.spacing(abs(z[-2]) + abs(z[-1]))
+    assert got[7] == on_grid(z, h, float(s[7]))
+
+
 def test_linear_model_proxy_can_match_a_given_rms_strut_velocity():
     """The optional equivalent linearisation by variance (`_linear_proxy_setup(match)`, off by default): the
     friction velocity amplitude found gives the linear vehicle the requested RMS strut velocity over the stretch,

@@ -61,10 +61,10 @@ def test_with_no_tolerance_every_predicted_window_runs_again_and_equals_one_by_o
 def test_the_second_thread_changes_no_bit(monkeypatch):
     threaded_sink, threaded = _run(True)
 
-    def at_once(self, slot, x0, t0, t_end):          # the drive's own solver, one window after the other
+    def at_once(self, slot, x0, t0, t_warm, t_end):  # the drive's own solver, one window after the other
         from concurrent.futures import Future
         done = Future()
-        done.set_result(self.drive.integrate(self.drive.solver, x0, t0, t_end))
+        done.set_result(self.drive.integrate(self.drive.solver, x0, t0, t_end, t_warm))
         return done
     monkeypatch.setattr(window_pair.WindowPair, "submit", at_once)
     sink, rep = _run(True)
