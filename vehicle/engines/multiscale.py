@@ -321,24 +321,27 @@ class MultiscaleDrive(Drive):
         self._linear_proxy_pending = False
         return beside, proxy
 
-    def _match_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy, w: dict) -> None:
-        """The proxy's friction velocity amplitude matched to this first window's RMS strut velocity
-        (`LinearProxy.match`), on the proxy's thread after its first part."""
-        iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
-        match = ((w["t_avg0"], w["t_end"], float(np.sqrt(np.mean(w["q_rate"][iv]))))
+    def _match_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy, arrays: dict) -> Future:
+        """The proxy's friction velocity amplitude matched to the first window's RMS strut velocity over its
+        averaged stretch (`LinearProxy.match`; `_window_arrays`), on the proxy's thread after its first part: started
+        before the window's record is made (its slaving matrix takes a while), so that it runs beside that."""
+        X, T, a = arrays["X"], arrays["T"], arrays["a"]
+        iv = [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)]
+        mean_square_velocity = (X[iv, -1] - X[iv, a]) / (T[-1] - T[a])
+        match = ((float(T[a]), float(T[-1]), float(np.sqrt(np.mean(mean_square_velocity))))
                  if self.ms.LINEAR_PROXY_MATCH_RMS else None)
-        beside.submit(timed, "drive: the proxy's set-up", proxy.match, match)
+        return beside.submit(timed, "drive: the proxy's set-up", proxy.match, match)
 
-    def _finish_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy) -> Future:
-        """The proxy over the whole road (`LinearProxy.finish`) on its thread, started beside the last window, which
-        runs alone (the windows before it run two at once): it is read only after the last window."""
-        def finish():
-            self._use_linear_proxy(proxy, proxy.finish())
-        return beside.submit(timed, "drive: the proxy's set-up", finish)
+    def _finish_proxy(self, proxy: LinearProxy, matched: Future) -> None:
+        """The proxy over the whole road (`LinearProxy.finish`), on the drive's thread while the last window
+        integrates: that window runs alone (the windows before it run two at once), and the drive's thread would
+        only wait for it."""
+        matched.result()
+        self._use_linear_proxy(proxy, timed("drive: the proxy's set-up", proxy.finish))
 
     def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
-        state at the drive's end, the proxy's set-up job or None). With `paired_windows` the window after each
+        state at the drive's end); the linear-model proxy set up beside them (`_start_proxy`). With `paired_windows` the window after each
         odd one integrates beside it from a predicted start (`_predicted_start`); its warm-up correction carries it
         to its true start. The processed windows wait in `unwritten` and go to the sink while the next ones
         integrate."""
@@ -365,8 +368,6 @@ class MultiscaleDrive(Drive):
             predicted = run is not None
             if run is None:
                 job = pair.submit(0, x, t0, t_warm, t_end)
-                if proxy_start is not None and k == len(windows) - 1:
-                    proxy_job = self._finish_proxy(*proxy_start)
                 # the last window is integrated from its true start: it ends with the drive, whose short memories
                 # (the oil against its wall, the gas) it simulates rather than samples
                 if self.ms.paired_windows and records and k + 2 < len(windows):
@@ -374,12 +375,15 @@ class MultiscaleDrive(Drive):
                     pending = pair.submit(1, self._predicted_start(x, t0, records[-1], windows[k + 1][0]), *nxt)
                 if sink is not None:
                     self._to_sink(sink, unwritten)        # while they integrate
+                if proxy_job is not None and k == len(windows) - 1:
+                    self._finish_proxy(proxy_start[1], proxy_job)
+                    proxy_job = None
                 run = job.result()
+            if k == 0 and proxy_start is not None and run["arrays"]["error"] is None:
+                proxy_job = self._match_proxy(*proxy_start, run["arrays"])
             w = self._window(t0, t_warm, t_end, integ, run)
             w["flow"] = LinearFlow(w["A"])
             w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
-            if k == 0 and proxy_start is not None:
-                self._match_proxy(*proxy_start, w)
             if k == 0 and self.ms.placement == "weighted":
                 lam = np.linalg.eigvals(w["A"]).real
                 lam = lam[lam < -1e-12]
@@ -416,7 +420,9 @@ class MultiscaleDrive(Drive):
             unwritten.append(w)
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
-        return records, x, proxy_job
+        if proxy_job is not None:        # the proxy was matched after the last window (a drive of one window)
+            self._finish_proxy(proxy_start[1], proxy_job)
+        return records, x
 
     def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair) -> tuple:
         """`_drive_windows`, every processed window written to the sink at the end, or when the drive fails, before
@@ -449,14 +455,12 @@ class MultiscaleDrive(Drive):
         integ = [0.0]
         pair = WindowPair(self)
         try:
-            records, x, proxy_job = self._drive_windows_to(sink, progress, t_total, integ, pair)
+            records, x = self._drive_windows_to(sink, progress, t_total, integ, pair)
         finally:
             pair.close()
             if self._proxy_thread is not None:         # its jobs end (or, the drive failed, are dropped) by themselves
                 self._proxy_thread.shutdown(wait=False, cancel_futures=True)
                 self._proxy_thread = None
-        if proxy_job is not None:
-            proxy_job.result()
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
             w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
                      p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
