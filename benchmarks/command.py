@@ -13,6 +13,12 @@ multiscale of the medians, and the `-v` stage times of the median run of each (r
 road, the cache lookup, the drive, the summary; "other" is the wall time outside the stages: interpreter start,
 imports, the output file's set-up), and each command's CPU time (user + system, of the process and its children):
 on a shared machine the wall times are noisy (compare the ratio of one run), the CPU times less so.
+
+Python's bytecode cache: a user's Python writes each module's compiled bytecode (__pycache__) on the first import
+and reads it afterwards. Where PYTHONDONTWRITEBYTECODE is set (this project's development machine sets it), every
+command compiles hpsim's ~110 modules from their source again (~0.2 s in each command). The benchmark runs its
+commands under the environment's setting and prints it; --bytecode-cache runs them with Python's default (the
+warm-up run writes the cache beside the sources; __pycache__ is ignored by git).
 """
 from __future__ import annotations
 
@@ -32,13 +38,14 @@ REPO = Path(__file__).resolve().parents[1]
 STAGE = re.compile(r"^stage (?P<name>.+): (?P<s>[0-9.]+) s$")
 
 
-def run_once(scenario: Path, out: Path) -> dict:
-    """One `hpsim -v run`: its wall time and the stage times it logs."""
+def run_once(scenario: Path, out: Path, env: dict | None = None) -> dict:
+    """One `hpsim -v run` (in the environment `env`, default this one's): its wall time and the stage times it
+    logs."""
     cmd = [sys.executable, "-m", "vehicle.cli", "-v", "run", str(scenario), "-o", str(out), "--overwrite",
            "--no-progress"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    res = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, env=env)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -65,15 +72,20 @@ def main(argv=None) -> int:
     ap.add_argument("--multiscale", default=str(REPO / "scenarios" / "mileage_106km_multiscale.yaml"))
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--bytecode-cache", action="store_true",
+                    help="run the commands with Python's bytecode cache (PYTHONDONTWRITEBYTECODE unset)")
     args = ap.parse_args(argv)
     scenarios = {"full": Path(args.full).resolve(), "multiscale": Path(args.multiscale).resolve()}
     runs: dict[str, list[dict]] = {k: [] for k in scenarios}
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"} if args.bytecode_cache else None
+    bytecode = "written and read" if (env or os.environ).get("PYTHONDONTWRITEBYTECODE") is None else \
+        "not written (PYTHONDONTWRITEBYTECODE is set: every command compiles hpsim's modules; --bytecode-cache)"
     with tempfile.TemporaryDirectory() as tmp:
-        for name, scen in scenarios.items():           # warm-up: the compile cache filled
-            run_once(scen, Path(tmp) / f"{name}.h5")
+        for name, scen in scenarios.items():           # warm-up: the compile cache (and bytecode cache) filled
+            run_once(scen, Path(tmp) / f"{name}.h5", env)
         for _ in range(args.repeat):
             for name, scen in scenarios.items():
-                runs[name].append(run_once(scen, Path(tmp) / f"{name}.h5"))
+                runs[name].append(run_once(scen, Path(tmp) / f"{name}.h5", env))
     median = {}
     for name, rs in runs.items():
         walls = [r["wall_s"] for r in rs]
@@ -86,8 +98,9 @@ def main(argv=None) -> int:
     cpu_ratio = median["full"]["cpu_s"] / median["multiscale"]["cpu_s"]
     if args.json:
         print(json.dumps({"runs": median, "ratio": ratio, "ratios": ratios, "cpu_ratio": cpu_ratio,
-                          "cpus": os.cpu_count()}, indent=1))
+                          "cpus": os.cpu_count(), "bytecode": bytecode}, indent=1))
         return 0
+    print(f"Python's bytecode cache: {bytecode}")
     for name, m in median.items():
         print(f"{name:10s} wall {m['wall_s']:6.2f} s (runs: {', '.join(f'{w:.2f}' for w in m['walls_s'])}), "
               f"CPU {m['cpu_s']:6.2f} s (runs: {', '.join(f'{c:.2f}' for c in m['cpus_s'])})")

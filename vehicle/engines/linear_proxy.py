@@ -38,7 +38,8 @@ class LinearProxy:
 
     def prepare(self) -> None:
         """The road under each tyre on the proxy's time grid (the grid heights, linearly interpolated, held at the
-        ends: `on_grid_array`), its spectrum, and the linear vehicle at the first guess of V (which builds the Jacobians)."""
+        ends: `on_grid_array`), its spectrum, and the linear vehicle at the first guess of V (its Jacobians read
+        from the compile cache or built: `_jacobians`)."""
         t0 = time.perf_counter()
         d, m, rate = self.drive, self.drive.model, self.rate_hz
         t_end = float(np.interp(d.settings.distance_m, d.s_grid, d.t_grid))

@@ -341,10 +341,10 @@ class MultiscaleDrive(Drive):
 
     def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
-        state at the drive's end); the linear-model proxy set up beside them (`_start_proxy`). With `paired_windows` the window after each
-        odd one integrates beside it from a predicted start (`_predicted_start`); its warm-up correction carries it
-        to its true start. The processed windows wait in `unwritten` and go to the sink while the next ones
-        integrate."""
+        state at the drive's end); the linear-model proxy is set up beside them (`_start_proxy`). With
+        `paired_windows` the window after each odd one integrates beside it from a predicted start
+        (`_predicted_start`); its warm-up correction carries it to its true start. The processed windows wait in
+        `unwritten` and go to the sink while the next ones integrate."""
         S = self.settings
         D = S.distance_m
         x = self.initial_state().x.copy()

@@ -79,7 +79,7 @@ class MultiscaleSettings:
     # 0.03-0.3 m/s), velocities on a grid of LINEAR_PROXY_RATE_HZ (prior: 25 Hz, Nyquist above the wheel hop),
     # transfer functions on LINEAR_PROXY_FREQUENCIES points (docs/engines.md, "Settings")
     LINEAR_PROXY_FRICTION_VELOCITY_M_S = 0.1
-    LINEAR_PROXY_V_RANGE_M_S = (0.005, 1.0)   # where the RMS-matched amplitude is sought (`_linear_proxy_setup`)
+    LINEAR_PROXY_V_RANGE_M_S = (0.005, 1.0)   # where the matched amplitude is sought (`LinearProxy.matched_velocity`)
     # V matched to the first window's RMS strut velocity (equivalent linearisation, Roberts & Spanos 1990 ch. 5)
     LINEAR_PROXY_MATCH_RMS = True
     # the control variate regresses each slow state's station pattern on the same pattern of the proxy
