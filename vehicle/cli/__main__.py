@@ -1,5 +1,3 @@
-import sys
+from vehicle.cli import entry
 
-from vehicle.cli import main
-
-sys.exit(main())
+entry()
