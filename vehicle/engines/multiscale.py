@@ -98,7 +98,7 @@ class MultiscaleDrive(Drive):
     def _linear_proxy_setup(self, match=None, inputs=None):
         """The linear-model proxy (`LinearProxy`) set up at once, its friction velocity amplitude matched to
         match = (t_a, t_b, rms) or LINEAR_PROXY_FRICTION_VELOCITY_M_S (match=None). inputs: `_linear_proxy_inputs()`
-        (computed here when None). The drive sets it up in two parts beside its windows (`_start_proxy`)."""
+        (computed here when None). A drive sets it up in three parts where a core idles (`_start_proxy`)."""
         proxy = LinearProxy(self, self._linear_proxy_inputs() if inputs is None else inputs)
         proxy.prepare()
         proxy.match(match)
@@ -120,7 +120,7 @@ class MultiscaleDrive(Drive):
         self._proxy_t = None
         t0 = time.perf_counter()
         n_windows = int(np.ceil(self.settings.distance_m / self.ms.spacing_m - 1e-9))
-        # the linear-model proxy is set up after the first window, whose RMS strut velocity it matches
+        # the linear-model proxy: started when the drive is built, matched to the first window's RMS strut velocity
         self._proxy_thread = None        # the linear-model proxy's thread while it is set up (`_start_proxy`)
         self._linear_proxy_pending = (self.ms.control_variate and self.ms.proxy == "linear_model"
                                       and n_windows >= self.MIN_CV_WINDOWS)
