@@ -121,7 +121,6 @@ class MultiscaleDrive(Drive):
         t0 = time.perf_counter()
         n_windows = int(np.ceil(self.settings.distance_m / self.ms.spacing_m - 1e-9))
         # the linear-model proxy: started when the drive is built, matched to the first window's RMS strut velocity
-        self._proxy_thread = None        # the linear-model proxy's thread while it is set up (`_start_proxy`)
         self._linear_proxy_pending = (self.ms.control_variate and self.ms.proxy == "linear_model"
                                       and n_windows >= self.MIN_CV_WINDOWS)
         if self._linear_proxy_pending:
@@ -188,12 +187,12 @@ class MultiscaleDrive(Drive):
         return float(np.interp(s_m, self.s_grid, self.t_grid))
 
     # --- one window ------------------------------------------------------------------------------
-    def integrate(self, solver, x0, t0, t_end, t_warm=None) -> dict:
+    def integrate(self, solver, x0, t0, t_end, t_warm) -> dict:
         """The full model on `solver` from (x0, t0) to t_end (whole sample intervals): the blocks (states, sample
-        times, the solver's memory and the inputs at the samples) and the integration's wall time; with the
-        warm-up's end t_warm also the window's arrays (`_window_arrays`), computed here rather than on the drive's
-        thread. Reads the model, the road and the settings only, so a window integrates on a thread beside another
-        (`paired_windows`). Stops after a block with a non-finite state (`_window` reports it)."""
+        times, the solver's memory and the inputs at the samples), the integration's wall time and the window's
+        arrays up to the warm-up's end t_warm and after it (`_window_arrays`), computed here rather than on the
+        drive's thread. Reads the model, the road and the settings only, so a window integrates on a thread beside
+        another (`paired_windows`). Stops after a block with a non-finite state (`_window` reports it)."""
         S = self.settings
         dt, K, M = S.dt_s, self.K, self.M
         sample_dt = K * dt
@@ -216,8 +215,7 @@ class MultiscaleDrive(Drive):
             x, t = X[:, take - 1].copy(), float(t_s[take - 1])
             done += take
         run = {"x0": x0, "blocks": blocks, "integration_s": wall}
-        if t_warm is not None:
-            run["arrays"] = self._window_arrays(t0, t_warm, t_end, run)
+        run["arrays"] = self._window_arrays(t0, t_warm, t_end, run)
         return run
 
     def _window_times(self, c0: float, c1: float, t_total: float) -> tuple:
@@ -261,14 +259,18 @@ class MultiscaleDrive(Drive):
         if J_sum is None:
             J_sum = self._J_sums[N] = self.J_slow.map("J_slow_sum", "serial", N, [3], [0])
         J = np.asarray(J_sum(X[:, avg], MEM[:, avg], U[:, a:], self.p))
-        return {"error": None, "samples": samples, "X": X, "T": np.concatenate(ts), "MEM": MEM, "a": a, "N": N,
-                "J": J}
+        T = np.concatenate(ts)
+        # the totals' rates over the averaged stretch (the squared strut velocities' among them: `_match_proxy`)
+        q_rate = (X[self.ext_index, -1] - X[self.ext_index, a]) / (T[-1] - T[a])
+        return {"error": None, "samples": samples, "X": X, "T": T, "MEM": MEM, "a": a, "N": N, "J": J,
+                "q_rate": q_rate}
 
-    def _window(self, t0, t_warm, t_end, integ, run):
-        """The window integrated from run["x0"] at t0 to t_end (whole sample intervals, `integrate`): its record
-        (the averaged slow model, the end state, ...), with its samples for the sink (`_to_sink`)."""
+    def _window(self, run: dict, integ: list) -> dict:
+        """The record of the window `integrate` gave (run: from run["x0"], with its arrays): the averaged slow
+        model, the end state, ..., with its samples for the sink (`_to_sink`); its integration time added to
+        integ[0]."""
         integ[0] += run["integration_s"]
-        arrays = run.get("arrays") or self._window_arrays(t0, t_warm, t_end, run)
+        arrays = run["arrays"]
         if arrays["error"] is not None:
             raise arrays["error"]
         X, T, MEM, a, N, J = (arrays[k] for k in ("X", "T", "MEM", "a", "N", "J"))
@@ -279,12 +281,11 @@ class MultiscaleDrive(Drive):
         xa, xb = X[:, a], X[:, -1]
         r = (xb[self.slow_index] - xa[self.slow_index]) / dur
         xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
-        q_rate = (xb[self.ext_index] - xa[self.ext_index]) / dur
         row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
                               X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
         return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
-                "A": A, "r": r, "xbar": xbar, "b": r - A @ xbar, "q_rate": q_rate, "row": row,
+                "A": A, "r": r, "xbar": xbar, "b": r - A @ xbar, "q_rate": arrays["q_rate"], "row": row,
                 "memory": MEM[:, -1].copy(), "samples": arrays["samples"]}
 
     def _to_sink(self, sink, records: list) -> None:
@@ -315,20 +316,18 @@ class MultiscaleDrive(Drive):
         """The linear-model proxy's first part (`LinearProxy.prepare`) started on a thread of its own when the drive
         is built: it runs beside the output file's set-up and the first window, on the core they leave idle.
         (the thread, the proxy)."""
-        beside = self._proxy_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy")
+        beside = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy")
         proxy = LinearProxy(self, self._linear_proxy_inputs())
         beside.submit(timed, "drive: the proxy's set-up", proxy.prepare)
-        self._linear_proxy_pending = False
         return beside, proxy
 
     def _match_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy, arrays: dict) -> Future:
         """The proxy's friction velocity amplitude matched to the first window's RMS strut velocity over its
         averaged stretch (`LinearProxy.match`; `_window_arrays`), on the proxy's thread after its first part: started
         before the window's record is made (its slaving matrix takes a while), so that it runs beside that."""
-        X, T, a = arrays["X"], arrays["T"], arrays["a"]
-        iv = [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)]
-        mean_square_velocity = (X[iv, -1] - X[iv, a]) / (T[-1] - T[a])
-        match = ((float(T[a]), float(T[-1]), float(np.sqrt(np.mean(mean_square_velocity))))
+        T, a = arrays["T"], arrays["a"]
+        iv = np.searchsorted(self.ext_index, [self.model.idx(f"I_v2[{i}]") for i in range(self.model.n)])
+        match = ((float(T[a]), float(T[-1]), float(np.sqrt(np.mean(arrays["q_rate"][iv]))))
                  if self.ms.LINEAR_PROXY_MATCH_RMS else None)
         return beside.submit(timed, "drive: the proxy's set-up", proxy.match, match)
 
@@ -351,7 +350,7 @@ class MultiscaleDrive(Drive):
         windows = self.ms.windows(D)
         records = []
         proxy_job = None
-        proxy_start, self._proxy_start = self._proxy_start, None
+        proxy_start = self._proxy_start
         pending = None                   # the next window, integrating beside the current one
         k = -1
         while k + 1 < len(windows):
@@ -381,7 +380,7 @@ class MultiscaleDrive(Drive):
                 run = job.result()
             if k == 0 and proxy_start is not None and run["arrays"]["error"] is None:
                 proxy_job = self._match_proxy(*proxy_start, run["arrays"])
-            w = self._window(t0, t_warm, t_end, integ, run)
+            w = self._window(run, integ)
             w["flow"] = LinearFlow(w["A"])
             w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
             if k == 0 and self.ms.placement == "weighted":
@@ -458,9 +457,9 @@ class MultiscaleDrive(Drive):
             records, x = self._drive_windows_to(sink, progress, t_total, integ, pair)
         finally:
             pair.close()
-            if self._proxy_thread is not None:         # its jobs end (or, the drive failed, are dropped) by themselves
-                self._proxy_thread.shutdown(wait=False, cancel_futures=True)
-                self._proxy_thread = None
+            if self._proxy_start is not None:          # its jobs end (or, the drive failed, are dropped) by themselves
+                self._proxy_start[0].shutdown(wait=False, cancel_futures=True)
+                self._proxy_start = None               # set up once: a second run reuses the proxy
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
             w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
                      p_gap=self.proxy(w["s_end"], w["s_gap_end"]))

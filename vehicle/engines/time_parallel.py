@@ -337,7 +337,7 @@ class TimeParallelDrive(SegmentJoin):
             t_end = min(c._time_at(min(s + span, s1)), t1)
             t_warm = min(c._time_at(min(s + c.ms.warm_up_m, s1)), t_end)
             x0 = c._rest_state(x)
-            w = c._window(tw0, t_warm, t_end, [0.0], c.integrate(c.solver, x0, tw0, t_end))
+            w = c._window(c.integrate(c.solver, x0, tw0, t_end, t_warm), [0.0])
             t_next = c._time_at(starts[i + 1]) if i + 1 < n_windows else t1
             x = w["x_end"].copy()
             Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))

@@ -124,6 +124,12 @@ def _verified(lib: Path, record: Path, code_sha: str | None, lookup_key: str | N
         return False
 
 
+def _file_record(path: Path) -> dict:
+    """What a cache entry's record holds of its file (`_verified` compares it): its SHA-256, its size, when built."""
+    return {"library_sha256": _sha256_file(path), "library_bytes": path.stat().st_size,
+            "built": time.strftime("%Y-%m-%dT%H:%M:%S")}
+
+
 def _mine(path: Path) -> bool:
     return not hasattr(os, "geteuid") or path.stat().st_uid == os.geteuid()
 
@@ -234,8 +240,7 @@ def _finish_build(proc, job) -> str | None:
         if proc.returncode != 0:
             return stderr.strip()[:300] or f"exit code {proc.returncode}"
         built = build / f"{stem}.so"
-        meta = {"c_sha256": code_sha, "library_sha256": _sha256_file(built), "library_bytes": built.stat().st_size,
-                "compiler": cc, "flags": flags, "built": time.strftime("%Y-%m-%dT%H:%M:%S"), **extra}
+        meta = {"c_sha256": code_sha, **_file_record(built), "compiler": cc, "flags": flags, **extra}
         (build / f"{stem}.json").write_text(json.dumps(meta))
         # atomic renames, library first: a reader sees an old record with a new library at worst,
         # which fails verification and rebuilds
@@ -631,8 +636,7 @@ def serialized_function(lib: Library) -> ca.Function:
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
         (tmp / data.name).write_text(text)
-        meta = {"library_sha256": _sha256_file(tmp / data.name), "library_bytes": (tmp / data.name).stat().st_size,
-                "lookup_key": key, "built": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        meta = {**_file_record(tmp / data.name), "lookup_key": key}
         (tmp / record.name).write_text(json.dumps(meta))
         os.replace(tmp / data.name, data)             # the data first: an old record with new data fails to verify
         os.replace(tmp / record.name, record)
