@@ -67,6 +67,18 @@ def test_verbose_run_logs_its_stages_and_the_commands_wall_time(flagship_300m):
     assert "travel bin lo [mm]" in p.stdout and TRAVEL_NOTE in p.stdout
 
 
+def test_the_times_the_run_ends_with_are_rounded_down():
+    """The command's and the drive's wall times on `hpsim run`'s last line: tenths rounded down, so that the
+    printed command time never exceeds the process's own (it ends right after) and the drive stays within it."""
+    from vehicle.cli.stages import tenths_down
+
+    assert [tenths_down(s) for s in (0.0, 0.04, 1.587, 1.6, 1.65, 25.99)] == ["0.0", "0.0", "1.5", "1.6", "1.6",
+                                                                           "25.9"]
+    for k in range(800):
+        drive_s, command_s = 0.0373 * k, 0.0373 * k + 0.0071 * (k % 29)
+        assert float(tenths_down(drive_s)) <= float(tenths_down(command_s)) <= command_s
+
+
 def test_the_oil_data_range_is_where_walther_and_andrade_agree_to_10_percent():
     T1, nu1, T2, nu2 = 313.15, 14e-6, 373.15, 5e-6          # the apc oil's datasheet points (struts/data/apc.yaml)
     A, B = oil.walther_coefficients(T1, nu1, T2, nu2)

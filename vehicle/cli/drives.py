@@ -14,7 +14,7 @@ from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 from vehicle.cli import response, vehicles
-from .stages import command_wall_s
+from .stages import command_wall_s, tenths_down
 
 
 def register(sub):
@@ -146,7 +146,8 @@ def cmd_run(args):
         print(out)
         return 0
     print(format_report(report(out, check=False)))      # written by this process just now
-    print(f"wrote {out} (the command {command_wall_s():.1f} s wall, the drive {summary.get('wall_s', 0.0):.1f} s)")
+    print(f"wrote {out} (the command {tenths_down(command_wall_s())} s wall, the drive "
+          f"{tenths_down(summary.get('wall_s', 0.0))} s)")
     return 0
 
 

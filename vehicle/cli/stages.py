@@ -5,6 +5,7 @@ else from the first import of the command line package.
 """
 from __future__ import annotations
 
+import math
 import os
 import time
 
@@ -30,3 +31,10 @@ def command_wall_s() -> float:
     """Wall seconds since the command started."""
     since_import = time.perf_counter() - _IMPORTED
     return since_import + (_AGE_AT_IMPORT or 0.0)
+
+
+def tenths_down(seconds: float) -> str:
+    """Seconds to one decimal, rounded down: a time printed as the command ends never exceeds the time passed (the
+    process ends right after it: `vehicle.cli.entry`), and two times keep their order (the drive within the
+    command)."""
+    return f"{math.floor(seconds * 10.0) / 10.0:.1f}"
