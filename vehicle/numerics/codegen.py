@@ -55,6 +55,7 @@ from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time, vector_math
+from vehicle.numerics.direct_call import DirectFunction
 
 CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
 DEFAULT_CACHE_MAX_MB = 200.0
@@ -510,9 +511,11 @@ def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_
     return lib, ""
 
 
-def compile_function(fn: ca.Function | Library, *, opt_level: str = "-O2", verbose: bool = False) -> ca.Function:
+def compile_function(fn: ca.Function | Library, *, opt_level: str = "-O2", verbose: bool = False,
+                     direct: bool = False):
     """Generate C for `fn`, compile it to a shared library (cached, verified) and load it. A `Library` found in the
-    cache by its key is loaded without building its graph.
+    cache by its key is loaded without building its graph. direct: the loaded library as a
+    `vehicle.numerics.direct_call.DirectFunction` (called on NumPy arrays without CasADi's conversions).
 
     Falls back to CasADi's virtual machine (slower; the same results to rounding: it calls the C library's exp, log,
     pow and tanh, the compiled code vehicle.numerics.vector_math's) when no C compiler is found
@@ -523,7 +526,7 @@ def compile_function(fn: ca.Function | Library, *, opt_level: str = "-O2", verbo
         warnings.warn("no C compiler found: running the model in CasADi's virtual machine (slower)")
         return fn.graph() if isinstance(fn, Library) else fn
     if isinstance(fn, Library):
-        return _compile_library(fn, cc, opt_level, verbose)
+        return _compile_library(fn, cc, opt_level, verbose, direct)
     flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
@@ -539,10 +542,15 @@ def compile_function(fn: ca.Function | Library, *, opt_level: str = "-O2", verbo
     if not _same_signature(compiled, fn):
         warnings.warn(f"compile cache {d}: {lib.name} does not match the model; using CasADi's virtual machine")
         return fn
-    return compiled
+    return _loaded(compiled, lib, direct)
 
 
-def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool) -> ca.Function:
+def _loaded(compiled: ca.Function, lib: Path, direct: bool):
+    """The library loaded as `compile_function` returns it: the `casadi.external`, or called directly."""
+    return DirectFunction(compiled, str(lib)) if direct else compiled
+
+
+def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool, direct: bool = False):
     """compile_function of a `Library`: found by its key (no graph built), else built from its graph."""
     d, stem, key = _library_stem(spec, cc, opt_level)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
@@ -550,7 +558,7 @@ def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool) -> c
         compiled = _load_library(spec, d, stem)
         if compiled is not None:
             _touch(record)
-            return compiled
+            return _loaded(compiled, lib, direct)
     graph, job = _library_job(spec, cc, opt_level, d, stem, key)
     if _compile_announced(spec.name, job, verbose) is not None:
         return graph
@@ -560,7 +568,7 @@ def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool) -> c
                       "using CasADi's virtual machine")
         return graph
     _touch(record)
-    return compiled
+    return _loaded(compiled, lib, direct)
 
 
 def _compile_announced(name: str, job, verbose: bool) -> str | None:

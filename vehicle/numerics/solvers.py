@@ -622,16 +622,17 @@ class Idas:
 SOLVERS = {"ros2": Ros2, "idas": Idas}
 
 
-def compiled_outputs(model, n: int, compile: bool = True) -> ca.Function:
+def compiled_outputs(model, n: int, compile: bool = True):
     """The model's outputs y(x, memory, u, p) (`VehicleModel.output_function_ode`) at n samples in one compiled call:
     (X (nx, n), memory (n_memory, n), U (nu, n), p (np, 1)) -> (outputs, hull accelerations, axle heights), each
     with n columns. Cached per model structure and n (in this process; on disk by `compile_function`): a drive
-    evaluates its block outputs with it instead of in CasADi's virtual machine (same results to rounding)."""
+    evaluates its block outputs with it instead of in CasADi's virtual machine (same results to rounding). Compiled,
+    it is called directly on NumPy arrays (`vehicle.numerics.direct_call`); without a compiler, CasADi's function."""
     key = ("outputs", model.structure, int(n), compile)
     fn = _BLOCK_FUNCTIONS.get(key)
     if fn is None:
         lib = _outputs_library(model, n)
-        fn = compile_function(lib) if compile else lib.graph()
+        fn = compile_function(lib, direct=True) if compile else lib.graph()
         _GRAPHS.pop(key, None)
         _BLOCK_FUNCTIONS[key] = fn
     return fn
