@@ -384,17 +384,16 @@ class Drive:
                 f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s), first in {where} "
                 f"({len(bad)} states non-finite){last}; {self._advice()}")
         deflections = m.strut_deflections(X)
-        for i in range(m.n):
-            stroke = m.struts[i].p.geometry.stroke
-            xs = deflections[i]
-            bad = (xs < -self.STROKE_MARGIN_M) | (xs > stroke + self.STROKE_MARGIN_M)
-            if np.any(bad):
-                col = int(np.argmax(bad))
-                where = "bottomed out (beyond the bump stop)" if xs[col] > stroke else "over-extended (beyond the rebound stop)"
-                raise SimulationError(
-                    f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
-                    f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
-                    f"{X[m.idx(f'T_oil[{i}]'), col] - 273.15:.1f} degC (oil); {self._advice()}")
+        strokes = np.array([st.p.geometry.stroke for st in m.struts])[:, None]
+        outside = (deflections < -self.STROKE_MARGIN_M) | (deflections > strokes + self.STROKE_MARGIN_M)
+        if np.any(outside):                  # the first station out of its stroke, at its first such sample
+            i = int(np.argmax(np.any(outside, axis=1)))
+            stroke, xs, col = float(strokes[i, 0]), deflections[i], int(np.argmax(outside[i]))
+            where = "bottomed out (beyond the bump stop)" if xs[col] > stroke else "over-extended (beyond the rebound stop)"
+            raise SimulationError(
+                f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
+                f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
+                f"{X[m.idx(f'T_oil[{i}]'), col] - 273.15:.1f} degC (oil); {self._advice()}")
         T = X[self.heat_nodes_index]
         lo, hi = self.PHYSICAL_TEMPERATURE_K
         bad = (T < lo) | (T > hi)

@@ -90,16 +90,6 @@ class Layout:
         return len(self.names)
 
 
-class _NamedRows:
-    """Rows of a state array by state name, looked up on access (a view for `station_motion`)."""
-
-    def __init__(self, X, layout: Layout):
-        self.X, self.layout = X, layout
-
-    def __getitem__(self, name: str):
-        return self.X[self.layout.index(name)]
-
-
 class VehicleModel:
     def __init__(self, params: VehicleParams, ride_metrics: bool = True):
         self.params = params
@@ -273,10 +263,20 @@ class VehicleModel:
                 K.r[i] * (X[f"dw[{i}]"] - dzs))
 
     def strut_deflections(self, X) -> np.ndarray:
-        """Strut deflections [m] from state vectors X (nx, ...) -> (n_stations, ...)."""
+        """Strut deflections [m] from state vectors X (nx, ...) -> (n_stations, ...): `station_motion`'s deflection
+        of every station in one array operation (the same operations per element, the same values)."""
         X = np.asarray(X)
-        named = _NamedRows(X, self.layout)           # only the rows station_motion reads (called once per block)
-        return np.array([self.station_motion(named, i)[0] for i in range(self.n)])
+        iz, it, ip, iw = self._deflection_rows
+        column = (self.n,) + (1,) * (X.ndim - 1)
+        zs = hull_eq.station_displacement(X[iz], X[it], X[ip], self.a.reshape(column), self.y.reshape(column),
+                                          self.a_cg, self.y_cg)
+        return hull_eq.strut_deflection(self.x_charged, self.r.reshape(column), X[iw], zs)
+
+    @cached_property
+    def _deflection_rows(self) -> tuple:
+        """State rows of the hull's heave, pitch and roll and of every wheel's travel (`strut_deflections`)."""
+        idx = self.layout.index
+        return idx("z"), idx("theta"), idx("phi"), np.array([idx(f"w[{i}]") for i in range(self.n)])
 
     @cached_property
     def _z_index(self) -> dict:
