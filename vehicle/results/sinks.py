@@ -213,6 +213,9 @@ class H5Sink:
         self.n_samples = n_samples          # rows written (and covered by the last checkpoint)
         self.n_stats = n_stats
         self.plan: dict[str, list[FileVariable]] = {}
+        # open dataset handles by (group, name): h5py looks a name up in its group anew on every access (0.2 ms
+        # each; a flush appends to some 50 datasets)
+        self.datasets: dict[tuple[str, str], h5py.Dataset] = {}
         self.buffer: dict[str, list] = {}
         self.n_buffered = 0
         self.stats_buffer: list[dict] = []
@@ -259,6 +262,12 @@ class H5Sink:
             # Ctrl-C arrived during the last block: stop here, where the file is consistent
             raise KeyboardInterrupt
 
+    def _dataset(self, group: str, name: str) -> h5py.Dataset:
+        ds = self.datasets.get((group, name))
+        if ds is None:
+            ds = self.datasets[group, name] = (self.ts if group == "timeseries" else self.st)[name]
+        return ds
+
     def _append(self, ds: h5py.Dataset, start: int, rows: np.ndarray) -> None:
         ds.resize(start + len(rows), axis=0)
         ds[start:] = rows
@@ -267,7 +276,7 @@ class H5Sink:
         """Append the buffered rows, flush, then write the checkpoint that covers them."""
         if self.n_buffered:
             for name, parts in self.buffer.items():
-                self._append(self.ts[name], self.n_samples, np.concatenate(parts, axis=0))
+                self._append(self._dataset("timeseries", name), self.n_samples, np.concatenate(parts, axis=0))
             self.n_samples += self.n_buffered
             self.buffer, self.n_buffered = {}, 0
         if self.stats_buffer:
@@ -275,7 +284,7 @@ class H5Sink:
             for key in self.stats_buffer[0]:
                 value = np.stack([np.asarray(r[key], float) for r in self.stats_buffer], axis=-1)
                 for v in self._vars("stats", key, value):
-                    self._append(self.st[v.name], self.n_stats, v.take(value, True))
+                    self._append(self._dataset("stats", v.name), self.n_stats, v.take(value, True))
             self.n_stats += n
             self.stats_buffer = []
         self.f.flush()
