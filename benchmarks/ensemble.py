@@ -1,9 +1,12 @@
 """The ensemble engine (vector lanes across cases) against the scalar engine, side by side in one run (issue 26).
 
-    python benchmarks/ensemble.py [--distance 2km] [--lanes 4] [--isa avx2] [--no-callgrind] [--json]
+    python benchmarks/ensemble.py [--distance 2km] [--lanes 4] [--isa avx2] [--cases mileage] [--no-callgrind] [--json]
 
 The drive: the mileage scenario's settings (apc_8x8, ISO class D, 4 ms step, output every 1 s, statistics every
-1 km) over --distance, in `lanes` cases that differ in speed (18-24 km/h), initial temperature and road seed.
+1 km) over --distance, in `lanes` cases that differ in initial temperature, road seed and (--cases mixed, the
+default) speed, 18-24 km/h; --cases mileage: all at the mileage test's 20 km/h, as the cases of a study of the
+mileage test are. With mixed speeds a lane whose drive ends first is masked until the slowest one ends (it costs
+as much as a used lane): the ensemble's figures then include that waste, as a study's group of unlike drives does.
 Printed, for the engine before vehicle.numerics.vector_math (`libm_block`: CasADi's C calling the C library's
 exp/log/pow/tanh, the engine of the issue's filing), today's scalar engine (`Ros2`, each case on its own, its calls
 batched into vector calls) and the ensemble (`vehicle.engines.ensemble`, the cases in lockstep through
@@ -39,11 +42,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 MILEAGE_KM = 106.0
 
 
-def scenario_text(i: int, distance: str) -> str:
+def scenario_text(i: int, distance: str, cases: str = "mixed") -> str:
     import yaml
 
+    speed = 18 + 2 * (i % 4) if cases == "mixed" else 20
     return yaml.safe_dump({"description": f"ensemble benchmark case {i}", "vehicle": {"name": "apc_8x8"},
-                           "road": {"iso_class": "D", "seed": i}, "speed": f"{18 + 2 * (i % 4)} km/h",
+                           "road": {"iso_class": "D", "seed": i}, "speed": f"{speed} km/h",
                            "distance": distance, "ambient_temperature": "25 degC",
                            "initial_temperatures": f"{25 + 3 * i} degC", "solver": {"dt": "4 ms"},
                            "output": {"interval": "1 s", "stats_interval": "1 km"}})
@@ -175,7 +179,7 @@ def libm_solver_class():
     return LibmRos2
 
 
-def drives(distance: str, lanes: int, isa: str, folder: Path) -> dict:
+def drives(distance: str, lanes: int, isa: str, folder: Path, cases: str = "mixed") -> dict:
     """The cases on the engine before vehicle.numerics.vector_math (C library calls), on today's scalar engine, one
     after the other, then in one ensemble: CPU and wall seconds, per-case results, the largest relative difference
     of the files (ensemble against today's scalar engine)."""
@@ -184,7 +188,7 @@ def drives(distance: str, lanes: int, isa: str, folder: Path) -> dict:
     from vehicle.studies.sweep import run_case
 
     base = str(Path(__file__).resolve().parents[1] / "scenarios")
-    items = {kind: [(f"{kind}{i}", (scenario_text(i, distance), f"case {i}", base, str(folder / f"{kind}{i}.h5")))
+    items = {kind: [(f"{kind}{i}", (scenario_text(i, distance, cases), f"case {i}", base, str(folder / f"{kind}{i}.h5")))
                     for i in range(lanes)] for kind in ("s", "e", "m")}
     out = {}
     libm = libm_solver_class()
@@ -235,6 +239,8 @@ def main() -> None:
     ap.add_argument("--isa", default=None, help="sse2, avx2 or avx512 (default: vehicle.numerics.lanes.default_isa)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2, help="workers of the throughput figure (default 2)")
+    ap.add_argument("--cases", choices=("mixed", "mileage"), default="mixed",
+                    help="mixed: speeds 18-24 km/h (default); mileage: all at 20 km/h, as a mileage study's cases")
     ap.add_argument("--no-callgrind", action="store_true")
     ap.add_argument("--no-drives", action="store_true")
     ap.add_argument("--json", action="store_true")
@@ -280,8 +286,8 @@ def main() -> None:
         if not args.no_drives:
             km = parse_quantity(args.distance, "m", where="--distance") / 1e3
             (tmp / "short").mkdir()
-            res["drives"] = drives(args.distance, L, isa, tmp)
-            res["drives_short"] = drives(f"{km / 4} km", L, isa, tmp / "short")
+            res["drives"] = drives(args.distance, L, isa, tmp, args.cases)
+            res["drives_short"] = drives(f"{km / 4} km", L, isa, tmp / "short", args.cases)
     if "drives" in res:
         # per case: a fixed part (set-up, model, equilibria, files) and a part per km, from the two distances
         d, d4 = res["drives"], res["drives_short"]
@@ -308,7 +314,7 @@ def main() -> None:
     print(f"  one block, largest state difference lanes vs scalar: {ps['block_max_abs_difference']:.3g}")
     if "drives" in res:
         d = res["drives"]
-        print(f"  {L} drives of {args.distance}: scalar CPU {d['scalar']['cpu_s']:.1f} s (wall {d['scalar']['wall_s']:.1f})"
+        print(f"  {L} drives of {args.distance} ({args.cases} cases): scalar CPU {d['scalar']['cpu_s']:.1f} s (wall {d['scalar']['wall_s']:.1f})"
               f", ensemble CPU {d['ensemble']['cpu_s']:.1f} s (wall {d['ensemble']['wall_s']:.1f}, integration "
               f"{d['ensemble']['integration_s']:.1f}); ratio {d['scalar']['cpu_s'] / d['ensemble']['cpu_s']:.2f}x")
         dph, pc = res["drives_per_hour"], res["per_case_106km_cpu_s"]

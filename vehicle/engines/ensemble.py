@@ -285,12 +285,18 @@ def group_size(lanes: int | None, n_cases: int, workers: int | None) -> tuple[in
 
 
 def grouped_jobs(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], lanes: int | None, can_join: list[bool],
-                 workers: int | None = None):
+                 workers: int | None = None, durations: list[float] | None = None):
     """(function, jobs, unpack) for `vehicle.studies.sweep.execute`: the jobs that `can_join` in lockstep groups
-    (`group_size`) run by `run_lockstep`, the others alone by `fn`; unpack(tag, result) -> [(case tag, result)]."""
+    (`group_size`) run by `run_lockstep`, the others alone by `fn`; unpack(tag, result) -> [(case tag, result)].
+    durations: each job's drive time [s]; given, the groups are formed in order of it (a lane whose drive ends
+    first is masked, at the cost of a used lane, until the group's longest drive ends: cases of like duration
+    share a group)."""
     lanes, size = group_size(lanes, sum(can_join), workers)
     if lanes <= 1:
         return fn, jobs, lambda tag, r: [(tag, r)]
+    if durations is not None:
+        order = sorted(range(len(jobs)), key=lambda k: durations[k])
+        jobs, can_join = [jobs[k] for k in order], [can_join[k] for k in order]
     together = [j for j, ok in zip(jobs, can_join) if ok]
     alone = [j for j, ok in zip(jobs, can_join) if not ok]
     members: dict[str, list[str]] = {}

@@ -268,7 +268,7 @@ def _run_sweep(path, out_dir, cases, workers, scheduler, log, overwrite, before_
     try:
         # --ensemble K: the full-fidelity cases K at a time in lockstep (vehicle.engines.ensemble)
         fn, jobs, unpack = grouped_jobs(run_case, jobs, ensemble, [eligible(c["source"].data) for c in todo],
-                                        workers)
+                                        workers, durations=[c["prepared"].duration_s() for c in todo])
         execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-{path.stem}",
                 finished=lambda tag, r: [finished(by_name[name], rr) for name, rr in unpack(tag, r)])
     except KeyboardInterrupt:

@@ -228,3 +228,15 @@ def test_groups_and_eligibility():
     results = {tag: fn(*args) for tag, args in grouped}
     cases = dict(pair for tag in results for pair in unpack(tag, results[tag]))
     assert sorted(cases) == [f"c{i}" for i in range(6)] and all(r["status"] == "done" for r in cases.values())
+    # with the drives' durations, cases of like duration share a group (the short ones are not masked waiting for
+    # a long one): eight cases at two speeds in two groups of four, each of one speed
+    durations = [100.0, 50.0] * 4
+    jobs = [(f"d{i}", (i,)) for i in range(8)]
+    fn, grouped, unpack = grouped_jobs(lambda i: {"status": "done", "i": i}, jobs, 4, [True] * 8,
+                                       durations=durations)
+    members = [[t for t, _ in args[1]] for _, args in grouped]
+    assert [sorted({durations[int(t[1:])] for t in group}) for group in members] == [[50.0], [100.0]]
+    results = {tag: fn(*args) for tag, args in grouped}
+    cases = dict(pair for tag in results for pair in unpack(tag, results[tag]))
+    assert sorted(cases) == [f"d{i}" for i in range(8)]
+    assert all(cases[f"d{i}"]["i"] == i for i in range(8))
