@@ -331,12 +331,14 @@ class MultiscaleDrive(Drive):
                  if self.ms.LINEAR_PROXY_MATCH_RMS else None)
         return beside.submit(timed, "drive: the proxy's set-up", proxy.match, match)
 
-    def _finish_proxy(self, proxy: LinearProxy, matched: Future) -> None:
-        """The proxy over the whole road (`LinearProxy.finish`), on the drive's thread while the last window
-        integrates: that window runs alone (the windows before it run two at once), and the drive's thread would
-        only wait for it."""
-        matched.result()
-        self._use_linear_proxy(proxy, timed("drive: the proxy's set-up", proxy.finish))
+    def _finish_proxy(self, beside: ThreadPoolExecutor, proxy: LinearProxy, matched: Future) -> Future:
+        """The proxy over the whole road (`LinearProxy.finish`) started on the proxy's thread (after its match) when
+        the drive's windows run one at a time: the last one, and the one before it when its predicted start was not
+        kept (the windows before them run two at once). The drive uses it after its last window."""
+        def after_match():
+            matched.result()             # the match's error, if any, is this job's too
+            return timed("drive: the proxy's set-up", proxy.finish)
+        return beside.submit(after_match)
 
     def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
@@ -349,7 +351,7 @@ class MultiscaleDrive(Drive):
         x = self.initial_state().x.copy()
         windows = self.ms.windows(D)
         records = []
-        proxy_job = None
+        proxy_job = finished = None      # the proxy's match, then its whole-road pass (futures)
         proxy_start = self._proxy_start
         pending = None                   # the next window, integrating beside the current one
         k = -1
@@ -374,8 +376,8 @@ class MultiscaleDrive(Drive):
                     pending = pair.submit(1, self._predicted_start(x, t0, records[-1], windows[k + 1][0]), *nxt)
                 if sink is not None:
                     self._to_sink(sink, unwritten)        # while they integrate
-                if proxy_job is not None and k == len(windows) - 1:
-                    self._finish_proxy(proxy_start[1], proxy_job)
+                if proxy_job is not None and pending is None and k >= len(windows) - 2:
+                    finished = self._finish_proxy(*proxy_start, proxy_job)
                     proxy_job = None
                 run = job.result()
             if k == 0 and proxy_start is not None and run["arrays"]["error"] is None:
@@ -420,7 +422,9 @@ class MultiscaleDrive(Drive):
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
         if proxy_job is not None:        # the proxy was matched after the last window (a drive of one window)
-            self._finish_proxy(proxy_start[1], proxy_job)
+            finished = self._finish_proxy(*proxy_start, proxy_job)
+        if finished is not None:
+            self._use_linear_proxy(proxy_start[1], finished.result())
         return records, x
 
     def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair) -> tuple:
