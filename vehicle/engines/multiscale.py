@@ -74,16 +74,22 @@ class MultiscaleDrive(Drive):
         """S = dx/dx_slow (nx, ns) on the manifold of the vehicle at rest (`_rest_state`): the slow states
         themselves move one to one, the fast ones as the standing vehicle's do (gas temperatures with the strut
         temperature, deflections with gas expansion and oil), the quadratures not at all. Finite differences,
-        computed once per drive (it changes little with the slow states)."""
+        computed once per drive (it changes little with the slow states). The standing vehicle depends on the oil's
+        temperatures and volumes only (`_rest_state`): the column of any other slow state is its own unit column,
+        written without an equilibrium solve (the same numbers: the solve would repeat the base's)."""
         if self._S is not None:
             return self._S
         base = self._rest_state(x)
         S = np.zeros((self.model.nx, len(self.slow_index)))
+        standing_inputs = set(self.T_oil_index.tolist()) | set(self.oil_index.tolist())
         for k, j in enumerate(self.slow_index):
             h = 1e-4 * max(abs(x[j]), 1e-3)
             xp = x.copy()
             xp[j] += h
-            S[:, k] = (self._rest_state(xp) - base) / h
+            if j in standing_inputs:
+                S[:, k] = (self._rest_state(xp) - base) / h
+            else:
+                S[j, k] = (xp[j] - base[j]) / h
         self._S = S
         return S
 
