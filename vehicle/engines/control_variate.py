@@ -118,11 +118,14 @@ def road_spectrum(roads: np.ndarray) -> tuple:
 
 
 def strut_velocity_from_spectrum(H_of_f, spectrum: tuple, rate_hz: float, n_frequencies: int) -> np.ndarray:
-    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road whose `road_spectrum` is
-    given (sampled at rate_hz): V_i(f) = sum_j H_ij(f) R_j(f), H on n_frequencies points up to rate_hz / 2
-    (H_of_f(f) -> (n_f, n, n), `linear.strut_velocity_response`) and linearly interpolated between them. Within
-    each interval [f_k, f_k+1] of that grid H = H_k + w dH_k, so V = H_k R + w (dH_k R): two (n, n) matrix products
-    per interval over all its FFT lines."""
+    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights under each tyre
+    whose `road_spectrum` is given (sampled at rate_hz; their delays, the wheelbase and the two tracks, are in the
+    signals): V_i(f) = sum_j H_ij(f) R_j(f), H on n_frequencies points up to rate_hz / 2 (H_of_f(f) -> (n_f, n, n),
+    `linear.strut_velocity_response`) and linearly interpolated between them. Within each interval [f_k, f_k+1] of
+    that grid H = H_k + w dH_k, so V = H_k R + w (dH_k R): two (n, n) matrix products per interval over all its FFT
+    lines. The signals are taken periodic: the caller pads them (the vehicle's memory: seconds). Parseval: the
+    time-domain variance of the result equals the FFT sum of |V(f)|^2 (tests/unit/engines/test_multiscale.py checks
+    it against a time-domain simulation of the same linear model)."""
     from scipy.fft import irfft
 
     R, L, N = spectrum
@@ -143,26 +146,14 @@ def strut_velocity_from_spectrum(H_of_f, spectrum: tuple, rate_hz: float, n_freq
     return irfft(V, n=L, axis=1)[:, :N]
 
 
-def linear_strut_velocity(H_of_f, roads: np.ndarray, rate_hz: float, n_frequencies: int) -> np.ndarray:
-    """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights `roads` (n, N) [m]
-    under each tyre sampled at rate_hz (their delays, the wheelbase and the two tracks, are in the signals):
-    V_i(f) = sum_j H_ij(f) R_j(f) by the FFT (`road_spectrum`, `strut_velocity_from_spectrum`). The signals are
-    taken periodic: the caller pads them (the vehicle's memory: seconds). Parseval: the time-domain variance of the
-    result equals the FFT sum of |V(f)|^2 (tests/test_multiscale.py checks it against a time-domain simulation of
-    the same linear model)."""
-    return strut_velocity_from_spectrum(H_of_f, road_spectrum(roads), rate_hz, n_frequencies)
-
-
 def on_grid(c: np.ndarray, spacing_m: float, s_m: float) -> float:
-    """c (on a uniform grid from 0) linearly interpolated at s, held at its ends."""
-    x = min(max(s_m / spacing_m, 0.0), c.size - 1.0)
-    i = min(int(x), c.size - 2)
-    return float(c[i] + (x - i) * (c[i + 1] - c[i]))
+    """`on_grid_array` at one point s."""
+    return float(on_grid_array(c, spacing_m, s_m))
 
 
 def on_grid_array(c: np.ndarray, spacing_m: float, s_m: np.ndarray) -> np.ndarray:
-    """`on_grid` at many points: c (on a uniform grid from 0) linearly interpolated at each s, held at its ends (the
-    grid index by a division, where np.interp searches the grid's positions)."""
+    """c (on a uniform grid from 0) linearly interpolated at each s, held at its ends (the grid index by a division,
+    where np.interp searches the grid's positions)."""
     x = np.clip(np.asarray(s_m, float) / spacing_m, 0.0, c.size - 1.0)
     i = np.minimum(x.astype(np.intp), c.size - 2)
     x -= i

@@ -74,7 +74,7 @@ class MultiscaleSettings:
     # the variance of the estimate depends on it (a poor proxy gives beta ~ 0, the plain estimate; docs/engines.md)
     PROXY_BAND_HZ = (1.0, 10.0)
     PROXIES = ("road_rate", "linear_model")
-    # the linear-model proxy (`linear_strut_velocity`): the vehicle linearised at its standing equilibrium, the seal
+    # the linear-model proxy (`vehicle.engines.linear_proxy`): the vehicle linearised at its standing equilibrium, the seal
     # friction by its describing-function damping at this strut velocity amplitude (prior: 0.1 m/s, plausible
     # 0.03-0.3 m/s), velocities on a grid of LINEAR_PROXY_RATE_HZ (prior: 25 Hz, Nyquist above the wheel hop),
     # transfer functions on LINEAR_PROXY_FREQUENCIES points (docs/engines.md, "Settings")

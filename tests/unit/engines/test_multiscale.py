@@ -305,7 +305,7 @@ def test_window_forcings_take_out_the_state_dependence_window_by_window():
 
 
 def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehicle():
-    """The linear-model proxy's strut velocities (`linear_strut_velocity`: FFT of the road under each tyre times
+    """The linear-model proxy's strut velocities (`strut_velocity_from_spectrum`: FFT of the road under each tyre times
     the linearised vehicle's transfer functions, interpolated) against a direct time-domain simulation of the same
     state-space model (scipy.signal.lsim on a fine grid, road heights and rates given analytically, from rest):
     the mean square velocity of each strut over a stretch (the proxy of a window) agrees within 1 %, and the
@@ -316,7 +316,7 @@ def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehic
     from vehicle.physics import linear
     from vehicle.physics.params import load_vehicle
     from vehicle.scenario.settings import MultiscaleSettings
-    from vehicle.engines.control_variate import linear_strut_velocity
+    from vehicle.engines.control_variate import road_spectrum, strut_velocity_from_spectrum
 
     lin = linear.linearise(load_vehicle("apc_8x8"), None,
                            friction_velocity_m_s=MultiscaleSettings.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
@@ -340,8 +340,9 @@ def test_linear_model_proxy_matches_a_time_domain_simulation_of_the_linear_vehic
         return wt * s, dwt * s + wt * ds
 
     t_c = np.arange(0.0, T_sig + T_tail, 1.0 / rate)
-    v_fft = linear_strut_velocity(lambda fr: linear.strut_velocity_response(lin, fr), road(t_c)[0], rate,
-                                  MultiscaleSettings.LINEAR_PROXY_FREQUENCIES)
+    v_fft = strut_velocity_from_spectrum(lambda fr: linear.strut_velocity_response(lin, fr),
+                                         road_spectrum(road(t_c)[0]), rate,
+                                         MultiscaleSettings.LINEAR_PROXY_FREQUENCIES)
     t_f = np.arange(0.0, T_sig + T_tail, 1.0 / (16 * rate))
     r, dr = road(t_f)
     sys_ = StateSpace(lin.A, np.hstack([lin.B_road, lin.B_rate]), lin.C_velocity,
