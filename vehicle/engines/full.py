@@ -152,6 +152,11 @@ class Drive:
         return np.interp(t, self.t_grid, self.s_grid)
 
     @cached_property
+    def _strokes_m(self) -> np.ndarray:
+        """Each station's strut stroke [m] as a column (n, 1) (`_check`)."""
+        return np.array([st.p.geometry.stroke for st in self.model.struts])[:, None]
+
+    @cached_property
     def _input_groups(self) -> list[tuple]:
         """The stations grouped by the surface their tyre reads: (enveloped road, track, pass, station indices,
         their distances behind the first axle [m])."""
@@ -384,7 +389,7 @@ class Drive:
                 f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s), first in {where} "
                 f"({len(bad)} states non-finite){last}; {self._advice()}")
         deflections = m.strut_deflections(X)
-        strokes = np.array([st.p.geometry.stroke for st in m.struts])[:, None]
+        strokes = self._strokes_m
         outside = (deflections < -self.STROKE_MARGIN_M) | (deflections > strokes + self.STROKE_MARGIN_M)
         if np.any(outside):                  # the first station out of its stroke, at its first such sample
             i = int(np.argmax(np.any(outside, axis=1)))

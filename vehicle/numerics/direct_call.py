@@ -42,12 +42,11 @@ class DirectFunction:
         self.in_shapes = [fn.sparsity_in(i).shape for i in range(fn.n_in())]
         if not all(fn.sparsity_in(i).is_dense() for i in range(fn.n_in())):
             raise ValueError(f"{self.name}: DirectFunction takes dense inputs only")
-        self.out_shapes, self.out_dense, self.out_index = [], [], []
+        self.out_shapes, self.out_index = [], []
         for i in range(fn.n_out()):
             sp = fn.sparsity_out(i)
             self.out_shapes.append(sp.shape)
-            self.out_dense.append(sp.is_dense())
-            # the nonzeros' positions in the dense array's Fortran-order values
+            # a sparse output's nonzeros: their positions in the dense array's Fortran-order values
             self.out_index.append(None if sp.is_dense() else np.asarray(sp.find(), dtype=np.intp))
         self.out_nnz = [fn.nnz_out(i) for i in range(fn.n_out())]
         self._incref = getattr(self._lib, f"{self.name}_incref", None)
@@ -74,8 +73,8 @@ class DirectFunction:
         if flag != 0:
             raise RuntimeError(f"{self.name} returned {flag}")
         out = []
-        for values, shape, dense, index in zip(nz, self.out_shapes, self.out_dense, self.out_index):
-            if dense:
+        for values, shape, index in zip(nz, self.out_shapes, self.out_index):
+            if index is None:
                 out.append(values.reshape(shape, order="F"))
             else:
                 full = np.zeros(shape[0] * shape[1])

@@ -228,7 +228,7 @@ class H5Sink:
     def _vars(self, group: str, key: str, value) -> list[FileVariable]:
         k = (group, key)
         if k not in self.plan:
-            where = self.ts if group == "timeseries" else self.st
+            where = self._group(group)
             shape = np.asarray(value, float).shape[:-1]
             self.plan[k] = [v for v in file_variables(key, shape, group, self.n_st, self.n_ax) if v.name in where]
         return self.plan[k]
@@ -262,10 +262,13 @@ class H5Sink:
             # Ctrl-C arrived during the last block: stop here, where the file is consistent
             raise KeyboardInterrupt
 
+    def _group(self, group: str) -> h5py.Group:
+        return self.ts if group == "timeseries" else self.st
+
     def _dataset(self, group: str, name: str) -> h5py.Dataset:
         ds = self.datasets.get((group, name))
         if ds is None:
-            ds = self.datasets[group, name] = (self.ts if group == "timeseries" else self.st)[name]
+            ds = self.datasets[group, name] = self._group(group)[name]
         return ds
 
     def _append(self, ds: h5py.Dataset, start: int, rows: np.ndarray) -> None:
