@@ -32,6 +32,7 @@ from __future__ import annotations
 import ctypes
 import os
 import re
+import string
 from pathlib import Path
 
 import casadi as ca
@@ -61,6 +62,49 @@ _LIBM = {"SIN": "sin", "COS": "cos", "TAN": "tan", "ASIN": "asin",
 _UNARY.update({getattr(ca, f"OP_{k}"): f"LANE1({v},{{0}})" for k, v in _LIBM.items()})
 _UNARY.update({ca.OP_EXP: "EXP({0})", ca.OP_LOG: "LOG({0})", ca.OP_TANH: "TANH({0})"})   # vehicle.numerics.vector_math
 
+# the operations over a GCC / Clang vector type ($T, lanes $W, its integer vector $TL), as macros and functions named
+# with the prefix $P (the step's lanes: no prefix; the strut kernel's lanes: K_), its exp/log/tanh/pow
+# vector_math's functions of suffix $S (`vector_math.vector_source`)
+_VECTOR_OPS = string.Template(r"""
+/* a constant in every lane: a vector literal, so that the compiler folds with it as with a scalar constant */
+#define ${P}BC(c) (($T){$BROADCAST})
+static const double ${P}ONE_ = 1.0;
+#define ${P}ONES (($TL)${P}BC(${P}ONE_))
+#define ${P}CMP(m) (($T)((m) & ${P}ONES))
+#define ${P}NOT(x) ${P}CMP((x) == 0.)
+#define ${P}AND(x, y) (($T)(((x) != 0.) & ((y) != 0.) & ${P}ONES))
+#define ${P}OR(x, y) (($T)((((x) != 0.) | ((y) != 0.)) & ${P}ONES))
+#define ${P}IFZ(c, b) (($T)(($TL)(b) & ((c) != 0.)))
+#define ${P}FABS(x) (($T)(($TL)(x) & ($TL)${P}BC(-0.) ^ ($TL)(x)))
+#define ${P}LANE1(f, x) ({ $T r_ = (x); for (int l = 0; l < $W; ++l) r_[l] = f(r_[l]); r_; })
+#define ${P}LANE2(f, x, y) ({ $T r_ = (x), s_ = (y); for (int l = 0; l < $W; ++l) r_[l] = f(r_[l], s_[l]); r_; })
+#define ${P}SQRT(x) ${P}LANE1(sqrt, x)
+#define ${P}SIGN(x) ({ $T s_ = (x); $T r_ = ${P}CMP(s_ > 0.) - ${P}CMP(s_ < 0.); ($T)(($TL)r_ | (($TL)s_ & ((s_ == 0.) | (s_ != s_)))); })
+/* glibc's fmin/fmax: a NaN operand gives the other operand; of equal operands (+0 and -0) the OR / AND of the bits */
+static inline $T ${P}FMIN($T x, $T y) {
+  $TL tx = (x < y) | (y != y), ty = (y < x) | (x != x);
+  return ($T)((($TL)x & tx) | (($TL)y & ty & ~tx) | ((($TL)x | ($TL)y) & ~(tx | ty)));
+}
+static inline $T ${P}FMAX($T x, $T y) {
+  $TL tx = (x > y) | (y != y), ty = (y > x) | (x != x);
+  return ($T)((($TL)x & tx) | (($TL)y & ty & ~tx) | ((($TL)x & ($TL)y) & ~(tx | ty)));
+}
+#define ${P}EXP(x) hp_exp_$S(x)
+#define ${P}LOG(x) hp_log_$S(x)
+#define ${P}TANH(x) hp_tanh_$S(x)
+#define ${P}POW(x, y) hp_pow_$S(x, y)
+""")
+# the names the statements use (`_statement`): the strut kernel's code takes them with its prefix
+OPERATION_MACROS = ("BC", "CMP", "NOT", "AND", "OR", "IFZ", "FABS", "LANE1", "LANE2", "SQRT", "SIGN", "FMIN", "FMAX",
+                    "EXP", "LOG", "TANH", "POW")
+
+
+def vector_ops(prefix: str, vtype: str, ltype: str, width: int, suffix: str) -> str:
+    """C of the lane operations over the vector type `vtype` of `width` doubles (`_VECTOR_OPS`)."""
+    return _VECTOR_OPS.substitute(P=prefix, T=vtype, TL=ltype, W=width, S=suffix,
+                                  BROADCAST=", ".join(["(c)"] * width))
+
+
 _PRELUDE = r"""
 #include <math.h>
 #include <string.h>
@@ -78,36 +122,7 @@ _PRELUDE = r"""
 #define VW NL
 typedef double V __attribute__((vector_size(8 * NL)));
 typedef long long VL __attribute__((vector_size(8 * NL)));
-/* a constant in every lane: a vector literal, so that the compiler folds with it as with a scalar constant (a
-   division by it becomes a product with its reciprocal under -freciprocal-math, as in the scalar engine) */
-#define BC(c) ((V){%(broadcast)s})
-static const double ONE = 1.0;
-#define ONES ((VL)BC(ONE))
-#define CMP(m) ((V)((m) & ONES))
-#define NOT(x) CMP((x) == 0.)
-#define AND(x, y) ((V)(((x) != 0.) & ((y) != 0.) & ONES))
-#define OR(x, y) ((V)((((x) != 0.) | ((y) != 0.)) & ONES))
-#define IFZ(c, b) ((V)((VL)(b) & ((c) != 0.)))
-#define FABS(x) ((V)((VL)(x) & (VL)BC(-0.) ^ (VL)(x)))
-#define LANE1(f, x) ({ V r_ = (x); for (int l = 0; l < VW; ++l) r_[l] = f(r_[l]); r_; })
-#define LANE2(f, x, y) ({ V r_ = (x), s_ = (y); for (int l = 0; l < VW; ++l) r_[l] = f(r_[l], s_[l]); r_; })
-#define SQRT(x) LANE1(sqrt, x)
-#define SIGN(x) ({ V s_ = (x); V r_ = CMP(s_ > 0.) - CMP(s_ < 0.); (V)((VL)r_ | ((VL)s_ & ((s_ == 0.) | (s_ != s_)))); })
-/* glibc's fmin/fmax: a NaN operand gives the other operand; of equal operands (+0 and -0) the OR / AND of the bits */
-static inline V FMIN(V x, V y) {
-  VL tx = (x < y) | (y != y), ty = (y < x) | (x != x);
-  return (V)(((VL)x & tx) | ((VL)y & ty & ~tx) | (((VL)x | (VL)y) & ~(tx | ty)));
-}
-static inline V FMAX(V x, V y) {
-  VL tx = (x > y) | (y != y), ty = (y > x) | (x != x);
-  return (V)(((VL)x & tx) | ((VL)y & ty & ~tx) | (((VL)x & (VL)y) & ~(tx | ty)));
-}
-%(vector_math)s
-#define EXP(x) hp_exp_v(x)
-#define LOG(x) hp_log_v(x)
-#define TANH(x) hp_tanh_v(x)
-#define POW(x, y) hp_pow_v(x, y)
-#else
+%(vector_ops)s#else
 /* no vector extension: the lanes one after the other, CasADi's scalar statements */
 #define VW 1
 typedef double V;
@@ -350,18 +365,104 @@ def _batched_calls(name: str, ks: list[int], values, width: int) -> list[str]:
     return lines
 
 
-def lanes_source(step: ca.Function, parametric: ca.Function, lanes: int, name: str, batch: int = 0) -> str:
+_MACRO_NAMES = re.compile(r"\b(" + "|".join(OPERATION_MACROS) + r")\(")
+
+
+def emit_kernel(fn: ca.Function, cname: str) -> str:
+    """C of the strut kernel (`vehicle.numerics.split_step`): `fn`'s statements over the kernel's lane type K_T
+    with the K_ operations, its inputs and outputs read and written through K_LOAD / K_STORE (value q of the
+    stations from s_ at q NSP + s_: `_SPLIT`). Dense inputs and outputs."""
+    for k in range(fn.n_in()):
+        if not fn.sparsity_in(k).is_dense():
+            raise ValueError(f"emit_kernel: input {k} of {fn.name()} is sparse")
+    for k in range(fn.n_out()):
+        if not fn.sparsity_out(k).is_dense():
+            raise ValueError(f"emit_kernel: output {k} of {fn.name()} is sparse")
+    args = [f"const V* restrict i{k}" for k in range(fn.n_in())] + [f"V* restrict o{k}" for k in range(fn.n_out())]
+    lines = [f"NOIPA static void {cname}({', '.join(args)}, int s_) {{"]
+    if fn.sz_w():
+        lines.append(f"  K_T {', '.join(f'a{j}' for j in range(fn.sz_w()))};")
+    for k in range(fn.n_instructions()):
+        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+        if op == ca.OP_INPUT:
+            lines.append(f"  a{i_out[0]}=K_LOAD(i{i_in[0]}, {i_in[1]});")
+        elif op == ca.OP_OUTPUT:
+            lines.append(f"  K_STORE(o{i_out[0]}, {i_out[1]}, a{i_in[0]});")
+        else:
+            lines.append(_MACRO_NAMES.sub(r"K_\1(", _statement(fn, k, f"a{i_out[0]}", [f"a{i}" for i in i_in[:2]], [])))
+    lines.append("}")
+    return "\n".join(lines)
+
+
+_SPLIT = r"""
+/* the step split around the struts (vehicle.numerics.split_step): pieces A, B, C over the step's lanes, the strut
+   kernel of each stage over the stations. Buffers between them: value q of station s at q * NSP + s. */
+#define NS %(stations)d
+#define NSP %(padded)d
+#if VW == 1 && (defined(__GNUC__) || defined(__clang__))
+/* one case per call: its stations in one vector of NSP doubles */
+#define KG NSP
+typedef double S __attribute__((vector_size(8 * NSP)));
+typedef long long SL __attribute__((vector_size(8 * NSP)));
+#define K_T S
+%(kernel_ops)s
+#define K_LOAD(p, k) ({ S t_; memcpy(&t_, (p) + (long)(k) * NSP, sizeof t_); t_; })
+#define K_STORE(p, k, v) do { S t_ = (v); memcpy((p) + (long)(k) * NSP, &t_, sizeof t_); } while (0)
+#else
+/* the step's lanes (cases), station after station */
+#define KG 1
+#define K_T V
+%(kernel_aliases)s
+#define K_LOAD(p, k) ((p)[(long)(k) * NSP + s_])
+#define K_STORE(p, k, v) ((p)[(long)(k) * NSP + s_] = (v))
+#endif
+#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += KG) f(in, pw, out, s_)
+%(functions)s
+NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* restrict i2, const V* restrict i3,
+                       V* restrict o0) {
+  V ki1[%(nki1)d], ko1[%(nko1)d], ki2[%(nki2)d], ko2[%(nko2)d], k1[%(nk1)d], lu[%(nlu)d];
+  piece_a(i0, i1, i3 + %(off_a)d, ki1);
+  STATIONS(kernel_1, ki1, i3 + %(off_k1)d, ko1);
+  piece_b(i0, i1, i2, i3 + %(off_b)d, ko1, ki2, k1, lu);
+  STATIONS(kernel_2, ki2, i3 + %(off_k2)d, ko2);
+  piece_c(i0, i2, i3 + %(off_c)d, ko2, k1, lu, o0);
+}
+"""
+
+def split_step_source(split, batch: int) -> str:
+    """C of the split step `step(z, u0, u1, pw, z_next)` (a `vehicle.numerics.split_step.SplitStep`): the pieces by `emit_batched` (batch > 0) or `emit_function`, the kernels by `emit_kernel`."""
+    a, b, c = split.pieces
+    piece = (lambda fn, nm: emit_batched(fn, nm, batch)) if batch else emit_function
+    k1, k2 = split.kernels
+    functions = [piece(a, "piece_a"), piece(b, "piece_b"), piece(c, "piece_c"),
+                 emit_kernel(k1, "kernel_1"), emit_kernel(k2, "kernel_2")]
+    return _SPLIT % {"stations": split.stations, "padded": split.padded,
+                     "kernel_ops": vector_math.vector_source("S", "SL", "s") + vector_ops("K_", "S", "SL", split.padded,
+                                                                                        "s"),
+                     "kernel_aliases": "\n".join(f"#define K_{m} {m}" for m in OPERATION_MACROS),
+                     "functions": "\n".join(functions),
+                     "nki1": a.size1_out(0), "nko1": b.size1_in(4), "nki2": b.size1_out(0), "nko2": c.size1_in(3),
+                     "nk1": b.size1_out(1), "nlu": b.size1_out(2), **{f"off_{k}": v for k, v in split.offsets.items()}}
+
+
+def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: int = 0) -> str:
     """The C of the lane block function `name` (see the module docstring) for NL = `lanes`; batch > 0: the step by
-    `emit_batched` with vector calls of `batch` lanes (the one-lane build, -DHPSIM_LANES_SCALAR)."""
-    nz, nu, npw = step.size1_in(0), step.size1_in(1), step.size1_in(3)
-    np_ = parametric.size1_in(0)
-    if parametric.size1_out(0) != npw or step.size1_out(0) != nz:
+    `emit_batched` with vector calls of `batch` lanes (the one-lane build, -DHPSIM_LANES_SCALAR). `step`: the step
+    as one SX function, or a `vehicle.numerics.split_step.SplitStep` (`split_step_source`)."""
+    split = None if isinstance(step, ca.Function) else step
+    nz, nu = (split.nz, split.nu) if split else (step.size1_in(0), step.size1_in(1))
+    npw, np_ = parametric.size1_out(0), parametric.size1_in(0)
+    if split is None and (step.size1_in(3) != npw or step.size1_out(0) != nz):
         raise ValueError("lanes_source: the step and the parametric function do not fit together")
-    prelude = (f"#define HP_BATCH {int(batch)}\n" if batch else "") + _PRELUDE % {"lanes": lanes, "broadcast": ", ".join(["(c)"] * lanes),
-                          "vector_math": vector_math.tables_source() + vector_math.vector_source("V", "VL", "v"),
+    prelude = (f"#define HP_BATCH {int(batch)}\n" if batch else "") + _PRELUDE % {"lanes": lanes,
+                          "vector_ops": vector_math.tables_source() + vector_math.vector_source("V", "VL", "v")
+                          + vector_ops("", "V", "VL", lanes, "v"),
                           "scalar_math": vector_math.scalar_functions(),
                           "batch_math": vector_math.vector_source("HB", "HBL", "b")}
-    step_c = emit_batched(step, "step", batch) if batch else emit_function(step, "step")
+    if split is not None:
+        step_c = split_step_source(split, batch)
+    else:
+        step_c = emit_batched(step, "step", batch) if batch else emit_function(step, "step")
     return "\n".join([prelude, step_c, emit_function(parametric, "parametric"),
                       _BLOCK % {"name": name, "np": np_, "npw": npw, "nz": nz, "nu": nu}])
 
@@ -399,17 +500,23 @@ class LaneStepper:
                  cc: str | None = None, batched: bool = False, load: bool = True):
         if solver.jacobian_every != 1 or solver.engine != "current":
             raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
-        self._setup(lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{'b' if batched else ''}", isa,
+        self._setup(lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{'b' if batched else ''}"
+                    f"{'s' if getattr(solver, 'strut_lanes', False) else ''}", isa,
                     scalar or batched, cc)
         batch = ISAS[self.isa][1] if batched else 0
         self.nz, self.nu, self.np = model.nx + model.n_memory, model.nu, model.np
 
         def build() -> bytes:
-            step, _, parametric, _ = solver.step_functions(model)
-            self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
+            split = solver.split_step_functions(model)
+            if split is not None:
+                self.source = lanes_source(split, split.parametric, self.lanes, self.name, batch=batch)
+            else:
+                step, _, parametric, _ = solver.step_functions(model)
+                self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
             return self.source.encode()
         # found in the compile cache by what determines the C (no graph built when it is there)
-        self.spec = CLibrary(self.name, (model.structure, float(solver.dt), self.lanes, batch), build, self.flags)
+        self.spec = CLibrary(self.name, (model.structure, float(solver.dt), self.lanes, batch,
+                                         getattr(solver, "strut_lanes", False)), build, self.flags)
         if load:           # load=False: `spec` for codegen.precompile, `load()` later
             self.load()
 

@@ -44,160 +44,9 @@ import numpy as np
 from vehicle.numerics.contract import SolverCapabilities
 from vehicle.numerics.codegen import Library, compile_function
 from vehicle.numerics.lanes import BatchedBlock, LaneStepper
-
-GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
-
-
-class SparseLU:
-    """Symbolic sparse LU without pivoting, A = L U, in the given order (L and U as dicts of rows).
-
-    For W = I - gamma h J of the vehicle (stations first, hull last) the pivots are the
-    diagonal of a matrix close to I plus a dissipative part, so no pivoting is needed, and the
-    elimination order keeps the fill inside the hull block (arrowhead structure).
-    `values`: SX vector of the nonzeros of L, of the strict upper part of U and the reciprocals of the pivots, in a
-    fixed order; `solve(b, values=None)` solves A x = b for SX b with these factors or with any vector of the same
-    layout (a factorisation made at another step: Jacobian/LU reuse)."""
-
-    def __init__(self, A: ca.SX):
-        n = self.n = A.size1()
-        sp = A.sparsity()
-        rows = [dict() for _ in range(n)]
-        colind, row = sp.colind(), sp.row()
-        for j in range(n):
-            for k in range(colind[j], colind[j + 1]):
-                rows[row[k]][j] = A.nz[k]
-        lower = [dict() for _ in range(n)]
-        for k in range(n):
-            pivot_row = rows[k]
-            pivot = pivot_row.get(k)
-            if pivot is None:
-                raise ValueError(f"structurally zero pivot at {k}")
-            for i in range(k + 1, n):
-                if k not in rows[i]:
-                    continue
-                l = rows[i].pop(k) / pivot
-                lower[i][k] = l
-                for j, a in pivot_row.items():
-                    if j > k:
-                        rows[i][j] = rows[i][j] - l * a if j in rows[i] else -l * a
-        self.lower, self.upper = lower, rows
-        # the layout of `values`: L by rows, the strict upper part of U by rows, then the pivots
-        self.lower_keys = [(i, k) for i in range(n) for k in lower[i]]
-        self.upper_keys = [(i, j) for i in range(n) for j in self.upper[i] if j > i]
-        self.values = ca.vertcat(*[lower[i][k] for i, k in self.lower_keys],
-                                 *[self.upper[i][j] for i, j in self.upper_keys],
-                                 *[1.0 / self.upper[i][i] for i in range(n)])
-
-    def solve(self, b, values=None):
-        n = self.n
-        if values is None:
-            lower, upper = self.lower, self.upper
-        else:
-            nl, nu = len(self.lower_keys), len(self.upper_keys)
-            lower = [dict() for _ in range(n)]
-            upper = [dict() for _ in range(n)]
-            for q, (i, k) in enumerate(self.lower_keys):
-                lower[i][k] = values[q]
-            for q, (i, j) in enumerate(self.upper_keys):
-                upper[i][j] = values[nl + q]
-            inverse_pivots = [values[nl + nu + i] for i in range(n)]
-        y = [b[i] for i in range(n)]
-        for i in range(n):
-            for k, l in lower[i].items():
-                y[i] = y[i] - l * y[k]
-        xs = [None] * n
-        for i in reversed(range(n)):
-            acc = y[i]
-            for j, a in upper[i].items():
-                if j > i:
-                    acc = acc - a * xs[j]
-            xs[i] = acc / upper[i][i] if values is None else acc * inverse_pivots[i]
-        return ca.vertcat(*xs)
-
-
-def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.Function:
-    """Same SX function, with every division by a parameter-only quantity written as a product with
-    its reciprocal (a / b -> a * (1 / b)).
-
-    With parameters as inputs a divisor such as a mass or a heat capacity is no longer a constant
-    the compiler can turn into a multiplication; as a reciprocal it becomes a parameter-only
-    subexpression that `extract_parametric` lifts out of the step, evaluated once per call.
-    Results differ from the plain division by rounding only. Replays the function's instructions.
-    """
-    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
-    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
-    work, fixed = {}, {}          # register -> SX value; register -> depends on parameters/constants only
-    for k in range(fn.n_instructions()):
-        op = fn.instruction_id(k)
-        i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            work[i_out[0]] = inputs[i_in[0]].nz[i_in[1]]
-            fixed[i_out[0]] = i_in[0] in parameter_inputs
-        elif op == ca.OP_OUTPUT:
-            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
-        elif op == ca.OP_CONST:
-            work[i_out[0]] = ca.SX(fn.instruction_constant(k))
-            fixed[i_out[0]] = True
-        else:
-            args = [work[j] for j in i_in]
-            if op == ca.OP_DIV and fixed[i_in[1]] and not fixed[i_in[0]]:
-                value = args[0] * (1.0 / args[1])
-            elif len(args) == 2:
-                value = ca.SX.binary(op, args[0], args[1])
-            else:
-                value = ca.SX.unary(op, args[0])
-            work[i_out[0]] = value
-            fixed[i_out[0]] = all(fixed[j] for j in i_in)
-    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
-            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
-    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
-
-
-def explicit_reciprocals(fn: ca.Function, threshold: int = 3) -> ca.Function:
-    """Same SX function, with the divisions the C compiler's -freciprocal-math would rewrite rewritten here:
-    a / c -> a * (1/c) for a constant c, and a / d -> a * r with r = 1/d computed once for a divisor d of at
-    least `threshold` divisions (GCC's rule). The code is then compiled without -freciprocal-math: every
-    statement rounds as IEEE arithmetic says, whatever the compiler's choice of instructions, so the scalar
-    engine and the vector lanes (vehicle.numerics.lanes) give the same bits (with -freciprocal-math GCC rewrote
-    other divisions in vector code than in scalar code: 1 ulp, grown to 0.1 mm of strut travel in 2 s).
-    Replays the function's instructions (values, not registers: CasADi reuses registers)."""
-    count: dict[int, int] = {}
-    value_of: dict[int, int] = {}               # register -> id of the value it holds (the defining instruction)
-    for k in range(fn.n_instructions()):
-        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_DIV:
-            d = value_of[i_in[1]]
-            count[d] = count.get(d, 0) + 1
-        if op != ca.OP_OUTPUT:
-            value_of[i_out[0]] = k
-    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
-    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
-    work, value_of, const, recip = {}, {}, {}, {}
-    for k in range(fn.n_instructions()):
-        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            value = inputs[i_in[0]].nz[i_in[1]]
-        elif op == ca.OP_OUTPUT:
-            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
-            continue
-        elif op == ca.OP_CONST:
-            value = ca.SX(fn.instruction_constant(k))
-            const[k] = fn.instruction_constant(k)
-        elif op == ca.OP_DIV and (value_of[i_in[1]] in const or count[value_of[i_in[1]]] >= threshold):
-            d = value_of[i_in[1]]
-            if d not in recip:
-                recip[d] = ca.SX(1.0 / const[d]) if d in const else 1.0 / work[i_in[1]]
-            value = work[i_in[0]] * recip[d]
-        elif len(i_in) == 2:
-            value = ca.SX.binary(op, work[i_in[0]], work[i_in[1]])
-        else:
-            value = ca.SX.unary(op, work[i_in[0]])
-        work[i_out[0]] = value
-        value_of[i_out[0]] = k
-    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
-            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
-    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
-
+from vehicle.numerics import split_step
+from vehicle.numerics.step_graph import (GAMMA, SparseLU, divisions_as_reciprocals,  # noqa: F401 (their home)
+                                         explicit_reciprocals, lift_parameters)
 
 # the most steps of one output sample generated as straight-line code; longer samples loop over pieces of this
 # many steps (the default 1 s at 4 ms is 250 steps: unrolled as before)
@@ -266,7 +115,7 @@ class Ros2:
     ENGINES = ("current", "baseline")
 
     def __init__(self, dt: float = 0.004, *, compile: bool = True, jacobian_every: int = 1,
-                 engine: str = "current", batch_calls: bool = True):
+                 engine: str = "current", batch_calls: bool = True, strut_lanes: bool = True):
         if engine not in self.ENGINES:
             raise ValueError(f"Ros2 engine: {engine!r}, expected one of {self.ENGINES}")
         if int(jacobian_every) < 1:
@@ -280,6 +129,9 @@ class Ros2:
         # the step's exp/log/tanh/pow calls gathered into vector calls (vehicle.numerics.lanes.emit_batched; the
         # same bits): where it applies (compiled, current engine, W at every step, GCC or Clang), else CasADi's C
         self.batch_calls = batch_calls and compile and engine == "current" and self.jacobian_every == 1
+        # the step split around the struts, their part over lanes of stations (vehicle.numerics.split_step), in
+        # the batched block function and the ensemble's lanes; strut_lanes=False: the whole step (benchmarks)
+        self.strut_lanes = bool(strut_lanes)
         self.memory = None
         self.build_s = 0.0
         self.K, self.M = 1, 1              # steps per sample, samples per call: set by `bind`
@@ -301,7 +153,7 @@ class Ros2:
 
     def _key(self, model, K: int, M: int) -> tuple:
         key = (model.structure, self.dt, K, M, self.compile, min(self.jacobian_every, K), self.engine,
-               self.batch_calls)
+               self.batch_calls, self.batch_calls and self.strut_lanes)
         if self.engine == "baseline":        # the parameter values are in the code
             key += (model.parameters.numeric().tobytes(),)
         return key
@@ -334,7 +186,7 @@ class Ros2:
         def build():
             if key not in _GRAPHS:
                 solver = type(self)(self.dt, compile=self.compile, jacobian_every=self.jacobian_every,
-                                    engine=self.engine, batch_calls=self.batch_calls)
+                                    engine=self.engine, batch_calls=self.batch_calls, strut_lanes=self.strut_lanes)
                 solver.K, solver.M = K, M
                 _GRAPHS[key] = solver._graph(model)
             return _GRAPHS[key]
@@ -434,26 +286,27 @@ class Ros2:
             raw = ca.Function("ros2_step_raw", [z, u0, u1, p, F], outs)
         else:
             raw = ca.Function("ros2_step_raw", [z, u0, u1, p], outs)
-        raw = divisions_as_reciprocals(raw, parameter_inputs={3})
-        args = raw.sx_in()
-        z, u0, u1, p = args[:4]
         # merge repeated subexpressions (the eight stations share one strut's parameter symbols, and
         # f, its Jacobian and the two stages rebuild the same terms): 16.0k -> 10.5k instructions per
         # step, exact up to rounding order; then lift what depends on the parameters only out of the
         # step: computed once per call
-        res = raw.call(args)
-        sizes = [r.numel() for r in res]
-        z_ret, w_syms, w_exprs = ca.extract_parametric(ca.cse(ca.vertcat(*res)), p)
-        parts = ca.vertsplit(z_ret, [int(v) for v in np.cumsum([0] + sizes)])
-        w = ca.vertcat(*w_syms) if w_syms else ca.SX(0, 1)
-        step = ca.Function("ros2_step", [z, u0, u1, ca.vertcat(p, w)], parts[:2] if every > 1 else parts[:1])
+        args, parts, pw, parametric = lift_parameters(raw, 3, "ros2_parametric")
+        z, u0, u1 = args[:3]
+        step = ca.Function("ros2_step", [z, u0, u1, pw], parts[:2] if every > 1 else parts[:1])
         if every > 1:
-            reuse = ca.Function("ros2_step_reuse", [z, u0, u1, ca.vertcat(p, w), args[4]], [parts[2]])
-        parametric = ca.Function("ros2_parametric", [p], [ca.vertcat(p, *w_exprs)])
+            reuse = ca.Function("ros2_step_reuse", [z, u0, u1, pw, args[4]], [parts[2]])
         step, parametric = explicit_reciprocals(step), explicit_reciprocals(parametric)
         if every > 1:
             reuse = explicit_reciprocals(reuse)
         return step, (reuse if every > 1 else None), parametric, every
+
+    def split_step_functions(self, model) -> split_step.SplitStep | None:
+        """The step split around the struts (`vehicle.numerics.split_step`), or None where it does not apply (W
+        reused, the baseline engine, `strut_lanes=False`, or a model without one strut kernel for all stations):
+        the whole step (`step_functions`) then."""
+        if not self.strut_lanes or self.engine != "current" or self.jacobian_every != 1:
+            return None
+        return split_step.build(self, model)
 
     def _build(self, model) -> ca.Function:
         nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
@@ -515,13 +368,13 @@ class Ros2:
     def refined_solver(self, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, unbound."""
         return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
-                          engine=self.engine, batch_calls=self.batch_calls)
+                          engine=self.engine, batch_calls=self.batch_calls, strut_lanes=self.strut_lanes)
 
     def _batched_stepper(self, model, load: bool = True) -> LaneStepper | None:
         """The one-lane block library with batched calls for this model structure and step (one per process and
         (structure, dt); K and M are arguments of its calls), or None where it cannot be built (a compiler
         without GCC's vector extension: CasADi's C then). load=False: its C only, unless built already."""
-        key = ("batched", model.structure, self.dt)
+        key = ("batched", model.structure, self.dt, self.strut_lanes)
         if key not in _BLOCK_FUNCTIONS:
             _BLOCK_FUNCTIONS[key] = LaneStepper(self, model, 1, batched=True, load=False)
         stepper = _BLOCK_FUNCTIONS[key]

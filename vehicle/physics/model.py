@@ -52,7 +52,9 @@ from struts.params import load_strut
 from vehicle.physics import compensation as comp
 from vehicle.physics import hull as hull_eq
 from vehicle.physics import ride
+from vehicle.physics import strut_kernel
 from vehicle.physics import thermal
+from vehicle.physics.strut_kernel import strut_part
 from vehicle.physics.params import GRAVITY, VehicleParams
 from vehicle.physics.tyre import tyre_force
 
@@ -302,13 +304,15 @@ class VehicleModel:
                                self.parameters.numeric()])
 
     # --- equations -------------------------------------------------------------------------------
-    def equations(self, x, z, u, p, dp_override=None):
+    def equations(self, x, z, u, p, dp_override=None, strut_parts=None):
         """Symbolic rates, residuals and outputs.
 
         p must be the model's parameter symbol (`self.symbols[3]`, or a vector whose tail is
         theta's symbols): the parameters enter through the symbolic twin `self.sym`.
         dp_override: if given (list per station), the valve pressure drops are taken from it
         instead of the algebraic variables z (used when a solver eliminates z by Newton).
+        strut_parts: if given (list per station of (strut equations, node rates), `strut_kernel.parts_from_outputs`),
+        the stations' strut parts are taken from it instead of computed (the split step's rest).
         """
         K = self.sym
         P = K.params
@@ -346,19 +350,10 @@ class VehicleModel:
                 dp = None
             else:
                 dp = dp_override[i] if dp_override is not None else z[self._z_index[i]]
-            eq = strut.equations(sin, internal, dp)
-            # the heat network (vehicle.physics.thermal): valve and gas heat into the oil, seal
-            # friction and end stops into the wall, the surface to the station's air and the mounts
-            # oil properties at the oil temperature (the strut's own valve terms evaluate the same
-            # expressions: shared in the compiled step); the Prandtl number of the natural-convection
-            # shape factor at the oil's reference temperature (a run constant, thermal.churchill_chu_h)
-            Pr_shape = thermal.oil_prandtl(P.heat, strut.oil_viscosity(strut.p.oil.reference_temperature),
-                                           strut.p.oil.density)
-            flows = thermal.network_flows(P.heat, thermal.station_environment(P.heat, P.axles[P.station_axle(i)].heat),
-                                          T_oil, T_wall, T_surf, T_amb, speed, vs, strut.oil_viscosity(T_oil),
-                                          strut.oil_density(T_oil), strut.p.oil.expansion, Pr_shape)
-            dT_nodes = thermal.network_rates(P.heat, flows, eq["power_valve"], eq["power_friction"],
-                                             eq["power_end_stop"], eq["heat_gas"])
+            if strut_parts is not None:
+                eq, dT_nodes = strut_parts[i]
+            else:
+                eq, dT_nodes = strut_part(K, i, sin, internal, dp, T_oil, T_wall, T_surf, T_amb, speed)
             Fs = eq["force"]
             # tyre on the enveloped road
             defl = K.tyre_static_deflection[i] + road[i] - w
@@ -480,6 +475,10 @@ class VehicleModel:
                                            ca.vertcat(*out["hull_acc"]), ca.vertcat(*out["axle_height"])])
         return f, g, y
 
+    def station_run_parameters(self, i: int, p) -> tuple:
+        """(gas mass [kg], nominal deflection [m]) of station i's strut from the run parameters p."""
+        return p[i], p[self.n + i]
+
     def strut_inputs(self, X, i: int, p, K=None, motion=None):
         """(StrutInputs, internal states) of station i's strut from named states X and run parameters p.
 
@@ -497,8 +496,9 @@ class VehicleModel:
         q_oil = p[2 * n] * comp.oil_flow(X[f"xf[{i}]"], p[n + i], strut.p.geometry.gas_area,
                                          P.compensation.time_constant, P.compensation.dead_band,
                                          P.compensation.flow_limit, P.compensation.smoothing)
-        sin = StrutInputs(x=xs, v=vs, T_wall=X[f"T_oil[{i}]"], m_gas=p[i], dV_oil=X[f"V_oil[{i}]"],
-                          dV_oil_rate=q_oil, dT_wall_rate=0.0, x_mid=p[n + i])
+        m_gas, x_mid = self.station_run_parameters(i, p)
+        sin = StrutInputs(x=xs, v=vs, T_wall=X[f"T_oil[{i}]"], m_gas=m_gas, dV_oil=X[f"V_oil[{i}]"],
+                          dV_oil_rate=q_oil, dT_wall_rate=0.0, x_mid=x_mid)
         return sin, {nm: X[f"{nm}[{i}]"] for nm in strut.state_names}
 
     def eliminate_valves(self, x, memory, p, iterations: int = 1):
@@ -561,6 +561,29 @@ class VehicleModel:
         new_mem = ca.vertcat(*[d for d in dps if d is not None]) if self.n_memory else ca.SX(0, 1)
         return ca.Function("f_ode", [x, mem, u, p], [ca.vertcat(*ode), new_mem])
 
+    # --- the strut kernel (vehicle.physics.strut_kernel): the interface of the step split around the struts ---
+    @property
+    def has_strut_kernel(self) -> bool:
+        return strut_kernel.applies(self)
+
+    def strut_kernel(self, i: int, jacobian: bool) -> ca.Function:
+        return strut_kernel.kernel(self, i, jacobian)
+
+    def strut_kernel_names(self, i: int, jacobian: bool) -> tuple:
+        """(input names, output names) of station i's strut kernel."""
+        strut = self.sym.struts[i]
+        return strut_kernel.input_names(strut), strut_kernel.output_names(strut, jacobian)
+
+    def strut_kernel_inputs(self, x, memory, u, p) -> list:
+        return strut_kernel.kernel_inputs(self, x, memory, u, p)
+
+    def rates_from_strut_kernels(self, x, u, p, outputs: list[dict]):
+        """dx/dt (`ode_function`'s first output) with every station's strut part read from its kernel's outputs
+        (name -> value, one dict per station)."""
+        parts = strut_kernel.parts_from_outputs(self, outputs)
+        ode, _, _ = self.equations(x, None, u, p, dp_override=[o["dp"] for o in outputs], strut_parts=parts)
+        return ca.vertcat(*ode)
+
     @property
     def has_stiff_strut_states(self) -> bool:
         return any(st.stiff_state_names for st in self.struts)
@@ -587,12 +610,13 @@ class VehicleModel:
         kc = ca.substitute(kc, args, values)
         return kc[0], kc[1]
 
-    def stiff_jacobian(self, x, p, dps):
+    def stiff_jacobian(self, x, p, dps, stiffness=None):
         """Approximate Jacobian of the stiff block (stations' w, dw, stiff strut states; hull).
 
         Built from each station's local strut stiffness/damping and the tyre's, through the
         constant kinematics (hull.py): the structural-dynamics form of d f / d x. Exact for the
-        mechanics with frozen slow states, which is all a W-method needs.
+        mechanics with frozen slow states, which is all a W-method needs. stiffness: if given (per station (ks, cs)),
+        the struts' stiffness and damping are taken from it (the strut kernels' outputs) instead of computed.
         """
         K = self.sym
         P = K.params
@@ -611,8 +635,9 @@ class VehicleModel:
             w, dw = self.idx(f"w[{i}]"), self.idx(f"dw[{i}]")
             B = [1.0, -(K.a[i] - K.a_cg), K.y[i] - K.y_cg]   # d z_station / d (z, theta, phi)
             xs, vs = self.station_motion(X, i, K)
-            ks, cs = self._strut_stiffness_damping(i, xs, vs, X[f"T_oil[{i}]"], p[i], X[f"V_oil[{i}]"], dps[i],
-                                                   [X[f"{nm}[{i}]"] for nm in self.struts[i].state_names])
+            ks, cs = stiffness[i] if stiffness is not None else self._strut_stiffness_damping(
+                i, xs, vs, X[f"T_oil[{i}]"], p[i], X[f"V_oil[{i}]"], dps[i],
+                [X[f"{nm}[{i}]"] for nm in self.struts[i].state_names])
             r2 = K.r[i] ** 2
             mu = K.m_u[i]
             kt, ct = K.tyre[i].stiffness, K.tyre[i].damping
