@@ -399,7 +399,7 @@ _SPLIT = r"""
    kernel of each stage over the stations. Buffers between them: value q of station s at q * NSP + s. */
 #define NS %(stations)d
 #define NSP %(padded)d
-#if VW == 1 && (defined(__GNUC__) || defined(__clang__))
+#if VW == 1 && (defined(__GNUC__) || defined(__clang__)) && !defined(HPSIM_KERNEL_STATIONWISE)
 /* one case per call: its stations in one vector of NSP doubles */
 #define KG NSP
 typedef double S __attribute__((vector_size(8 * NSP)));
@@ -521,14 +521,19 @@ class LaneStepper:
             self.load()
 
     @classmethod
-    def from_functions(cls, step: ca.Function, parametric: ca.Function, lanes: int, name: str, *,
+    def from_functions(cls, step, parametric: ca.Function, lanes: int, name: str, *,
                        isa: str | None = None, scalar: bool = False, cc: str | None = None,
-                       batch: int = 0) -> "LaneStepper":
-        """The lane block function of any step (z, u0, u1, pw) -> z_next and parametric part p -> pw (SX), cached by
-        its C; batch > 0: its calls gathered `batch` at a time (`emit_batched`, the one-lane build)."""
+                       batch: int = 0, flags: tuple = ()) -> "LaneStepper":
+        """The lane block function of any step (z, u0, u1, pw) -> z_next (SX, or a `split_step.SplitStep`) and
+        parametric part p -> pw (SX), cached by its C; batch > 0: its calls gathered `batch` at a time
+        (`emit_batched`, the one-lane build); flags: more compiler flags (-DHPSIM_KERNEL_STATIONWISE: the strut
+        kernel station after station, as without GCC's vector types)."""
         self = cls.__new__(cls)
         self._setup(lanes, name, isa, scalar or batch > 0, cc)
-        self.nz, self.nu, self.np = step.size1_in(0), step.size1_in(1), parametric.size1_in(0)
+        self.flags += tuple(flags)
+        split = not isinstance(step, ca.Function)
+        self.nz, self.nu = (step.nz, step.nu) if split else (step.size1_in(0), step.size1_in(1))
+        self.np = parametric.size1_in(0)
         self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
         self.spec = None
         return self.load()
