@@ -18,7 +18,10 @@ DT_RANGE_S = (1e-4, 0.02)                     # solver.dt: 0.1 .. 20 ms
 SEGMENTS_RANGE = (1, 64)                      # solver.time_parallel: processes (with 1 lane: one segment each)
 TIME_PARALLEL_LANES_RANGE = (1, 16)           # solver.time_parallel_lanes: segments per process, in lockstep
 TIME_PARALLEL_LANES_DEFAULT = "auto"          # solver.time_parallel_lanes not given
-TIME_PARALLEL_LANES_AUTO = 4                  # "auto": at most this many (one AVX2 vector; docs/engines.md)
+# "auto": at most this many. 1: one segment per process on the scalar engine, whose step split around the struts
+# costs a lane-step's 1.55x only: the lanes' lockstep segments gain less than their joins cost (docs/engines.md,
+# "Parallel in time")
+TIME_PARALLEL_LANES_AUTO = 1
 
 
 @dataclass

@@ -5,7 +5,7 @@ processes, joined with a correction of the slow states.
   matches the serial run: per axle final temperature and wheel-load change within the correction's own
   estimated error (plus the serial run's restart-free noise floor being zero: no allowance), the series and
   statistics rows have the serial run's layout, the energies add up across the join;
-- the default, several segments per process in lockstep on the lane library (`time_parallel_lanes`), matches
+- several segments per process in lockstep on the lane library (`time_parallel_lanes: 3`), matches
   the serial run within its own estimate too, and equals the same segmentation run on the scalar engine bit for
   bit (series, statistics, final state, error estimate: the lanes and the checks' lanes are the scalar engine's);
 - the correction matters: joined without it, the final temperatures are off by the coarse prediction's error,
@@ -65,8 +65,8 @@ def runs(serial):
 
 @pytest.fixture(scope="module")
 def lane_runs(serial):
-    """The default: two processes, each running several segments in lockstep on the lane library."""
-    prep = prepare(_src({"time_parallel": 2}))
+    """Two processes, each running three segments in lockstep on the lane library."""
+    prep = prepare(_src({"time_parallel": 2, "time_parallel_lanes": 3}))
     model, drive = build_engine(prep)
     sink, _ = _run(drive, prep, model)
     return serial[0], serial[1], sink, report_from(sink, "tp"), drive
@@ -224,6 +224,7 @@ def test_auto_lanes_keep_every_segment_at_least_the_minimum_long():
     from vehicle.scenario.settings import TIME_PARALLEL_LANES_AUTO, resolve_time_parallel_lanes
 
     full = min(TIME_PARALLEL_LANES_AUTO, default_lanes())
+    assert full == 1                                      # the scalar engine's segments (docs/engines.md)
     assert resolve_time_parallel_lanes(None, 2, 19080.0, MIN_SEGMENT_S) == full          # the 106 km drive
     assert resolve_time_parallel_lanes("auto", 2, 432.0, MIN_SEGMENT_S) == min(full, 3)   # 2.4 km: 3 x 2 x 72 s
     assert resolve_time_parallel_lanes("auto", 2, 200.0, MIN_SEGMENT_S) == 1              # too short for lanes
