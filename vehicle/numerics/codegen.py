@@ -95,7 +95,7 @@ def cache_limit_bytes() -> float:
 
 # -fno-math-errno lets sqrt compile to one instruction (same result). No -ffast-math: NaN and infinity must
 # survive, the drive checks for them; no value-changing flag at all: the divisions that -freciprocal-math turned
-# into multiplications are rewritten in the SX graph instead (vehicle.numerics.solvers.explicit_reciprocals), and
+# into multiplications are rewritten in the SX graph instead (vehicle.numerics.step_graph.explicit_reciprocals), and
 # no contraction into fused multiply-adds, so that every statement rounds as written and the vector lanes
 # (vehicle.numerics.lanes) equal the scalar engine bit for bit.
 COMPILER_FLAGS = ("-O2", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off")

@@ -16,13 +16,16 @@ writes the same statements over a lane type `V` instead of `double`:
   lanes one after the other: the scalar step, the same statements as CasADi's;
 - the one-lane build with batched calls (`emit_batched`, `LaneStepper(..., batched=True)`, `BatchedBlock`) is
   the scalar engine's block function (`vehicle.numerics.solvers.Ros2`): `V` is `double`, and the step's
-  exp/log/tanh/pow calls of one depth run a vector's width at a time.
+  exp/log/tanh/pow calls of one depth run a vector's width at a time;
+- the step split around the struts (`vehicle.numerics.split_step`, `split_step_source`): three scalar pieces over
+  `V` and the strut kernel over the stations, a case's stations in one vector where `V` is one lane (`emit_kernel`),
+  else station after station over `V`'s lanes: the same operations per station either way.
 
 fmin/fmax are written as the C library computes them (glibc 2.36: a NaN operand gives the other one, of
 +0 and -0 the minimum is -0), so that lanes equal the scalar engine bit for bit. The library is compiled
 with the scalar engine's flags (`codegen.COMPILER_FLAGS`: no value-changing flag, -ffp-contract=off: no
 fused multiply-add even where the instruction set has one); the divisions GCC's -freciprocal-math used to
-rewrite are rewritten in the graph (`solvers.explicit_reciprocals`), the same for scalar and lanes.
+rewrite are rewritten in the graph (`step_graph.explicit_reciprocals`), the same for scalar and lanes.
 
 `LaneStepper` is the block function over NL lanes: (z0 (nz, NL), U (K M + 1, nu, NL), P (np, NL)) ->
 states at the M samples (M, nz, NL); `vehicle.engines.ensemble` steps K cases of one model structure with it.

@@ -23,7 +23,9 @@ instead of ringing.
 
 Many steps are folded into one call and the whole loop is generated as C, compiled with the
 system C compiler and cached (keyed by the hash of the generated code), so Python is touched
-once per output sample block, not per step.
+once per output sample block, not per step. That block function (`vehicle.numerics.lanes`, one lane, batched
+calls) takes the step split around the struts where the vehicle allows (`split_step_functions`,
+vehicle.numerics.split_step): the strut kernel of all stations in one vector, the rest scalar.
 
 `Idas`: CasADi's IDAS on the DAE (algebraic valve pressure drops kept as algebraic variables)
 with tight tolerances: the reference the fast solver is checked against.
@@ -45,8 +47,7 @@ from vehicle.numerics.contract import SolverCapabilities
 from vehicle.numerics.codegen import Library, compile_function
 from vehicle.numerics.lanes import BatchedBlock, LaneStepper
 from vehicle.numerics import split_step
-from vehicle.numerics.step_graph import (GAMMA, SparseLU, divisions_as_reciprocals,  # noqa: F401 (their home)
-                                         explicit_reciprocals, lift_parameters)
+from vehicle.numerics.step_graph import GAMMA, SparseLU, explicit_reciprocals, lift_parameters
 
 # the most steps of one output sample generated as straight-line code; longer samples loop over pieces of this
 # many steps (the default 1 s at 4 ms is 250 steps: unrolled as before)

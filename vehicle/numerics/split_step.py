@@ -21,7 +21,8 @@ The kernel is one function for all stations when their kernels are one graph wit
 inputs: each station's kernel has its parameter-only part lifted out (`step_graph.lift_parameters`), and the
 parameters and lifted values it reads become its per-station inputs (lanes of the kernel's parameter vector).
 Stations with struts of different structure, a strut with a compressible oil (no eliminated valve) or stiff
-internal states (an exact Jacobian): no split (`build` returns None), the whole step as before.
+internal states (an exact Jacobian), a vehicle of one station: no split (`build` returns None), the whole step as
+before.
 """
 from __future__ import annotations
 

@@ -91,8 +91,11 @@ def test_a_drive_with_its_libraries_in_the_cache_builds_no_graph(monkeypatch):
     monkeypatch.setattr(solvers, "_outputs_function",
                         lambda model, n: graphs.append("outputs") or real_outputs(model, n))
     monkeypatch.setattr(codegen, "_generate_c", lambda fn, *a, **kw: pytest.fail("C generated for a cached library"))
-    real_step = solvers.Ros2.step_functions          # the batched block stepper's C is written from it
+    real_step = solvers.Ros2.step_functions          # the batched block stepper's C is written from these
     monkeypatch.setattr(solvers.Ros2, "step_functions", lambda self, model: graphs.append("step") or real_step(self, model))
+    real_split = solvers.Ros2.split_step_functions
+    monkeypatch.setattr(solvers.Ros2, "split_step_functions",
+                        lambda self, model: graphs.append("split") or real_split(self, model))
     solvers._BLOCK_FUNCTIONS.clear()
     again = Drive(m, road, DriveSettings(**settings)).run().state.x
     assert graphs == []
