@@ -1,6 +1,6 @@
 """Parallel in time against the serial run, in one process: wall time and accuracy.
 
-    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--lanes auto] [--baseline]
+    python benchmarks/time_parallel.py [--scenario scenarios/mileage_106km.yaml] [--segments 2] [--lanes 4] [--baseline]
                                        [--reference-dt 1ms] [--dt STEP] [--json]
 
 Three runs of the same scenario into memory (vehicle.results.run.run_in_memory, what sweeps and UQ use):
@@ -8,7 +8,7 @@ Three runs of the same scenario into memory (vehicle.results.run.run_in_memory, 
   time_parallel  `solver: {time_parallel: P, time_parallel_lanes: 1}`: P segments in P processes on the scalar
                  engine, a multiscale coarse run predicting the segment starts, the slow-state correction
                  (vehicle.engines.time_parallel);
-  lanes          `solver: {time_parallel: P}` (time_parallel_lanes --lanes, default auto): P x lanes segments, each
+  lanes          `solver: {time_parallel: P, time_parallel_lanes: --lanes}` (default 4): P x lanes segments, each
                  process running its lanes in lockstep on the lane library (vehicle.numerics.lanes).
 Printed: drive wall time of each (the summary's wall_s: without building the model, the same for both) and
 their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
@@ -35,9 +35,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1] / "scenarios/mileage_106km.yaml"))
     ap.add_argument("--segments", type=int, default=2, help="processes of the time-parallel runs (solver.time_parallel)")
-    ap.add_argument("--lanes", default="auto",
-                    help="segments per process of the run on the lane library (solver.time_parallel_lanes; auto: one "
-                         "hardware vector); 0: leave that run out")
+    ap.add_argument("--lanes", default="4",
+                    help="segments per process of the run on the lane library (solver.time_parallel_lanes, or auto: "
+                         "the scenario default); 0: leave that run out")
     ap.add_argument("--distance", default=None, help="override the scenario's distance, e.g. '10 km'")
     ap.add_argument("--baseline", action="store_true",
                     help="also run the engine of issue 11's filing serially first (Ros2(engine='baseline'), same model)")

@@ -19,7 +19,7 @@ writes the same statements over a lane type `V` instead of `double`:
   exp/log/tanh/pow calls of one depth run a vector's width at a time;
 - the step split around the struts (`vehicle.numerics.split_step`, `split_step_source`): three scalar pieces over
   `V` and the strut kernel over the stations, a case's stations in one vector where `V` is one lane (`emit_kernel`),
-  else station after station over `V`'s lanes: the same operations per station either way.
+  else two stations per call over `V`'s lanes: the same operations per station either way.
 
 fmin/fmax are written as the C library computes them (glibc 2.36: a NaN operand gives the other one, of
 +0 and -0 the minimum is -0), so that lanes equal the scalar engine bit for bit. The library is compiled
@@ -371,10 +371,11 @@ def _batched_calls(name: str, ks: list[int], values, width: int) -> list[str]:
 _MACRO_NAMES = re.compile(r"\b(" + "|".join(OPERATION_MACROS) + r")\(")
 
 
-def emit_kernel(fn: ca.Function, cname: str) -> str:
+def emit_kernel(fn: ca.Function, cname: str, copies: int = 1) -> str:
     """C of the strut kernel (`vehicle.numerics.split_step`): `fn`'s statements over the kernel's lane type K_T
-    with the K_ operations, its inputs and outputs read and written through K_LOAD / K_STORE (value q of the
-    stations from s_ at q NSP + s_: `_SPLIT`). Dense inputs and outputs."""
+    with the K_ operations, its inputs and outputs read and written through K_LOAD / K_STORE (value q of station
+    s at q NSP + s: `_SPLIT`); `copies` stations s0_, s0_ + 1, ... per call, each statement written for each in
+    turn (their own registers: the same operations per station). Dense inputs and outputs."""
     for k in range(fn.n_in()):
         if not fn.sparsity_in(k).is_dense():
             raise ValueError(f"emit_kernel: input {k} of {fn.name()} is sparse")
@@ -382,17 +383,20 @@ def emit_kernel(fn: ca.Function, cname: str) -> str:
         if not fn.sparsity_out(k).is_dense():
             raise ValueError(f"emit_kernel: output {k} of {fn.name()} is sparse")
     args = [f"const V* restrict i{k}" for k in range(fn.n_in())] + [f"V* restrict o{k}" for k in range(fn.n_out())]
-    lines = [f"NOIPA static void {cname}({', '.join(args)}, int s_) {{"]
-    if fn.sz_w():
-        lines.append(f"  K_T {', '.join(f'a{j}' for j in range(fn.sz_w()))};")
+    lines = [f"NOIPA static void {cname}({', '.join(args)}, int s0_) {{"]
+    for c in range(copies):
+        if fn.sz_w():
+            lines.append(f"  K_T {', '.join(f'a{j}_{c}' for j in range(fn.sz_w()))};")
     for k in range(fn.n_instructions()):
         op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            lines.append(f"  a{i_out[0]}=K_LOAD(i{i_in[0]}, {i_in[1]});")
-        elif op == ca.OP_OUTPUT:
-            lines.append(f"  K_STORE(o{i_out[0]}, {i_out[1]}, a{i_in[0]});")
-        else:
-            lines.append(_MACRO_NAMES.sub(r"K_\1(", _statement(fn, k, f"a{i_out[0]}", [f"a{i}" for i in i_in[:2]], [])))
+        for c in range(copies):
+            if op == ca.OP_INPUT:
+                lines.append(f"  a{i_out[0]}_{c}=K_LOAD(i{i_in[0]}, {i_in[1]}, s0_ + {c});")
+            elif op == ca.OP_OUTPUT:
+                lines.append(f"  K_STORE(o{i_out[0]}, {i_out[1]}, s0_ + {c}, a{i_in[0]}_{c});")
+            else:
+                lines.append(_MACRO_NAMES.sub(r"K_\1(", _statement(fn, k, f"a{i_out[0]}_{c}",
+                                                                     [f"a{i}_{c}" for i in i_in[:2]], [])))
     lines.append("}")
     return "\n".join(lines)
 
@@ -404,22 +408,23 @@ _SPLIT = r"""
 #define NSP %(padded)d
 #if VW == 1 && (defined(__GNUC__) || defined(__clang__)) && !defined(HPSIM_KERNEL_STATIONWISE)
 /* one case per call: its stations in one vector of NSP doubles */
-#define KG NSP
+#define K_STATION_VECTOR 1
 typedef double S __attribute__((vector_size(8 * NSP)));
 typedef long long SL __attribute__((vector_size(8 * NSP)));
 #define K_T S
 %(kernel_ops)s
-#define K_LOAD(p, k) ({ S t_; memcpy(&t_, (p) + (long)(k) * NSP, sizeof t_); t_; })
-#define K_STORE(p, k, v) do { S t_ = (v); memcpy((p) + (long)(k) * NSP, &t_, sizeof t_); } while (0)
+#define K_LOAD(p, k, s) ({ S t_; memcpy(&t_, (p) + (long)(k) * NSP, sizeof t_); t_; })
+#define K_STORE(p, k, s, v) do { S t_ = (v); memcpy((p) + (long)(k) * NSP, &t_, sizeof t_); } while (0)
+#define STATIONS(f, in, pw, out) f(in, pw, out, 0)
 #else
-/* the step's lanes (cases), station after station */
-#define KG 1
+/* the step's lanes (cases), two stations per call */
 #define K_T V
 %(kernel_aliases)s
-#define K_LOAD(p, k) ((p)[(long)(k) * NSP + s_])
-#define K_STORE(p, k, v) ((p)[(long)(k) * NSP + s_] = (v))
+#define K_LOAD(p, k, s) ((p)[(long)(k) * NSP + (s)])
+#define K_STORE(p, k, s, v) ((p)[(long)(k) * NSP + (s)] = (v))
+/* two stations per call, their statements interleaved: independent work beside each long chain of the kernel */
+#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += 2) f##_pair(in, pw, out, s_)
 #endif
-#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += KG) f(in, pw, out, s_)
 %(functions)s
 NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* restrict i2, const V* restrict i3,
                        V* restrict o0) {
@@ -438,7 +443,8 @@ def split_step_source(split, batch: int) -> str:
     piece = (lambda fn, nm: emit_batched(fn, nm, batch)) if batch else emit_function
     k1, k2 = split.kernels
     functions = [piece(a, "piece_a"), piece(b, "piece_b"), piece(c, "piece_c"),
-                 emit_kernel(k1, "kernel_1"), emit_kernel(k2, "kernel_2")]
+                 "#ifdef K_STATION_VECTOR", emit_kernel(k1, "kernel_1"), emit_kernel(k2, "kernel_2"), "#else",
+                 emit_kernel(k1, "kernel_1_pair", 2), emit_kernel(k2, "kernel_2_pair", 2), "#endif"]
     return _SPLIT % {"stations": split.stations, "padded": split.padded,
                      "kernel_ops": vector_math.vector_source("S", "SL", "s") + vector_ops("K_", "S", "SL", split.padded,
                                                                                         "s"),

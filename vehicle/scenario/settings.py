@@ -19,7 +19,7 @@ SEGMENTS_RANGE = (1, 64)                      # solver.time_parallel: processes 
 TIME_PARALLEL_LANES_RANGE = (1, 16)           # solver.time_parallel_lanes: segments per process, in lockstep
 TIME_PARALLEL_LANES_DEFAULT = "auto"          # solver.time_parallel_lanes not given
 # "auto": at most this many. 1: one segment per process on the scalar engine, whose step split around the struts
-# costs a lane-step's 1.55x only: the lanes' lockstep segments gain less than their joins cost (docs/engines.md,
+# costs a lane-step's 1.65x only: the lanes' lockstep segments gain less than their joins cost (docs/engines.md,
 # "Parallel in time")
 TIME_PARALLEL_LANES_AUTO = 1
 
