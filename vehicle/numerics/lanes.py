@@ -374,8 +374,8 @@ _MACRO_NAMES = re.compile(r"\b(" + "|".join(OPERATION_MACROS) + r")\(")
 def emit_kernel(fn: ca.Function, cname: str, copies: int = 1) -> str:
     """C of the strut kernel (`vehicle.numerics.split_step`): `fn`'s statements over the kernel's lane type K_T
     with the K_ operations, its inputs and outputs read and written through K_LOAD / K_STORE (value q of station
-    s at q NSP + s: `_SPLIT`); `copies` stations s0_, s0_ + 1, ... per call, each statement written for each in
-    turn (their own registers: the same operations per station). Dense inputs and outputs."""
+    s at q NSP + s: `_SPLIT`); `copies` lane vectors per call, from stations s0_, s0_ + KSTEP, ..., each statement
+    written for each in turn (their own registers: the same operations per station). Dense inputs and outputs."""
     for k in range(fn.n_in()):
         if not fn.sparsity_in(k).is_dense():
             raise ValueError(f"emit_kernel: input {k} of {fn.name()} is sparse")
@@ -391,9 +391,9 @@ def emit_kernel(fn: ca.Function, cname: str, copies: int = 1) -> str:
         op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
         for c in range(copies):
             if op == ca.OP_INPUT:
-                lines.append(f"  a{i_out[0]}_{c}=K_LOAD(i{i_in[0]}, {i_in[1]}, s0_ + {c});")
+                lines.append(f"  a{i_out[0]}_{c}=K_LOAD(i{i_in[0]}, {i_in[1]}, s0_ + {c} * KSTEP);")
             elif op == ca.OP_OUTPUT:
-                lines.append(f"  K_STORE(o{i_out[0]}, {i_out[1]}, s0_ + {c}, a{i_in[0]}_{c});")
+                lines.append(f"  K_STORE(o{i_out[0]}, {i_out[1]}, s0_ + {c} * KSTEP, a{i_in[0]}_{c});")
             else:
                 lines.append(_MACRO_NAMES.sub(r"K_\1(", _statement(fn, k, f"a{i_out[0]}_{c}",
                                                                      [f"a{i}_{c}" for i in i_in[:2]], [])))
@@ -407,23 +407,27 @@ _SPLIT = r"""
 #define NS %(stations)d
 #define NSP %(padded)d
 #if VW == 1 && (defined(__GNUC__) || defined(__clang__)) && !defined(HPSIM_KERNEL_STATIONWISE)
-/* one case per call: its stations in one vector of NSP doubles */
+/* one case per call: its stations in vectors of KW doubles (one hardware vector each), NSP / KW of them
+   interleaved in one call */
 #define K_STATION_VECTOR 1
-typedef double S __attribute__((vector_size(8 * NSP)));
-typedef long long SL __attribute__((vector_size(8 * NSP)));
+#define KW %(kernel_width)d
+#define KSTEP KW
+typedef double S __attribute__((vector_size(8 * KW)));
+typedef long long SL __attribute__((vector_size(8 * KW)));
 #define K_T S
 %(kernel_ops)s
-#define K_LOAD(p, k, s) ({ S t_; memcpy(&t_, (p) + (long)(k) * NSP, sizeof t_); t_; })
-#define K_STORE(p, k, s, v) do { S t_ = (v); memcpy((p) + (long)(k) * NSP, &t_, sizeof t_); } while (0)
-#define STATIONS(f, in, pw, out) f(in, pw, out, 0)
+#define K_LOAD(p, k, s) ({ S t_; memcpy(&t_, (p) + (long)(k) * NSP + (s), sizeof t_); t_; })
+#define K_STORE(p, k, s, v) do { S t_ = (v); memcpy((p) + (long)(k) * NSP + (s), &t_, sizeof t_); } while (0)
+#define STATIONS(f, in, pw, out) f##_group(in, pw, out, 0)
 #else
 /* the step's lanes (cases), two stations per call */
+#define KSTEP 1
 #define K_T V
 %(kernel_aliases)s
 #define K_LOAD(p, k, s) ((p)[(long)(k) * NSP + (s)])
 #define K_STORE(p, k, s, v) ((p)[(long)(k) * NSP + (s)] = (v))
 /* two stations per call, their statements interleaved: independent work beside each long chain of the kernel */
-#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += 2) f##_pair(in, pw, out, s_)
+#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += 2) f##_group(in, pw, out, s_)
 #endif
 %(functions)s
 NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* restrict i2, const V* restrict i3,
@@ -437,16 +441,21 @@ NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* rest
 }
 """
 
-def split_step_source(split, batch: int) -> str:
-    """C of the split step `step(z, u0, u1, pw, z_next)` (a `vehicle.numerics.split_step.SplitStep`): the pieces by `emit_batched` (batch > 0) or `emit_function`, the kernels by `emit_kernel`."""
+def split_step_source(split, batch: int, width: int) -> str:
+    """C of the split step `step(z, u0, u1, pw, z_next)` (a `vehicle.numerics.split_step.SplitStep`): the pieces
+    by `emit_batched` (batch > 0) or `emit_function`, the kernels by `emit_kernel`; width: doubles per hardware
+    vector (a case's stations in vectors of min(width, stations) doubles)."""
     a, b, c = split.pieces
     piece = (lambda fn, nm: emit_batched(fn, nm, batch)) if batch else emit_function
     k1, k2 = split.kernels
+    kernel_width = min(int(width), split.padded)
+    groups = split.padded // kernel_width
     functions = [piece(a, "piece_a"), piece(b, "piece_b"), piece(c, "piece_c"),
-                 "#ifdef K_STATION_VECTOR", emit_kernel(k1, "kernel_1"), emit_kernel(k2, "kernel_2"), "#else",
-                 emit_kernel(k1, "kernel_1_pair", 2), emit_kernel(k2, "kernel_2_pair", 2), "#endif"]
-    return _SPLIT % {"stations": split.stations, "padded": split.padded,
-                     "kernel_ops": vector_math.vector_source("S", "SL", "s") + vector_ops("K_", "S", "SL", split.padded,
+                 "#ifdef K_STATION_VECTOR", emit_kernel(k1, "kernel_1_group", groups),
+                 emit_kernel(k2, "kernel_2_group", groups), "#else",
+                 emit_kernel(k1, "kernel_1_group", 2), emit_kernel(k2, "kernel_2_group", 2), "#endif"]
+    return _SPLIT % {"stations": split.stations, "padded": split.padded, "kernel_width": kernel_width,
+                     "kernel_ops": vector_math.vector_source("S", "SL", "s") + vector_ops("K_", "S", "SL", kernel_width,
                                                                                         "s"),
                      "kernel_aliases": "\n".join(f"#define K_{m} {m}" for m in OPERATION_MACROS),
                      "functions": "\n".join(functions),
@@ -454,7 +463,7 @@ def split_step_source(split, batch: int) -> str:
                      "nk1": b.size1_out(1), "nlu": b.size1_out(2), **{f"off_{k}": v for k, v in split.offsets.items()}}
 
 
-def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: int = 0) -> str:
+def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: int = 0, width: int = 8) -> str:
     """The C of the lane block function `name` (see the module docstring) for NL = `lanes`; batch > 0: the step by
     `emit_batched` with vector calls of `batch` lanes (the one-lane build, -DHPSIM_LANES_SCALAR). `step`: the step
     as one SX function, or a `vehicle.numerics.split_step.SplitStep` (`split_step_source`)."""
@@ -469,7 +478,7 @@ def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: in
                           "scalar_math": vector_math.scalar_functions(),
                           "batch_math": vector_math.vector_source("HB", "HBL", "b")}
     if split is not None:
-        step_c = split_step_source(split, batch)
+        step_c = split_step_source(split, batch, width)
     else:
         step_c = emit_batched(step, "step", batch) if batch else emit_function(step, "step")
     return "\n".join([prelude, step_c, emit_function(parametric, "parametric"),
@@ -518,10 +527,12 @@ class LaneStepper:
         def build() -> bytes:
             split = solver.split_step_functions(model)
             if split is not None:
-                self.source = lanes_source(split, split.parametric, self.lanes, self.name, batch=batch)
+                self.source = lanes_source(split, split.parametric, self.lanes, self.name, batch=batch,
+                                           width=ISAS[self.isa][1])
             else:
                 step, _, parametric, _ = solver.step_functions(model)
-                self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
+                self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch,
+                                      width=ISAS[self.isa][1])
             return self.source.encode()
         # found in the compile cache by what determines the C (no graph built when it is there)
         self.spec = CLibrary(self.name, (model.structure, float(solver.dt), self.lanes, batch,
@@ -543,7 +554,8 @@ class LaneStepper:
         split = not isinstance(step, ca.Function)
         self.nz, self.nu = (step.nz, step.nu) if split else (step.size1_in(0), step.size1_in(1))
         self.np = parametric.size1_in(0)
-        self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch)
+        self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch,
+                                      width=ISAS[self.isa][1])
         self.spec = None
         return self.load()
 

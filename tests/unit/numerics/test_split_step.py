@@ -98,8 +98,9 @@ def test_the_stations_parameters_enter_the_kernel_as_lanes():
 
 
 def test_compiled_forms_of_the_split_step_agree_bit_for_bit():
-    """The scalar engine's block (a case's stations in one vector, batched calls), the same with the kernel two
-    stations per call (what a compiler without GCC's vector types builds), the ensemble's lanes (4 and 8 cases of
+    """The scalar engine's block (a case's stations in one vector, batched calls), the same built for AVX2 and SSE2
+    (the stations in two and four vectors), the same with the kernel two stations per call over scalar lanes (what
+    a compiler without GCC's vector types builds), the ensemble's lanes (4 and 8 cases of
     different parameters) and, where installed, Clang: the same bits, lane by lane."""
     model = _model("apc_8x8")
     steps, K = 200, 10
@@ -120,9 +121,14 @@ def test_compiled_forms_of_the_split_step_agree_bit_for_bit():
     split = Ros2(DT).split_step_functions(model)
     stationwise = LaneStepper.from_functions(split, split.parametric, 1, "hpsim_test_split_stationwise", batch=8,
                                              flags=("-DHPSIM_KERNEL_STATIONWISE",))
-    assert "kernel_1_pair(" in stationwise.source and "STATIONS(kernel_1" in stationwise.source
+    assert "kernel_1_group(" in stationwise.source and "STATIONS(kernel_1" in stationwise.source
     for lane in range(2):
         assert np.array_equal(run(stationwise, 1, lane)[:, :, 0], one[lane]), lane
+    for isa in ("avx2", "sse2"):           # the stations in two vectors of 4, four of 2 (AVX-512: one of 8)
+        narrow = LaneStepper(Ros2(DT), model, 1, batched=True, isa=isa)
+        assert narrow.source is None or f"#define KW {4 if isa == 'avx2' else 2}" in narrow.source  # None: cached
+        for lane in range(2):
+            assert np.array_equal(run(narrow, 1, lane)[:, :, 0], one[lane]), (isa, lane)
     for lanes in (4, 8):
         got = run(LaneStepper(Ros2(DT), model, lanes), lanes)
         for lane in range(lanes):
