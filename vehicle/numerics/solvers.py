@@ -260,7 +260,7 @@ class Ros2:
         return x_next, mem1, lu
 
     @staticmethod
-    def _step_symbols(model):
+    def step_symbols(model):
         """(x, memory, u at the step's start, u at its end) of one step, as SX symbols."""
         return (ca.SX.sym("x", model.nx), ca.SX.sym("mem", model.n_memory), ca.SX.sym("u0", model.nu),
                 ca.SX.sym("u1", model.nu))
@@ -272,7 +272,7 @@ class Ros2:
         are explicit reciprocals in the graph (`explicit_reciprocals`), so scalar and vector code round alike. What
         the block function unrolls, what an FMU wraps (vehicle.fmu) and what `vehicle.numerics.lanes` turns into code
         over many cases; an unbound solver takes one step per sample."""
-        x, mem, u0, u1 = self._step_symbols(model)
+        x, mem, u0, u1 = self.step_symbols(model)
         p = ca.SX.sym("p", model.np)
         z = ca.vertcat(x, mem)
         every = min(self.jacobian_every, self.K)
@@ -350,7 +350,7 @@ class Ros2:
     def _build_baseline(self, model) -> ca.Function:
         """The block function of commit 18a58c4 on this model (see the class docstring)."""
         nx, nu, np_, nm, n_run = model.nx, model.nu, model.np, model.n_memory, model.n_run
-        x, mem, u0, u1 = self._step_symbols(model)
+        x, mem, u0, u1 = self.step_symbols(model)
         p_run = ca.SX.sym("p_run", n_run)
         # the parameter values as constants: SX folds the arithmetic on them while the step is built
         p = ca.vertcat(p_run, ca.DM(model.parameters.numeric()))

@@ -115,7 +115,7 @@ def build(solver, model) -> SplitStep | None:
     kernels = _kernels(model, padded, p)
     if kernels is None:
         return None
-    x, mem, u0, u1 = solver._step_symbols(model)
+    x, mem, u0, u1 = solver.step_symbols(model)
     z = ca.vertcat(x, mem)
     h, ns = solver.dt, model.n_stiff
     names_out = [model.strut_kernel_names(0, jacobian)[1] for jacobian in (True, False)]

@@ -303,7 +303,7 @@ def test_indicator_quadratures_take_the_rectangle_rule_and_the_physics_is_unchan
     solver = solvers.Ros2(0.004, compile=False)
 
     def step():
-        xs, mem, u0, u1 = solver._step_symbols(m)
+        xs, mem, u0, u1 = solver.step_symbols(m)
         p = ca.SX.sym("p", m.np)
         x_next, _, _ = solver._stages(m, xs, mem, u0, u1, p)
         return np.asarray(ca.Function("step", [xs, mem, u0, u1, p], [x_next])(x, np.zeros(m.n_memory), U[:, 0],
