@@ -237,6 +237,17 @@ def _constant(v: float) -> str:
     return repr(float(v))
 
 
+def _dense(fn: ca.Function, who: str, outputs: bool = False) -> None:
+    """Refuse a sparse input (and with outputs=True a sparse output) of `fn`: the lane code reads and writes dense
+    arrays."""
+    for kind, n, sparsity in (("input", fn.n_in(), fn.sparsity_in), ("output", fn.n_out(), fn.sparsity_out)):
+        if kind == "output" and not outputs:
+            continue
+        for k in range(n):
+            if not sparsity(k).is_dense():
+                raise ValueError(f"{who}: {kind} {k} of {fn.name()} is sparse")
+
+
 def emit_function(fn: ca.Function, cname: str) -> str:
     """C of an SX function over lanes: `static void cname(const V* in0, ..., V* out0, ...)`, one statement per
     instruction of `fn` (its work registers a0, a1, ... as CasADi's C generator numbers them). Inputs are read and
@@ -257,10 +268,7 @@ def emit_function(fn: ca.Function, cname: str) -> str:
         sp = fn.sparsity_out(k)
         if sp.nnz() != sp.numel():                       # structural zeros: written as 0
             lines.append(f"  for (int i = 0; i < {sp.numel()}; ++i) o{k}[i] = BC(0.);")
-    for dense_in in range(n_in):
-        sp = fn.sparsity_in(dense_in)
-        if sp.nnz() != sp.numel():
-            raise ValueError(f"emit_function: input {dense_in} of {fn.name()} is sparse")
+    _dense(fn, "emit_function")
     for k in range(fn.n_instructions()):
         i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
         lines.append(_statement(fn, k, f"a{i_out[0]}", [f"a{i}" for i in i_in[:2]], rows_out))
@@ -320,10 +328,7 @@ def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
     if not isinstance(fn, ca.Function) or not fn.is_a("SXFunction"):
         raise TypeError("emit_batched: expected an SX function")
     n_in, n_out = fn.n_in(), fn.n_out()
-    for dense_in in range(n_in):
-        sp = fn.sparsity_in(dense_in)
-        if sp.nnz() != sp.numel():
-            raise ValueError(f"emit_batched: input {dense_in} of {fn.name()} is sparse")
+    _dense(fn, "emit_batched")
     values = _values(fn)
     depth = []
     for op, reads in values:
@@ -376,12 +381,7 @@ def emit_kernel(fn: ca.Function, cname: str, copies: int = 1) -> str:
     with the K_ operations, its inputs and outputs read and written through K_LOAD / K_STORE (value q of station
     s at q NSP + s: `_SPLIT`); `copies` lane vectors per call, from stations s0_, s0_ + KSTEP, ..., each statement
     written for each in turn (their own registers: the same operations per station). Dense inputs and outputs."""
-    for k in range(fn.n_in()):
-        if not fn.sparsity_in(k).is_dense():
-            raise ValueError(f"emit_kernel: input {k} of {fn.name()} is sparse")
-    for k in range(fn.n_out()):
-        if not fn.sparsity_out(k).is_dense():
-            raise ValueError(f"emit_kernel: output {k} of {fn.name()} is sparse")
+    _dense(fn, "emit_kernel", outputs=True)
     args = [f"const V* restrict i{k}" for k in range(fn.n_in())] + [f"V* restrict o{k}" for k in range(fn.n_out())]
     lines = [f"NOIPA static void {cname}({', '.join(args)}, int s0_) {{"]
     for c in range(copies):
@@ -420,14 +420,15 @@ typedef long long SL __attribute__((vector_size(8 * KW)));
 #define K_STORE(p, k, s, v) do { S t_ = (v); memcpy((p) + (long)(k) * NSP + (s), &t_, sizeof t_); } while (0)
 #define STATIONS(f, in, pw, out) f##_group(in, pw, out, 0)
 #else
-/* the step's lanes (cases), two stations per call */
+/* the step's lanes (cases), several stations per call */
 #define KSTEP 1
 #define K_T V
 %(kernel_aliases)s
 #define K_LOAD(p, k, s) ((p)[(long)(k) * NSP + (s)])
 #define K_STORE(p, k, s, v) ((p)[(long)(k) * NSP + (s)] = (v))
-/* two stations per call, their statements interleaved: independent work beside each long chain of the kernel */
-#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += 2) f##_group(in, pw, out, s_)
+/* STATIONS_PER_CALL stations per call, their statements interleaved: independent work beside each long chain of
+   the kernel */
+#define STATIONS(f, in, pw, out) for (int s_ = 0; s_ < NS; s_ += %(per_call)d) f##_group(in, pw, out, s_)
 #endif
 %(functions)s
 NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* restrict i2, const V* restrict i3,
@@ -441,6 +442,10 @@ NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* rest
 }
 """
 
+# stations per kernel call over the ensemble's lanes (docs/engines.md, "Lanes across struts": two measured fastest)
+STATIONS_PER_CALL = 2
+
+
 def split_step_source(split, batch: int, width: int) -> str:
     """C of the split step `step(z, u0, u1, pw, z_next)` (a `vehicle.numerics.split_step.SplitStep`): the pieces
     by `emit_batched` (batch > 0) or `emit_function`, the kernels by `emit_kernel`; width: doubles per hardware
@@ -453,8 +458,10 @@ def split_step_source(split, batch: int, width: int) -> str:
     functions = [piece(a, "piece_a"), piece(b, "piece_b"), piece(c, "piece_c"),
                  "#ifdef K_STATION_VECTOR", emit_kernel(k1, "kernel_1_group", groups),
                  emit_kernel(k2, "kernel_2_group", groups), "#else",
-                 emit_kernel(k1, "kernel_1_group", 2), emit_kernel(k2, "kernel_2_group", 2), "#endif"]
+                 emit_kernel(k1, "kernel_1_group", STATIONS_PER_CALL),
+                 emit_kernel(k2, "kernel_2_group", STATIONS_PER_CALL), "#endif"]
     return _SPLIT % {"stations": split.stations, "padded": split.padded, "kernel_width": kernel_width,
+                     "per_call": STATIONS_PER_CALL,
                      "kernel_ops": vector_math.vector_source("S", "SL", "s") + vector_ops("K_", "S", "SL", kernel_width,
                                                                                         "s"),
                      "kernel_aliases": "\n".join(f"#define K_{m} {m}" for m in OPERATION_MACROS),
@@ -463,12 +470,20 @@ def split_step_source(split, batch: int, width: int) -> str:
                      "nk1": b.size1_out(1), "nlu": b.size1_out(2), **{f"off_{k}": v for k, v in split.offsets.items()}}
 
 
-def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: int = 0, width: int = 8) -> str:
+def _step_sizes(step) -> tuple[int, int]:
+    """(nz, nu) of a step: one SX function (z, u0, u1, pw) -> z_next or a `split_step.SplitStep`."""
+    if isinstance(step, ca.Function):
+        return step.size1_in(0), step.size1_in(1)
+    return step.nz, step.nu
+
+
+def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: int = 0, *, width: int) -> str:
     """The C of the lane block function `name` (see the module docstring) for NL = `lanes`; batch > 0: the step by
     `emit_batched` with vector calls of `batch` lanes (the one-lane build, -DHPSIM_LANES_SCALAR). `step`: the step
-    as one SX function, or a `vehicle.numerics.split_step.SplitStep` (`split_step_source`)."""
+    as one SX function, or a `vehicle.numerics.split_step.SplitStep` (`split_step_source`); width: doubles per
+    hardware vector (`ISAS`)."""
     split = None if isinstance(step, ca.Function) else step
-    nz, nu = (split.nz, split.nu) if split else (step.size1_in(0), step.size1_in(1))
+    nz, nu = _step_sizes(step)
     npw, np_ = parametric.size1_out(0), parametric.size1_in(0)
     if split is None and (step.size1_in(3) != npw or step.size1_out(0) != nz):
         raise ValueError("lanes_source: the step and the parametric function do not fit together")
@@ -518,25 +533,23 @@ class LaneStepper:
                  cc: str | None = None, batched: bool = False, load: bool = True):
         if solver.jacobian_every != 1 or solver.engine != "current":
             raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
+        strut_lanes = solver.strut_lanes
         self._setup(lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{'b' if batched else ''}"
-                    f"{'s' if getattr(solver, 'strut_lanes', False) else ''}", isa,
-                    scalar or batched, cc)
+                    f"{'s' if strut_lanes else ''}", isa, scalar or batched, cc)
         batch = ISAS[self.isa][1] if batched else 0
         self.nz, self.nu, self.np = model.nx + model.n_memory, model.nu, model.np
 
         def build() -> bytes:
             split = solver.split_step_functions(model)
             if split is not None:
-                self.source = lanes_source(split, split.parametric, self.lanes, self.name, batch=batch,
-                                           width=ISAS[self.isa][1])
+                step, parametric = split, split.parametric
             else:
                 step, _, parametric, _ = solver.step_functions(model)
-                self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch,
-                                      width=ISAS[self.isa][1])
+            self.source = self._source(step, parametric, batch)
             return self.source.encode()
         # found in the compile cache by what determines the C (no graph built when it is there)
-        self.spec = CLibrary(self.name, (model.structure, float(solver.dt), self.lanes, batch,
-                                         getattr(solver, "strut_lanes", False)), build, self.flags)
+        self.spec = CLibrary(self.name, (model.structure, float(solver.dt), self.lanes, batch, strut_lanes), build,
+                             self.flags)
         if load:           # load=False: `spec` for codegen.precompile, `load()` later
             self.load()
 
@@ -551,13 +564,15 @@ class LaneStepper:
         self = cls.__new__(cls)
         self._setup(lanes, name, isa, scalar or batch > 0, cc)
         self.flags += tuple(flags)
-        split = not isinstance(step, ca.Function)
-        self.nz, self.nu = (step.nz, step.nu) if split else (step.size1_in(0), step.size1_in(1))
+        self.nz, self.nu = _step_sizes(step)
         self.np = parametric.size1_in(0)
-        self.source = lanes_source(step, parametric, self.lanes, self.name, batch=batch,
-                                      width=ISAS[self.isa][1])
+        self.source = self._source(step, parametric, batch)
         self.spec = None
         return self.load()
+
+    def _source(self, step, parametric: ca.Function, batch: int) -> str:
+        """`lanes_source` of this stepper's lanes, name and instruction set."""
+        return lanes_source(step, parametric, self.lanes, self.name, batch=batch, width=ISAS[self.isa][1])
 
     def _setup(self, lanes, name, isa, scalar, cc) -> None:
         self.lanes = int(lanes)

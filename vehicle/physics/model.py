@@ -54,7 +54,6 @@ from vehicle.physics import hull as hull_eq
 from vehicle.physics import ride
 from vehicle.physics import strut_kernel
 from vehicle.physics import thermal
-from vehicle.physics.strut_kernel import strut_part
 from vehicle.physics.params import GRAVITY, VehicleParams
 from vehicle.physics.tyre import tyre_force
 
@@ -353,7 +352,7 @@ class VehicleModel:
             if strut_parts is not None:
                 eq, dT_nodes = strut_parts[i]
             else:
-                eq, dT_nodes = strut_part(K, i, sin, internal, dp, T_oil, T_wall, T_surf, T_amb, speed)
+                eq, dT_nodes = strut_kernel.strut_part(K, i, sin, internal, dp, T_oil, T_wall, T_surf, T_amb, speed)
             Fs = eq["force"]
             # tyre on the enveloped road
             defl = K.tyre_static_deflection[i] + road[i] - w
@@ -516,8 +515,7 @@ class VehicleModel:
                 dps.append(None)
                 continue
             sin, internal = self.strut_inputs(X, i, p)
-            dps.append(strut.valve_pressure_drop(sin.v, sin.T_wall, dp_guess=memory[k], newton_iterations=iterations,
-                                                 warm=True, u=sin, states=internal))
+            dps.append(strut_kernel.valve_drop(strut, sin, internal, memory[k], iterations))
             k += 1
         return dps
 

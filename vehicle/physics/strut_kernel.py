@@ -44,6 +44,14 @@ def output_names(strut, jacobian: bool) -> tuple:
     return ("dp", "force", *strut.state_names, *POWERS, *NODE_RATES) + (STIFFNESS if jacobian else ())
 
 
+def valve_drop(strut, sin: StrutInputs, internal: dict, dp_guess, iterations: int = 1):
+    """The valve pressure drop [Pa] of an incompressible strut by `iterations` Newton steps from the warm start
+    dp_guess on its flow balance (`strut.valve_pressure_drop`): what `VehicleModel.eliminate_valves` computes for
+    each such station, and the kernel at each stage."""
+    return strut.valve_pressure_drop(sin.v, sin.T_wall, dp_guess=dp_guess, newton_iterations=iterations, warm=True,
+                                     u=sin, states=internal)
+
+
 def strut_part(K, i: int, sin: StrutInputs, internal: dict, dp, T_oil, T_wall, T_surface, T_amb, speed) -> tuple:
     """(the strut's equations `strut.equations`, the node rates of its heat network) of station i: the struts
     library's gas law, valves, friction and end stops, then vehicle.physics.thermal's network fed by what they
@@ -75,8 +83,7 @@ def kernel(model, i: int, jacobian: bool) -> ca.Function:
     internal = {nm: s[nm] for nm in strut.state_names}
     sin = StrutInputs(x=s["x"], v=s["v"], T_wall=s["T_oil"], m_gas=s["m_gas"], dV_oil=s["V_oil"],
                       dV_oil_rate=s["q_oil"], dT_wall_rate=0.0, x_mid=s["x_mid"])
-    dp = strut.valve_pressure_drop(sin.v, sin.T_wall, dp_guess=s["dp_guess"], newton_iterations=1, warm=True,
-                                   u=sin, states=internal)
+    dp = valve_drop(strut, sin, internal, s["dp_guess"])
     eq, node_rates = strut_part(K, i, sin, internal, dp, s["T_oil"], s["T_wall"], s["T_surface"], s["T_amb"],
                                 s["speed"])
     outs = [dp, eq["force"], *[eq["rates"][nm] for nm in strut.state_names], *[eq[k] for k in POWERS], *node_rates]
