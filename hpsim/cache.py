@@ -1,7 +1,8 @@
 """hpsim's cache folder: ~/.cache/hpsim (or $HPSIM_CACHE), private to this user.
 
 It holds the compiled model libraries (vehicle.numerics.codegen, whose module docstring gives the trust model),
-this machine's compile and drive rates, and the quantities already converted to SI (`hpsim.units`). The folder
+this machine's compile and drive rates, the quantities already converted to SI (`hpsim.units`) and the random
+roads already generated (`terrain.store`, in its `roads/` folder). The folder
 is created with mode 0700; a folder owned by another user or writable by group/others is not trusted
 (`trusted_cache_dir` says None, and nothing is read from it or written to it).
 """
@@ -10,6 +11,8 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
+
+from .errors import UserInputError
 
 CACHE_ENV = "HPSIM_CACHE"
 
@@ -45,3 +48,18 @@ def trusted_cache_dir() -> Path | None:
     """The cache folder when it can be trusted, else None (quietly: the caller goes without the cache)."""
     d, problem = cache_problem()
     return d if problem is None else None
+
+
+def size_limit_bytes(variable: str, default_mb: float, minimum_mb: float, what: str) -> float:
+    """A size limit [bytes] from the environment variable `variable` in MB (default_mb when unset); UserInputError
+    naming the variable, `what` it limits and the allowed range when it is not a number >= minimum_mb."""
+    text = os.environ.get(variable)
+    if not text:
+        return default_mb * 1e6
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = float("nan")
+    if not mb >= minimum_mb:
+        raise UserInputError(f"{variable}: expected {what} in MB (>= {minimum_mb:g}), got {text!r}")
+    return mb * 1e6

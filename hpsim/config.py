@@ -98,26 +98,8 @@ class _RefusedYAML(yaml.YAMLError):
         self.problem = problem
 
 
-class _StrictSafeLoader(yaml.SafeLoader):
-    """yaml.SafeLoader without anchors/aliases, with a nesting limit and duplicate keys as errors."""
-
-    def __init__(self, stream):
-        super().__init__(stream)
-        self._depth = 0
-
-    def compose_node(self, parent, index):
-        event = self.peek_event()
-        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
-            # refused outright: expanding aliases is how a small file becomes a huge document
-            raise _RefusedYAML(event.start_mark, "YAML anchors and aliases (&name, *name) are not allowed here; "
-                                                 "write the values out")
-        self._depth += 1
-        if self._depth > MAX_YAML_DEPTH:
-            raise _RefusedYAML(event.start_mark, f"nested deeper than {MAX_YAML_DEPTH} levels")
-        try:
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
+class _StrictConstructor:
+    """Duplicate keys as errors (the constructor of both loaders below)."""
 
     def construct_mapping(self, node, deep=False):
         if isinstance(node, yaml.MappingNode):
@@ -135,11 +117,70 @@ class _StrictSafeLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+def _refused_node(event, depth: int) -> _RefusedYAML | None:
+    """Why a node (its event, at nesting depth `depth`, the document's root at 1) is refused: an alias or anchor
+    (expanding aliases is how a small file becomes a huge document), or nesting deeper than MAX_YAML_DEPTH."""
+    if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+        return _RefusedYAML(event.start_mark, "YAML anchors and aliases (&name, *name) are not allowed here; "
+                                              "write the values out")
+    if depth > MAX_YAML_DEPTH:
+        return _RefusedYAML(event.start_mark, f"nested deeper than {MAX_YAML_DEPTH} levels")
+    return None
+
+
+class _StrictSafeLoader(_StrictConstructor, yaml.SafeLoader):
+    """yaml.SafeLoader without anchors/aliases, with a nesting limit and duplicate keys as errors (pure Python: where
+    PyYAML was built without libyaml)."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            refused = _refused_node(self.peek_event(), self._depth)
+            if refused is not None:
+                raise refused
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+_CSafeLoader = getattr(yaml, "CSafeLoader", None)
+if _CSafeLoader is not None:
+    class _StrictCSafeLoader(_StrictConstructor, _CSafeLoader):
+        """libyaml's parser and composer (C: a tenth of the pure-Python loader's time) with the duplicate-key check;
+        anchors, aliases and the nesting limit are checked on its events first (`_check_events`)."""
+
+
+def _check_events(text: str) -> None:
+    """Refuse anchors, aliases and deep nesting from libyaml's event stream, before anything is composed."""
+    depth = 0
+    for event in yaml.parse(text, Loader=_CSafeLoader):
+        opens = isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent))
+        if opens or isinstance(event, (yaml.ScalarEvent, yaml.AliasEvent)):
+            refused = _refused_node(event, depth + 1)
+            if refused is not None:
+                raise refused
+        if opens:
+            depth += 1
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
+
+
+def _load_strict(text: str) -> Any:
+    if _CSafeLoader is None:
+        return yaml.load(text, Loader=_StrictSafeLoader)
+    _check_events(text)
+    return yaml.load(text, Loader=_StrictCSafeLoader)
+
+
 def parse_yaml(text: str, name: str) -> Any:
     """Parse YAML text safely; errors name `name`:line:column and never quote the text.
 
     The parsed documents of this process are cached by their text (a run reads the strut file once per axle and
-    again for the results; the strict loader is pure Python, ~50 ms a file): each call returns its own deep copy,
+    again for the results): each call returns its own deep copy,
     so callers may change what they get."""
     return copy.deepcopy(_parse_yaml_cached(text, name))
 
@@ -147,7 +188,7 @@ def parse_yaml(text: str, name: str) -> Any:
 @functools.lru_cache(maxsize=64)
 def _parse_yaml_cached(text: str, name: str) -> Any:
     try:
-        return yaml.load(text, Loader=_StrictSafeLoader)
+        return _load_strict(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{name}:{mark.line + 1}:{mark.column + 1}" if mark else str(name)

@@ -10,13 +10,18 @@ from __future__ import annotations
 
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Callable, Iterable, TypeVar
 
 T = TypeVar("T")
 R = TypeVar("R")
 
 THREADS = 2        # the pieces at once: the work this is for comes in pairs (two tracks, two windows)
+# the BLAS library's own threads: hpsim's parallel work is its pieces on threads (here) and its study workers in
+# processes, each sized to the cores; a BLAS that starts threads of its own for the small matrices hpsim multiplies
+# (8 x 8 to 40 x 40) oversubscribes the cores, and OpenBLAS's threads spin while they wait for the next product
+# (docs/engines.md, "The whole command")
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 
@@ -47,3 +52,16 @@ def beside_map(fn: Callable[[T], R], items: Iterable[T]) -> list[R]:
     if len(items) < 2:
         return [fn(x) for x in items]
     return list(_pool().map(fn, items))
+
+
+def beside(fn: Callable[[], R]) -> Future:
+    """fn() started on a pool thread (`beside_map`'s); its Future. For work that waits (a child process, a file)
+    while this thread goes on."""
+    return _pool().submit(fn)
+
+
+def one_blas_thread() -> None:
+    """One thread for the BLAS library (BLAS_THREAD_VARIABLES), unless the environment already says how many: called
+    before NumPy is imported (the libraries read the variables when they load); the study workers inherit it."""
+    for name in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")

@@ -9,6 +9,7 @@ from __future__ import annotations
 from functools import cached_property
 
 from hpsim import symbolic as sym
+from hpsim.errors import UserInputError
 
 from . import excitation
 from . import friction as fr
@@ -17,6 +18,10 @@ from . import maps as mapslaw
 from . import oil as oillaw
 from . import valves
 from .params import REVERSAL_MEMORY_TIME_S, StrutParams
+
+# the gas masses searched for a strut's charge [kg]: 0.1 g to 5 kg of nitrogen spans any vehicle strut's charge (the
+# 8x8's are ~0.1-0.2 kg, REFERENCE §3)
+GAS_MASS_BRACKET_KG = (1e-4, 5.0)
 
 
 class StrutBase:
@@ -123,6 +128,22 @@ class StrutBase:
         """Gas mass for another fill pressure at full extension and temperature."""
         V_ext = float(self.extended_gas_volume(temperature_K))
         return float(gaslaw.gas_mass(pressure_Pa, temperature_K, V_ext, self.gas, self.p.gas.eos))
+
+    def gas_mass_carrying(self, force_N: float, x, T, process: str | None = None) -> float:
+        """Gas mass [kg] whose static gas force (`static_gas_force`) at deflection x [m] and temperature T [K] is
+        force_N [N]: the root on the mass, which the force grows with, within GAS_MASS_BRACKET_KG (Brent's method;
+        UserInputError when even its upper end does not carry the force). A layout whose static law inverts in closed
+        form overrides it (`SeparatedStrut`)."""
+        from scipy.optimize import brentq        # here, not at the top: SciPy's optimize package takes ~0.1 s to import
+
+        def residual(m):
+            return float(self.static_gas_force(x, T, m, process=process)) - force_N
+
+        lo, hi = GAS_MASS_BRACKET_KG
+        if residual(hi) < 0:
+            raise UserInputError(f"strut {self.p.name}: {hi:g} kg of gas do not carry {force_N / 1e3:.4g} kN at "
+                                 f"{float(x) * 1e3:.4g} mm")
+        return float(brentq(residual, lo, hi, xtol=1e-14, rtol=1e-14))
 
     def extended_gas_volume(self, T_wall, dV_oil=0.0):
         """Gas volume at full extension [m^3]: oil thermal expansion eats gas space (seed 000 eq. 6)."""

@@ -95,3 +95,7 @@ class Strut(Protocol):
 
     def gas_mass_for(self, pressure_Pa: float, temperature_K: float) -> float:
         """Gas mass [kg] that has `pressure_Pa` at full extension at `temperature_K`."""
+
+    def gas_mass_carrying(self, force_N: float, x, T, process: str | None = None) -> float:
+        """Gas mass [kg] whose static gas force (`static_gas_force`) at deflection x and temperature T is force_N
+        (UserInputError when the gas law's range holds none)."""

@@ -77,12 +77,30 @@ class SeparatedStrut(StrutBase):
         process=None uses the file's: "energy" -> isothermal at T (the gas has had time to
         exchange heat); "polytropic" -> seed 000 eq. 5 from full extension.
         """
+        law = self._static_law(process)
+        return self.gas_pressure(x, T, T, m_gas, dV_oil, law) * self.p.geometry.gas_area
+
+    def _static_law(self, process: str | None) -> str:
+        """The gas law ("energy": isothermal at T; "polytropic") of the static process (None: the file's)."""
         if process is None:
             process = "isothermal" if self.p.gas.process == "energy" else "polytropic"
         if process not in ("isothermal", "polytropic"):
             raise ValueError(f"unknown static process {process!r}")
-        law = "energy" if process == "isothermal" else "polytropic"
-        return self.gas_pressure(x, T, T, m_gas, dV_oil, law) * self.p.geometry.gas_area
+        return "energy" if process == "isothermal" else "polytropic"
+
+    def gas_mass_carrying(self, force_N: float, x, T, process: str | None = None, dV_oil=0.0) -> float:
+        """Gas mass [kg] whose static gas force at deflection x [m] and temperature T [K] is force_N [N]: the
+        inverse of `static_gas_force` in closed form. The pressure p = F / A; isothermal, the gas at T fills the gas
+        volume V(x) at p: m = V / v(p, T) with v the equation of state's inverse (`gas.specific_volume`);
+        polytropic (seed 000 eq. 5), p = p_ext (V_ext / V)^n, so p_ext = p (V / V_ext)^n and m = V_ext / v(p_ext, T)."""
+        p = float(force_N) / self.p.geometry.gas_area
+        V = float(self.gas_volume(x, T, dV_oil))
+        eos = self.p.gas.eos
+        if self._static_law(process) == "polytropic":
+            V_ext = float(self.extended_gas_volume(T, dV_oil))
+            return float(V_ext / gaslaw.specific_volume(p * (V / V_ext) ** self.p.gas.polytropic_exponent, T,
+                                                        self.gas, eos))
+        return float(V / gaslaw.specific_volume(p, T, self.gas, eos))
 
     # --- oil properties -----------------------------------------------------------------------
     # --- valve ----------------------------------------------------------------------------------

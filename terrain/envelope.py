@@ -18,7 +18,6 @@ average when L/Δ is an odd integer).
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import convolve1d
 
 
 def contact_kernel(contact_length_m: float, spacing_m: float) -> np.ndarray:
@@ -58,4 +57,6 @@ def envelope_profile(height_m: np.ndarray, contact_length_m: float, spacing_m: f
     kernel = contact_kernel(contact_length_m, spacing_m)
     if kernel.size == 1:
         return np.array(height_m, dtype=float, copy=True)
+    from scipy.ndimage import convolve1d      # here, not at the top: a road from the store needs no SciPy import
+
     return convolve1d(np.asarray(height_m, dtype=float), kernel, mode="nearest")

@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Iterable
 
 import numpy as np
-from scipy.linalg import solve_banded
 
 from hpsim.errors import UserInputError
 from hpsim.threads import beside_map
@@ -30,6 +29,7 @@ from hpsim.threads import beside_map
 from .envelope import envelope_profile
 from .passes import PassSpec, pass_profile, pass_spec
 from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
+from .store import key_of, stored_arrays
 
 
 MAX_ROAD_POINTS = 25_000_000
@@ -62,6 +62,8 @@ def clamped_spline_slopes(z: np.ndarray, spacing_m: float) -> np.ndarray:
     n = z.size
     if n < 3:
         return np.zeros(n)
+    from scipy.linalg import solve_banded    # here, not at the top: a road from the store needs no SciPy import
+
     ab = np.empty((3, n))
     ab[0] = 1.0
     ab[1] = 4.0
@@ -79,11 +81,13 @@ class Road:
     """Left/right track heights [m] at distances i·spacing_m, i = 0..n-1 (distance starts at 0)."""
 
     def __init__(self, spacing_m: float, left_m, right_m, *, info: dict | None = None, copy: bool = True,
-                 passes: list[PassSpec] | None = None, level_m: tuple | None = None):
+                 passes: list[PassSpec] | None = None, level_m: tuple | None = None, key: str | None = None):
         """copy=False takes over float64 arrays without copying (they become read-only).
 
         passes: the surface of pass 0, 1, ... (`terrain.passes`; default: the same for every pass);
-        level_m: (left, right) persistent level changes inside the profile that the passes leave alone.
+        level_m: (left, right) persistent level changes inside the profile that the passes leave alone;
+        key: the road's key in the road store (`terrain.store`, a random road): what is derived from it (envelopes,
+        spline slopes, pass surfaces) is stored there too. None: computed each time.
         """
         left = np.array(left_m, dtype=float, copy=copy or None)
         right = np.array(right_m, dtype=float, copy=copy or None)
@@ -104,6 +108,7 @@ class Road:
                 raise ValueError("level_m must be (left, right) arrays of the profile's length")
         self._level = level_m
         self._pass_cache: dict = {}     # (PassSpec, track) -> (heights, knot slopes)
+        self.key = key
 
     # -- grid -----------------------------------------------------------------
     @property
@@ -147,18 +152,26 @@ class Road:
         if not spec.identity:
             return self._pass_arrays(spec, k)[1]
         if self._slopes[k] is None:
-            m = clamped_spline_slopes(self._z[k], self._spacing)
+            (m,), _ = stored_arrays(self._derived_key("slopes", k), ("slopes",),
+                                    lambda: (clamped_spline_slopes(self._z[k], self._spacing),))
             m.setflags(write=False)
             self._slopes[k] = m
         return self._slopes[k]
 
+    def _derived_key(self, *operation) -> str | None:
+        """The store's key of what `operation` derives from this road (None: not stored)."""
+        return None if self.key is None else key_of(self.key, *operation)
+
     def _pass_arrays(self, spec: PassSpec, k: int):
         key = (spec.factor, spec.smoothing_length, k)
         if key not in self._pass_cache:
-            level = None if self._level is None else self._level[k]
-            z = pass_profile(self._z[k], self._spacing, spec, level)
+            def surface():
+                level = None if self._level is None else self._level[k]
+                z = pass_profile(self._z[k], self._spacing, spec, level)
+                return z, clamped_spline_slopes(z, self._spacing)
+
+            (z, m), _ = stored_arrays(self._derived_key("pass", *key), ("heights", "slopes"), surface)
             z.setflags(write=False)
-            m = clamped_spline_slopes(z, self._spacing)
             m.setflags(write=False)
             self._pass_cache[key] = (z, m)
         return self._pass_cache[key]
@@ -250,10 +263,16 @@ class Road:
         if not contact_length_m > 0:
             raise UserInputError(f"contact length: must be > 0 m (got {contact_length_m} m)")
         info = dict(self.info, contact_length_m=float(contact_length_m))
-        level = None if self._level is None else \
-            tuple(envelope_profile(a, contact_length_m, self._spacing) for a in self._level)
-        left, right = beside_map(lambda z: envelope_profile(z, contact_length_m, self._spacing), self._z)
-        return Road(self._spacing, left, right, info=info, copy=False, passes=self.passes, level_m=level)
+
+        def envelopes():
+            tracks = beside_map(lambda z: envelope_profile(z, contact_length_m, self._spacing), self._z)
+            return tracks + [envelope_profile(a, contact_length_m, self._spacing) for a in self._level or ()]
+
+        key = self._derived_key("envelope", float(contact_length_m))
+        names = ("left", "right") + (() if self._level is None else ("level_left", "level_right"))
+        arrays, _ = stored_arrays(key, names, envelopes)
+        return Road(self._spacing, arrays[0], arrays[1], info=info, copy=False, passes=self.passes,
+                    level_m=tuple(arrays[2:]) or None, key=key)
 
     def prepare(self, pass_indices: Iterable[int] = (0,)) -> "Road":
         """Compute the spline slopes (`knot_slopes`) of both tracks on these passes' surfaces now, the two tracks on

@@ -34,6 +34,7 @@ from .coherence import coherence_model
 from .events import LEVEL_EVENTS, EventPopulation, EventSpec, apply_events, population_rng
 from .passes import PassSpec
 from .road import Road, check_road_points
+from .store import key_of, stored_arrays
 
 MAX_LENGTH_M = 5.0e6  # 5000 km: beyond this the arrays no longer fit comfortably in memory
 # Work size of a road: generating takes about 50 bytes per grid point at its peak (measured: 20 M
@@ -173,7 +174,8 @@ def load_road_spec(path: str | Path) -> RoadSpec:
 
 
 def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
-    """Build the Road described by `spec` (a relative `csv` path is taken from `base_dir`, default cwd)."""
+    """Build the Road described by `spec` (a relative `csv` path is taken from `base_dir`, default cwd). A random
+    road is read from the road store when it was built before (`terrain.store`: the same arrays, memory-mapped)."""
     info = {"spec": spec.model_dump(mode="json")}
     if spec.csv is not None or spec.crg is not None:
         path = Path(spec.csv if spec.csv is not None else spec.crg)
@@ -187,25 +189,16 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
         if not spec.events and not spec.populations:
             return Road(road.spacing_m, road.left_m, road.right_m, info={**info, **road.info}, copy=False,
                         passes=spec.passes)
-        left, right = road.left_m.copy(), road.right_m.copy()
         info.update(road.info)
-        step = road.spacing_m
+        step, profile, key = road.spacing_m, lambda: (road.left_m.copy(), road.right_m.copy()), None
+        road_length = road.length_m
     else:
         step = spec.spacing
         n = int(np.floor(spec.length / step + 1e-9)) + 1
-        if spec.flat:
-            left, right = np.zeros(n), np.zeros(n)
-        else:
-            gd = spec.gd_n0_m3
-            band = tuple(spec.band)
-            if spec.coherence == "isotropic":
-                mode, fn = "model", (lambda nn: coherence_model("isotropic", nn, spec.track_width,
-                                                                  spec.waviness))
-            else:
-                mode, fn = spec.coherence, None
-            left, right = iso8608.generate_tracks(gd, spec.waviness, step, n, spec.seed, band, mode, fn)
-            info["gd_n0_m3"] = gd
-    road_length = (left.size - 1) * step
+        profile, key = (lambda: _random_tracks(spec, step, n)), key_of("road", info["spec"])
+        if not spec.flat:
+            info["gd_n0_m3"] = spec.gd_n0_m3
+        road_length = (n - 1) * step
     for i, ev in enumerate(spec.events):
         if ev.position > road_length:
             raise UserInputError(f"events.{i}: {ev.type} at {ev.position:g} m is beyond the road "
@@ -218,10 +211,31 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
         events += drawn
     if counts:
         info["population_counts"] = counts
-    apply_events(step, left, right, events)
-    level = None
-    if any(not p.identity for p in spec.passes) and any(isinstance(ev, LEVEL_EVENTS) for ev in events):
-        # steps and ramps change the level for good: the passes compact the roughness, not the grade
+    # steps and ramps change the level for good: the passes compact the roughness, not the grade
+    level_events = [ev for ev in events if isinstance(ev, LEVEL_EVENTS)] \
+        if any(not p.identity for p in spec.passes) else []
+
+    def tracks():
+        left, right = profile()
+        apply_events(step, left, right, events)
+        if not level_events:
+            return left, right
         level = (np.zeros_like(left), np.zeros_like(right))
-        apply_events(step, level[0], level[1], [ev for ev in events if isinstance(ev, LEVEL_EVENTS)])
-    return Road(step, left, right, info=info, copy=False, passes=spec.passes, level_m=level)
+        apply_events(step, level[0], level[1], level_events)
+        return left, right, *level
+
+    names = ("left", "right") + (("level_left", "level_right") if level_events else ())
+    arrays, _ = stored_arrays(key, names, tracks)
+    return Road(step, arrays[0], arrays[1], info=info, copy=False, passes=spec.passes,
+                level_m=tuple(arrays[2:]) or None, key=key)
+
+
+def _random_tracks(spec: RoadSpec, step: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The left and right tracks of a random (or flat) road, before its events."""
+    if spec.flat:
+        return np.zeros(n), np.zeros(n)
+    if spec.coherence == "isotropic":
+        mode, fn = "model", (lambda nn: coherence_model("isotropic", nn, spec.track_width, spec.waviness))
+    else:
+        mode, fn = spec.coherence, None
+    return iso8608.generate_tracks(spec.gd_n0_m3, spec.waviness, step, n, spec.seed, tuple(spec.band), mode, fn)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import os
 import random
 import resource
@@ -83,6 +84,11 @@ def _child(target, cwd, env, w):
         if hard == resource.RLIM_INFINITY or hard > limit:
             resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
         sys.stdout, sys.stderr = out, err
+        for handler in logging.getLogger("hpsim").handlers:
+            # a command run in this test process before (`main`) set up a handler on the stderr of its time, which
+            # pytest has closed since: this child's messages go to its own stderr, as a user's command's do
+            if isinstance(handler, logging.StreamHandler):
+                handler.stream = err               # (not setStream: it flushes the closed stream first)
         warnings.simplefilter("default")        # printed as a user would see them, not pytest's record
         warnings.showwarning = lambda msg, cat, fname, lineno, file=None, line=None: err.write(
             warnings.formatwarning(msg, cat, fname, lineno, line))

@@ -23,6 +23,7 @@ import signal
 import sys
 
 from hpsim.errors import SimulationError, Terminated, UserInputError
+from hpsim.threads import one_blas_thread
 
 
 class _Parser(argparse.ArgumentParser):
@@ -138,7 +139,8 @@ def entry() -> None:
     cache); freeing the objects of numpy, SciPy, CasADi, h5py and hpsim one by one, which the operating system does
     at once when the process ends, is skipped: it took 0.12-0.2 s of every command (the same reason as Instagram's
     `atexit.register(os._exit, 0)`). An error that `main` does not handle (a bug) ends as Python ends: traceback,
-    exit code 1."""
+    exit code 1. The BLAS library is asked for one thread (`hpsim.threads.one_blas_thread`)."""
+    one_blas_thread()
     try:
         code = main()
     except SystemExit as exc:             # argparse's --help, --version and usage errors

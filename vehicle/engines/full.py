@@ -21,7 +21,7 @@ import numpy as np
 from hpsim.errors import SimulationError
 
 from vehicle.physics import thermal
-from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
+from vehicle.physics.equilibrium import charge_gas_masses, equilibrium_solver
 from vehicle.physics import ride
 from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
 from vehicle.numerics.error_estimate import StepDoublingEstimate, check_spacing_s, window_steps
@@ -67,7 +67,7 @@ class Drive:
         self.road = self.station_roads[0]
         t0 = time.perf_counter()
         self.gas_masses = charge_gas_masses(model) if gas_masses is None else np.asarray(gas_masses, float)
-        self.equilibrium_solver = EquilibriumSolver(model)
+        self.equilibrium_solver = equilibrium_solver(model)
         self.p = model.run_parameters(self.gas_masses, settings.compensation)
         self.K = int(round(settings.output_interval_s / settings.dt_s))
         self.M = samples_per_call(self.K, settings.samples_per_block)   # a long interval: fewer samples per call

@@ -6,18 +6,25 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-from scipy.linalg import expm
 
 from vehicle.numerics.codegen import Library, compile_function
 
 ERROR_COVERAGE = 0.95       # the stated error: a 95 % interval of the sampling error (Student t, see error_factor)
 
 
+def matrix_exponential(M: np.ndarray) -> np.ndarray:
+    """The matrix exponential (scipy.linalg.expm), imported on first use: a drive whose flows decompose (`LinearFlow`)
+    never needs it, and SciPy's linalg package takes ~0.1 s to import."""
+    from scipy.linalg import expm
+
+    return expm(M)
+
+
 def error_factor(dof: int) -> float:
     """Standard deviations in the stated error: the two-sided ERROR_COVERAGE quantile of Student's t with the
     estimate's degrees of freedom (the windows' scatter is estimated from few windows: 3.2 for 3, 2.1 for 20)."""
     # scipy.special's inverse of Student's t distribution, which scipy.stats.t.ppf evaluates (the same numbers);
-    # scipy.special is loaded with scipy.linalg already, scipy.stats would cost ~0.4 s to import
+    # scipy.stats would cost ~0.4 s to import
     from scipy.special import stdtrit
 
     return float(stdtrit(max(int(dof), 1), 0.5 + ERROR_COVERAGE / 2))
@@ -73,7 +80,7 @@ def propagators(A: np.ndarray, b: np.ndarray, tau: float):
     M = np.zeros((2 * n, 2 * n))
     M[:n, :n] = A * tau
     M[:n, n:] = np.eye(n) * tau
-    E = expm(M)
+    E = matrix_exponential(M)
     Phi, Gam = E[:n, :n], E[:n, n:]
     return Phi, Gam @ b, Gam
 
@@ -103,7 +110,7 @@ class LinearFlow:
 
     def phi(self, t: float) -> np.ndarray:
         if not self.ok:
-            return expm(self.A * t)
+            return matrix_exponential(self.A * t)
         return np.real((self.V * np.exp(self.lam * t)) @ self.Vi)
 
     def gamma(self, t: float) -> np.ndarray:

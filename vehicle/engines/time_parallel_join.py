@@ -11,12 +11,11 @@ from dataclasses import dataclass, field
 import time
 
 import numpy as np
-from scipy.linalg import expm
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.physics.outputs import joined
 from vehicle.engines.contract import DriveResult, DriveState
-from vehicle.engines.slow_flow import LinearFlow
+from vehicle.engines.slow_flow import LinearFlow, matrix_exponential
 
 PIECE_SAMPLES = 500               # samples per block handed to the sink when the segments are joined
 
@@ -155,7 +154,8 @@ class SegmentJoin:
         if check is not None:
             A_shift = self._A(X + (Sl @ delta)[:, None], M, U, Sl)
             A1, A2 = p["A"][1:]
-            e = np.abs((expm(A_shift * T) - Phi_T) @ delta) + 0.5 * np.abs((expm(A2 * T) - expm(A1 * T)) @ delta)
+            e = np.abs((matrix_exponential(A_shift * T) - Phi_T) @ delta) \
+                + 0.5 * np.abs((matrix_exponential(A2 * T) - matrix_exponential(A1 * T)) @ delta)
         # the restart: segment k's fast states at its start are not the serial run's (it started from rest
         # before its warm-up). Segment k-1 went on past the join over the same road as segment k's first
         # warm-up length: the difference of their slow-state changes there is what the different fast states

@@ -50,8 +50,7 @@ from typing import Callable
 
 import casadi as ca
 
-from hpsim.cache import CACHE_ENV, cache_problem
-from hpsim.errors import UserInputError
+from hpsim.cache import CACHE_ENV, cache_problem, size_limit_bytes
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time, vector_math
@@ -81,16 +80,7 @@ def cache_dir() -> Path:
 
 
 def cache_limit_bytes() -> float:
-    text = os.environ.get(CACHE_MAX_ENV)
-    if not text:
-        return DEFAULT_CACHE_MAX_MB * 1e6
-    try:
-        mb = float(text)
-    except ValueError:
-        mb = float("nan")
-    if not mb >= 1:
-        raise UserInputError(f"{CACHE_MAX_ENV}: expected the cache size limit in MB (>= 1), got {text!r}")
-    return mb * 1e6
+    return size_limit_bytes(CACHE_MAX_ENV, DEFAULT_CACHE_MAX_MB, 1.0, "the cache size limit")
 
 
 # -fno-math-errno lets sqrt compile to one instruction (same result). No -ffast-math: NaN and infinity must

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import brentq
 
 from hpsim.errors import UserInputError
 from struts import gas as gaslaw
@@ -113,16 +112,12 @@ def _masses_for_charging_loads(model: VehicleModel, process: str | None) -> np.n
             raise UserInputError(
                 f"{P.name}: charging.wheel_loads: {model.charged_wheel_loads[i]:.6g} N at {name} does not even carry "
                 f"the unsprung weight {model.m_u[i] * GRAVITY:.6g} N")
-
-        def residual(m):
-            return float(strut.static_gas_force(model.x_charged, T, m, process=process)) - F_needed
-
-        m_lo, m_hi = 1e-4, 5.0
-        if residual(m_hi) < 0:
+        try:
+            masses[i] = strut.gas_mass_carrying(F_needed, model.x_charged, T, process=process)
+        except UserInputError:
             raise UserInputError(
                 f"{P.name}: strut {strut.p.name} at {name} cannot carry {F_needed / 1e3:.4g} kN at "
-                f"{model.x_charged * 1e3:.4g} mm deflection (gas pressure would exceed the gas law's range)")
-        masses[i] = brentq(residual, m_lo, m_hi, xtol=1e-14, rtol=1e-14)
+                f"{model.x_charged * 1e3:.4g} mm deflection (gas pressure would exceed the gas law's range)") from None
         p_gas = F_needed / strut.p.geometry.gas_area
         if p_gas > 60e6:
             raise UserInputError(
@@ -257,3 +252,12 @@ def equilibrium_table(model: VehicleModel, eq: Equilibrium) -> dict:
                       "N_mean_daN": mean / 10.0, "dN_pct": 100.0 * (mean - mean0) / mean0})
     return {"axles": axles, "pitch_mrad": eq.pitch_rad * 1e3, "roll_mrad": eq.roll_rad * 1e3,
             "total_load_N": float(np.sum(eq.wheel_loads_N))}
+
+
+def equilibrium_solver(model: VehicleModel) -> EquilibriumSolver:
+    """The model's EquilibriumSolver, built once per model object: a run's vehicle check, its drive and its weighings
+    stand the same vehicle (each build makes the static balance and its Jacobian: ~20 ms)."""
+    solver = model.__dict__.get("_equilibrium_solver")
+    if solver is None:
+        solver = model.__dict__["_equilibrium_solver"] = EquilibriumSolver(model)
+    return solver

@@ -32,7 +32,7 @@ from pydantic import BaseModel
 from hpsim.errors import UserInputError
 
 from vehicle.physics import linear
-from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
+from vehicle.physics.equilibrium import charge_gas_masses, equilibrium_solver
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY, VehicleParams, load_vehicle, vehicle_file
 
@@ -295,7 +295,7 @@ def check_standing(P: VehicleParams, rep: CheckReport, model: VehicleModel | Non
     except UserInputError as exc:
         rep.add("error", "charging", str(exc))
         return None
-    solver = EquilibriumSolver(model)
+    solver = equilibrium_solver(model)
     margin = THRESHOLDS["stop_margin_fraction"]
     for name, T in temperature_cases(P):
         try:

@@ -51,7 +51,7 @@ from hpsim.errors import UserInputError
 from struts import friction as fr
 
 from vehicle.physics import hull as hull_eq
-from vehicle.physics.equilibrium import EquilibriumSolver, static_balance, statics_inputs
+from vehicle.physics.equilibrium import equilibrium_solver, static_balance, statics_inputs
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY
 from vehicle.physics.tyre import tyre_force
@@ -249,7 +249,7 @@ class WeighingSolver:
 
     def __init__(self, model: VehicleModel):
         self.model = model
-        self.frictionless = EquilibriumSolver(model)
+        self.frictionless = equilibrium_solver(model)
         n, P = model.n, model.params
         q = ca.SX.sym("q", 3 + n)
         u = ca.SX.sym("u", n)

@@ -194,6 +194,15 @@ def _attr_value(v):
     return v
 
 
+def _copied(value):
+    """value with its containers and arrays copied (scalars and strings shared)."""
+    if isinstance(value, dict):
+        return {k: _copied(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_copied(v) for v in value)
+    return value.copy() if isinstance(value, np.ndarray) else value
+
+
 class ResultsFile(ResultsView):
     """A results file (format 1 or 2) opened for reading. Use `open_results(path)`."""
 
@@ -202,6 +211,7 @@ class ResultsFile(ResultsView):
         self.name = str(path)
         self.f = f
         self.version = self._check_structure()
+        self._read_once: dict = {}     # what a report reads many times: the checkpoint, the static groups
 
     # structure
     def _missing(self, what: str):
@@ -273,9 +283,18 @@ class ResultsFile(ResultsView):
         g = self.f.get("summary")
         return {} if g is None else {k: _attr_value(v) for k, v in g.attrs.items()}
 
+    def _once(self, key: str, read):
+        """read() the first time `key` is asked for, the same value afterwards (the file is read, not written,
+        through this object); a copy of its arrays each time, so that callers may change what they get."""
+        if key not in self._read_once:
+            self._read_once[key] = read()
+        return _copied(self._read_once[key])
+
     def _checkpoint(self):
-        with self._reading("/checkpoint"):
-            return Checkpoint(self.f["checkpoint"]).read()
+        def read():
+            with self._reading("/checkpoint"):
+                return Checkpoint(self.f["checkpoint"]).read()
+        return self._once("/checkpoint", read)
 
     def counts(self) -> tuple[int, int]:
         ck = self._checkpoint()
@@ -319,6 +338,9 @@ class ResultsFile(ResultsView):
         return out
 
     def _static_group(self, path: str) -> dict | None:
+        return self._once(path, lambda: self._read_static_group(path))
+
+    def _read_static_group(self, path: str) -> dict | None:
         g = self.f.get(path)
         if g is None:
             return None

@@ -50,6 +50,7 @@ import numpy as np
 from hpsim import __version__
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.stages import timed
+from hpsim.threads import beside
 
 from vehicle.numerics import drive_rate
 from vehicle.physics.weighing import band_datasets, weighing_bands
@@ -289,6 +290,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     """
     log = log or (lambda msg: None)
     t_start = time.perf_counter()
+    beside(code_version)             # `git describe` (a child process) looked up while the scenario is prepared
     out = Path(out)
     if resume and overwrite:
         raise UserInputError(f"{out}: --resume and --overwrite together: --resume continues the run in the file, "

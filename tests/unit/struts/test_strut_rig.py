@@ -12,6 +12,7 @@ from importlib.resources import files
 import numpy as np
 import pytest
 
+from hpsim.errors import UserInputError
 from struts.fit import fit, read_rig_csv, with_values
 from struts.params import load_strut
 from struts.rig import characteristic, cycle_test, static_point
@@ -31,6 +32,25 @@ def apc_n13(apc):
 
 
 # --- statics ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("eos", ["bwr", "ideal"])
+@pytest.mark.parametrize("process", ["isothermal", "polytropic"])
+def test_gas_mass_carrying_inverts_the_static_law(apc_n13, eos, process):
+    """The separated strut's closed-form inverse of its static gas force (REFERENCE §1, seed 000 eq. 5) equals the
+    generic root on the mass (StrutBase, Brent) to rounding, and its mass carries the force."""
+    from struts.base import StrutBase
+    from struts.model import make_strut
+
+    strut = make_strut(apc_n13.with_overrides({"gas.eos": eos}))
+    for x, T, F in [(0.112, 293.15, LOAD_N), (0.05, 333.15, 25e3), (0.2, 263.15, 80e3)]:
+        m = strut.gas_mass_carrying(F, x, T, process=process)
+        assert m == pytest.approx(StrutBase.gas_mass_carrying(strut, F, x, T, process=process), rel=1e-13)
+        assert float(strut.static_gas_force(x, T, m, process=process)) == pytest.approx(F, rel=1e-13)
+    with pytest.raises(UserInputError):                 # beyond the gas law's range
+        strut.gas_mass_carrying(5e7, 0.112, 293.15, process=process)
+    if eos == "ideal":                                  # (the BWR pressure grows without bound with the mass)
+        with pytest.raises(UserInputError, match="do not carry"):
+            StrutBase.gas_mass_carrying(strut, 5e8, 0.112, 293.15, process=process)
 
 def test_static_deflection_matches_seed000(apc_n13):
     """REFERENCE §1: 4.8 MPa at full extension, 20 degC, n = 1.3 -> 41.8 kN at about 112 mm."""

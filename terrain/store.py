@@ -1,0 +1,145 @@
+"""Generated roads kept on disk: a random road's tracks and what is derived from them (the tyre envelopes, the
+spline's knot slopes), so that a second run on the same road reads them instead of computing them again.
+
+A 106 km road on the 50 mm grid is 2.1 M points a track: generating it (noise and overlap-save FFTs), enveloping it
+and solving its spline slopes take ~0.6 s of every run on it, a fifth of a multiscale run, and every case of a
+sweep or UQ study on one road paid it again. From the store the arrays are memory-mapped (`numpy.load(...,
+mmap_mode="r")`): opening them costs milliseconds, and a run that reads a few kilometres of the road (the multiscale
+windows) reads only those pages.
+
+Keys. An entry is found by the SHA-256 of what determines its numbers: for a generated road its `RoadSpec` (seed,
+class, length, spacing, events, ...), for a derived array its parent's key and the operation with its parameters,
+and for every entry the source of the `terrain` package and NumPy's version (its random generator and FFT). A
+changed generator or NumPy is a new key; the arrays read equal the computed ones bit for bit (tests/unit/terrain/
+test_road_store.py). Only random roads are stored: a CSV or OpenCRG road is read from its own file.
+
+Where: `<cache folder>/roads/<key>/`, the cache folder of `hpsim.cache` (private to the user; an untrusted folder
+is not used, and the road is computed as without a store). The files are data (`.npy`, no pickles), written to a
+temporary folder and renamed into place, so parallel workers never read half an entry. Bounded: beyond
+HPSIM_ROAD_CACHE_MAX_MB (default 1000 MB) the least recently used entries are removed after each write; 0 turns
+the store off.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+import time
+from importlib.util import find_spec
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from hpsim.cache import size_limit_bytes, trusted_cache_dir
+
+ROAD_CACHE_MAX_ENV = "HPSIM_ROAD_CACHE_MAX_MB"
+DEFAULT_ROAD_CACHE_MAX_MB = 1000.0
+FOLDER = "roads"
+
+
+def limit_bytes() -> float:
+    """The store's size limit [bytes] from HPSIM_ROAD_CACHE_MAX_MB (0: no store)."""
+    return size_limit_bytes(ROAD_CACHE_MAX_ENV, DEFAULT_ROAD_CACHE_MAX_MB, 0.0,
+                            "the road store's size limit (0 turns it off)")
+
+
+@functools.lru_cache(maxsize=1)
+def generator_version() -> str:
+    """SHA-256 of the `terrain` package's source (each file's name and bytes) and NumPy's version."""
+    h = hashlib.sha256(f"numpy {np.__version__}\0".encode())
+    for root in sorted(find_spec("terrain").submodule_search_locations):
+        for path in sorted(Path(root).glob("*.py")):
+            h.update(f"{path.name}\0".encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def key_of(*parts) -> str:
+    """The key of an entry determined by `parts` (JSON-serialisable: a spec, a parent key, an operation and its
+    parameters) and the generator's version."""
+    text = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=float)
+    return hashlib.sha256(f"{generator_version()}\0{text}".encode()).hexdigest()[:40]
+
+
+def _folder() -> Path | None:
+    if limit_bytes() <= 0:
+        return None
+    d = trusted_cache_dir()
+    return None if d is None else d / FOLDER
+
+
+def _read(entry: Path, names: Sequence[str]) -> tuple[np.ndarray, ...] | None:
+    """The entry's arrays memory-mapped read-only, or None when it is missing or not whole."""
+    try:
+        arrays = tuple(np.load(entry / f"{n}.npy", mmap_mode="r", allow_pickle=False) for n in names)
+        os.utime(entry)                                   # recently used (the bound removes the oldest first)
+        return arrays
+    except (OSError, ValueError):
+        return None
+
+
+def _write(folder: Path, entry: Path, names: Sequence[str], arrays: Sequence[np.ndarray]) -> None:
+    """The arrays written to a temporary folder beside the entry, then renamed into place (another process that
+    wrote the same entry first wins; this one's copy is dropped)."""
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", dir=folder))
+    try:
+        for n, a in zip(names, arrays):
+            np.save(tmp / f"{n}.npy", np.ascontiguousarray(a, dtype=float), allow_pickle=False)
+        os.rename(tmp, entry)
+    except OSError:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _size(entry: Path) -> int:
+    try:
+        return sum(p.stat().st_size for p in entry.iterdir())
+    except OSError:
+        return 0
+
+
+def prune(folder: Path, limit: float) -> None:
+    """Remove the least recently used entries until the store is within `limit` bytes."""
+    try:
+        entries = [(e.stat().st_mtime, e) for e in folder.iterdir() if e.is_dir() and not e.name.startswith(".")]
+    except OSError:
+        return
+    sizes = {e: _size(e) for _, e in entries}
+    total = sum(sizes.values())
+    for _, e in sorted(entries, key=lambda te: te[0]):
+        if total <= limit:
+            break
+        shutil.rmtree(e, ignore_errors=True)
+        total -= sizes[e]
+
+
+def stale_temporaries(folder: Path, older_than_s: float = 3600.0) -> None:
+    """Temporary folders left by a process killed while writing."""
+    now = time.time()
+    for t in folder.glob(".*"):
+        try:
+            if now - t.stat().st_mtime > older_than_s:
+                shutil.rmtree(t, ignore_errors=True)
+        except OSError:
+            pass
+
+
+def stored_arrays(key: str | None, names: Sequence[str], compute: Callable[[], Sequence[np.ndarray]]
+                  ) -> tuple[tuple[np.ndarray, ...], bool]:
+    """(the arrays `names` of entry `key`, read from the store or computed by `compute()` and stored; True when
+    read). key None, or no store: computed."""
+    folder = None if key is None else _folder()
+    if folder is not None:
+        found = _read(folder / key, names)
+        if found is not None:
+            return found, True
+    arrays = tuple(compute())
+    if folder is not None:
+        _write(folder, folder / key, names, arrays)
+        stale_temporaries(folder)
+        prune(folder, limit_bytes())
+    return arrays, False
