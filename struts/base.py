@@ -20,7 +20,7 @@ from . import valves
 from .params import REVERSAL_MEMORY_TIME_S, StrutParams
 
 # the gas masses searched for a strut's charge [kg]: 0.1 g to 5 kg of nitrogen spans any vehicle strut's charge (the
-# 8x8's are ~0.1-0.2 kg, REFERENCE §3)
+# built-in vehicles charge 0.016-0.087 kg: the 8x8 ~0.08 kg, the light 4x4's integrated struts ~0.017 kg)
 GAS_MASS_BRACKET_KG = (1e-4, 5.0)
 
 
