@@ -152,7 +152,7 @@ class Road:
         if not spec.identity:
             return self._pass_arrays(spec, k)[1]
         if self._slopes[k] is None:
-            (m,), _ = stored_arrays(self._derived_key("slopes", k), ("slopes",),
+            (m,) = stored_arrays(self._derived_key("slopes", k), ("slopes",),
                                     lambda: (clamped_spline_slopes(self._z[k], self._spacing),))
             m.setflags(write=False)
             self._slopes[k] = m
@@ -170,7 +170,7 @@ class Road:
                 z = pass_profile(self._z[k], self._spacing, spec, level)
                 return z, clamped_spline_slopes(z, self._spacing)
 
-            (z, m), _ = stored_arrays(self._derived_key("pass", *key), ("heights", "slopes"), surface)
+            z, m = stored_arrays(self._derived_key("pass", *key), ("heights", "slopes"), surface)
             z.setflags(write=False)
             m.setflags(write=False)
             self._pass_cache[key] = (z, m)
@@ -270,7 +270,7 @@ class Road:
 
         key = self._derived_key("envelope", float(contact_length_m))
         names = ("left", "right") + (() if self._level is None else ("level_left", "level_right"))
-        arrays, _ = stored_arrays(key, names, envelopes)
+        arrays = stored_arrays(key, names, envelopes)
         return Road(self._spacing, arrays[0], arrays[1], info=info, copy=False, passes=self.passes,
                     level_m=tuple(arrays[2:]) or None, key=key)
 

@@ -225,7 +225,7 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
         return left, right, *level
 
     names = ("left", "right") + (("level_left", "level_right") if level_events else ())
-    arrays, _ = stored_arrays(key, names, tracks)
+    arrays = stored_arrays(key, names, tracks)
     return Road(step, arrays[0], arrays[1], info=info, copy=False, passes=spec.passes,
                 level_m=tuple(arrays[2:]) or None, key=key)
 

@@ -129,17 +129,17 @@ def stale_temporaries(folder: Path, older_than_s: float = 3600.0) -> None:
 
 
 def stored_arrays(key: str | None, names: Sequence[str], compute: Callable[[], Sequence[np.ndarray]]
-                  ) -> tuple[tuple[np.ndarray, ...], bool]:
-    """(the arrays `names` of entry `key`, read from the store or computed by `compute()` and stored; True when
-    read). key None, or no store: computed."""
+                  ) -> tuple[np.ndarray, ...]:
+    """The arrays `names` of entry `key`, read from the store or computed by `compute()` and stored (key None, or
+    no store: computed)."""
     folder = None if key is None else _folder()
     if folder is not None:
         found = _read(folder / key, names)
         if found is not None:
-            return found, True
+            return found
     arrays = tuple(compute())
     if folder is not None:
         _write(folder, folder / key, names, arrays)
         stale_temporaries(folder)
         prune(folder, limit_bytes())
-    return arrays, False
+    return arrays
