@@ -98,9 +98,9 @@ class SeparatedStrut(StrutBase):
         eos = self.p.gas.eos
         if self._static_law(process) == "polytropic":
             V_ext = float(self.extended_gas_volume(T, dV_oil))
-            return float(V_ext / gaslaw.specific_volume(p * (V / V_ext) ** self.p.gas.polytropic_exponent, T,
-                                                        self.gas, eos))
-        return float(V / gaslaw.specific_volume(p, T, self.gas, eos))
+            p_ext = gaslaw.polytropic_pressure(p, V, V_ext, self.p.gas.polytropic_exponent)   # back to full extension
+            return float(gaslaw.gas_mass(p_ext, T, V_ext, self.gas, eos))
+        return float(gaslaw.gas_mass(p, T, V, self.gas, eos))
 
     # --- oil properties -----------------------------------------------------------------------
     # --- valve ----------------------------------------------------------------------------------
