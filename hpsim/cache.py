@@ -9,12 +9,15 @@ is created with mode 0700; a folder owned by another user or writable by group/o
 from __future__ import annotations
 
 import os
+import shutil
 import stat
+import time
 from pathlib import Path
 
 from .errors import UserInputError
 
 CACHE_ENV = "HPSIM_CACHE"
+STALE_TEMPORARY_S = 3600.0      # a temporary folder older than this was left by a process killed while writing
 
 
 def configured_cache_dir() -> Path:
@@ -63,3 +66,31 @@ def size_limit_bytes(variable: str, default_mb: float, minimum_mb: float, what: 
     if not mb >= minimum_mb:
         raise UserInputError(f"{variable}: expected {what} in MB (>= {minimum_mb:g}), got {text!r}")
     return mb * 1e6
+
+
+def least_recently_used(entries: dict[str, tuple[float, int]], limit_bytes: float, keep: tuple[str, ...] = ()
+                        ) -> list[str]:
+    """The entries (name -> (last use [s since the epoch], size [bytes])) to remove, least recently used first, so
+    that the others hold at most `limit_bytes`; those named in `keep` stay. The cache's one eviction policy (the
+    compiled libraries, `vehicle.numerics.codegen.evict`; the roads, `terrain.store.prune`)."""
+    total = sum(size for _, size in entries.values())
+    removed = []
+    for name in sorted(entries, key=lambda k: entries[k][0]):
+        if total <= limit_bytes:
+            break
+        if name in keep:
+            continue
+        total -= entries[name][1]
+        removed.append(name)
+    return removed
+
+
+def remove_stale_temporaries(folder: Path, pattern: str, older_than_s: float = STALE_TEMPORARY_S) -> None:
+    """Remove the temporary folders `pattern` (a glob) in `folder` that are older than older_than_s."""
+    now = time.time()
+    for t in folder.glob(pattern):
+        try:
+            if now - t.stat().st_mtime > older_than_s:
+                shutil.rmtree(t, ignore_errors=True)
+        except OSError:
+            pass

@@ -27,14 +27,13 @@ import json
 import os
 import shutil
 import tempfile
-import time
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
-from hpsim.cache import size_limit_bytes, trusted_cache_dir
+from hpsim.cache import least_recently_used, remove_stale_temporaries, size_limit_bytes, trusted_cache_dir
 
 ROAD_CACHE_MAX_ENV = "HPSIM_ROAD_CACHE_MAX_MB"
 DEFAULT_ROAD_CACHE_MAX_MB = 1000.0
@@ -105,27 +104,12 @@ def _size(entry: Path) -> int:
 def prune(folder: Path, limit: float) -> None:
     """Remove the least recently used entries until the store is within `limit` bytes."""
     try:
-        entries = [(e.stat().st_mtime, e) for e in folder.iterdir() if e.is_dir() and not e.name.startswith(".")]
+        entries = {e.name: (e.stat().st_mtime, _size(e)) for e in folder.iterdir()
+                   if e.is_dir() and not e.name.startswith(".")}
     except OSError:
         return
-    sizes = {e: _size(e) for _, e in entries}
-    total = sum(sizes.values())
-    for _, e in sorted(entries, key=lambda te: te[0]):
-        if total <= limit:
-            break
-        shutil.rmtree(e, ignore_errors=True)
-        total -= sizes[e]
-
-
-def stale_temporaries(folder: Path, older_than_s: float = 3600.0) -> None:
-    """Temporary folders left by a process killed while writing."""
-    now = time.time()
-    for t in folder.glob(".*"):
-        try:
-            if now - t.stat().st_mtime > older_than_s:
-                shutil.rmtree(t, ignore_errors=True)
-        except OSError:
-            pass
+    for name in least_recently_used(entries, limit):
+        shutil.rmtree(folder / name, ignore_errors=True)
 
 
 def stored_arrays(key: str | None, names: Sequence[str], compute: Callable[[], Sequence[np.ndarray]]
@@ -140,6 +124,6 @@ def stored_arrays(key: str | None, names: Sequence[str], compute: Callable[[], S
     arrays = tuple(compute())
     if folder is not None:
         _write(folder, folder / key, names, arrays)
-        stale_temporaries(folder)
+        remove_stale_temporaries(folder, ".*")
         prune(folder, limit_bytes())
     return arrays

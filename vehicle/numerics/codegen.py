@@ -50,7 +50,7 @@ from typing import Callable
 
 import casadi as ca
 
-from hpsim.cache import CACHE_ENV, cache_problem, size_limit_bytes
+from hpsim.cache import CACHE_ENV, cache_problem, least_recently_used, remove_stale_temporaries, size_limit_bytes
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time, vector_math
@@ -58,7 +58,6 @@ from vehicle.numerics.direct_call import DirectFunction
 
 CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
 DEFAULT_CACHE_MAX_MB = 200.0
-_STALE_BUILD_S = 3600.0        # a build folder older than this was left by a killed process
 
 
 @functools.lru_cache(maxsize=1)
@@ -304,40 +303,25 @@ def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem:
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
     """Remove least recently used entries (by the record's time, touched on each use) until the
     cache holds at most `limit_bytes`; entries whose stem is in `keep` stay. Returns removed stems."""
-    now = time.time()
+    remove_stale_temporaries(d, ".build-*")
     entries: dict[str, list[Path]] = {}
     for p in d.iterdir():
         if p.name.startswith(".build-"):
-            try:
-                if now - p.stat().st_mtime > _STALE_BUILD_S:
-                    shutil.rmtree(p, ignore_errors=True)
-            except OSError:
-                pass
             continue
         if p.suffix in (".so", ".json", ".c", ".casadi") or p.name.endswith(".tmp"):
             entries.setdefault(p.name.split(".", 1)[0], []).append(p)
 
-    def size(paths):
-        return sum(p.stat().st_size for p in paths if p.exists())
+    def use_and_size(paths):
+        there = [p.stat() for p in paths if p.exists()]
+        return max((st.st_mtime for st in there), default=0.0), sum(st.st_size for st in there)
 
-    def last_use(stem):
-        times = [p.stat().st_mtime for p in entries[stem] if p.exists()]
-        return max(times) if times else 0.0
-
-    total = sum(size(v) for v in entries.values())
-    removed = []
-    for stem in sorted(entries, key=last_use):
-        if total <= limit_bytes:
-            break
-        if stem in keep:
-            continue
-        total -= size(entries[stem])
+    removed = least_recently_used({stem: use_and_size(paths) for stem, paths in entries.items()}, limit_bytes, keep)
+    for stem in removed:
         for p in entries[stem]:
             try:
                 p.unlink()
             except OSError:
                 pass
-        removed.append(stem)
     return removed
 
 
