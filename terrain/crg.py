@@ -17,6 +17,8 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
+from .plausibility import check_plausible_tracks
+
 EXTRA_MESSAGE = 'reading OpenCRG files needs the OpenCRG library\'s Python bindings: pip install "hpsim[crg]"'
 SUFFIXES = (".crg",)
 
@@ -63,8 +65,7 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
         u = u0 + step * np.arange(n)
         left = np.asarray(surface.uv_to_z_many(u, half), float)
         right = np.asarray(surface.uv_to_z_many(u, -half), float)
-    if not (np.all(np.isfinite(left)) and np.all(np.isfinite(right))):
-        raise UserInputError(f"{path}: the surface has no elevation at some points of the tracks at v = +-{half:g} m")
+    check_plausible_tracks(str(path), step, left, right, start_m=float(u0), coordinate="u = ")
     offset = 0.5 * (left[0] + right[0])
     info = {"source": str(path), "format": "OpenCRG", "u_start_m": float(u0), "u_end_m": float(u1),
             "u_increment_m": float(du), "v_range_m": [float(v0), float(v1)], "track_width_m": float(track_width_m),

@@ -28,6 +28,7 @@ from hpsim.threads import beside_map
 
 from .envelope import envelope_profile
 from .passes import PassSpec, pass_profile, pass_spec
+from .plausibility import check_plausible_tracks
 from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
 from .store import key_of, stored_arrays
 
@@ -299,6 +300,9 @@ class Road:
                  length_m: float | None = None) -> "Road":
         """Read a measured profile; distance shifted to start at 0 and resampled to a uniform grid.
 
+        Refused (UserInputError naming the file and the distance) unless it is a road a vehicle can drive on
+        (`terrain.plausibility`).
+
         spacing_m: target spacing (default: the file's own spacing if uniform, else its median step).
         length_m: keep only the first length_m metres (must not exceed the file's length).
         """
@@ -322,5 +326,6 @@ class Road:
         else:
             left_u = resample(d, left, step, n)
             right_u = resample(d, right, step, n)
+        check_plausible_tracks(str(path), step, left_u, right_u, start_m=float(d[0]))
         info = {"source": str(path), "distance_offset_m": float(d[0]), "resampled": not keep_grid}
         return cls(step, left_u, right_u, info=info, copy=keep_grid)  # file columns are strided views

@@ -33,6 +33,7 @@ from . import iso8608
 from .coherence import coherence_model
 from .events import LEVEL_EVENTS, EventPopulation, EventSpec, apply_events, population_rng
 from .passes import PassSpec
+from .plausibility import check_plausible_tracks
 from .road import Road, check_road_points
 from .store import key_of, stored_arrays
 
@@ -175,7 +176,10 @@ def load_road_spec(path: str | Path) -> RoadSpec:
 
 def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     """Build the Road described by `spec` (a relative `csv` path is taken from `base_dir`, default cwd). A random
-    road is read from the road store when it was built before (`terrain.store`: the same arrays, memory-mapped)."""
+    road is read from the road store when it was built before (`terrain.store`: the same arrays, memory-mapped).
+
+    Every road, events included, is checked to be one a vehicle can drive on before it is returned
+    (`terrain.plausibility`: UserInputError naming the source, the track and the distance)."""
     info = {"spec": spec.model_dump(mode="json")}
     if spec.csv is not None or spec.crg is not None:
         path = Path(spec.csv if spec.csv is not None else spec.crg)
@@ -218,6 +222,7 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     def tracks():
         left, right = profile()
         apply_events(step, left, right, events)
+        check_plausible_tracks(_source_name(spec), step, left, right)
         if not level_events:
             return left, right
         level = (np.zeros_like(left), np.zeros_like(right))
@@ -228,6 +233,16 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     arrays = stored_arrays(key, names, tracks)
     return Road(step, arrays[0], arrays[1], info=info, copy=False, passes=spec.passes,
                 level_m=tuple(arrays[2:]) or None, key=key)
+
+
+def _source_name(spec: RoadSpec) -> str:
+    """The road source as a refusal names it: the file, or what the generated road was built from."""
+    if spec.csv is not None or spec.crg is not None:
+        return f"{spec.csv or spec.crg} with its events"
+    if spec.flat:
+        return "the flat road with its events"
+    what = f"ISO 8608 class {spec.iso_class}" if spec.iso_class else f"Gd(n0) = {spec.gd_n0_m3:.4g} m³"
+    return f"the generated road ({what}, seed {spec.seed}, with its events)"
 
 
 def _random_tracks(spec: RoadSpec, step: float, n: int) -> tuple[np.ndarray, np.ndarray]:
