@@ -3,10 +3,13 @@ reference line.
 
 The file is read and evaluated by the OpenCRG C library through its Python bindings `pycrg` (extra `crg`:
 pip install "hpsim[crg]"), with the file's own modifiers and options, as any OpenCRG tool sees it. The tracks
-are the elevations z(u, v) at v = +track/2 (left; OpenCRG's v is positive to the left) and v = -track/2
-(right) for u from the start to the end of the reference line at the road's spacing (default: the file's u
-increment). The reference line's own elevation (slope) is part of z, so a grade in the file is a slow height
-change of both tracks; heights are shifted so that the mean of the two tracks is 0 at the start (the
+are the elevations z(u, v) at v = c + track/2 (left; OpenCRG's v is positive to the left of the reference line)
+and v = c - track/2 (right) for u from the start to the end of the reference line at the road's spacing
+(default: the file's u increment). c is the lateral offset of the vehicle's centre line (default 0: centred
+on the reference line); a file whose long sections lie on one side of the reference line (a minimalist file
+without LONG_SECTION_V_RIGHT/LEFT covers v from 0 to its width) needs one, e.g. half its width.
+The reference line's own elevation (slope) is part of z, so a grade in the file is a slow height change of
+both tracks; heights are shifted so that the mean of the two tracks is 0 at the start (the
 shift is kept in the road's info as z_offset_m).
 """
 from __future__ import annotations
@@ -35,10 +38,30 @@ def is_crg(path) -> bool:
     return Path(str(path)).suffix.lower() in SUFFIXES
 
 
+def track_positions(track_width_m: float, lateral_offset_m: float = 0.0) -> tuple[float, float]:
+    """(v of the left track, v of the right track) [m]: the vehicle's centre line at v = lateral_offset_m."""
+    half = 0.5 * float(track_width_m)
+    return float(lateral_offset_m) + half, float(lateral_offset_m) - half
+
+
+def _placement_error(path: Path, track_width_m: float, lateral_offset_m: float, v0: float, v1: float) -> str:
+    """The one-line refusal of tracks outside the surface, with the lateral offsets that would fit."""
+    v_left, v_right = track_positions(track_width_m, lateral_offset_m)
+    where = (f"{path}: the tracks at v = {v_right:g} and {v_left:g} m (track {track_width_m:g} m, lateral offset "
+             f"{lateral_offset_m:g} m) fall outside the file's v range [{v0:g}, {v1:g}] m")
+    half = 0.5 * float(track_width_m)
+    if v1 - v0 < 2 * half:
+        return f"{where}; the surface is narrower than the track"
+    return (f"{where}; a lateral offset from {v0 + half:g} to {v1 - half:g} m keeps both on it (road.lateral_offset, "
+            "hpsim road import --lateral-offset)")
+
+
 def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = None,
-             length_m: float | None = None) -> tuple[float, np.ndarray, np.ndarray, dict]:
+             length_m: float | None = None, lateral_offset_m: float = 0.0) -> tuple[float, np.ndarray, np.ndarray,
+                                                                                     dict]:
     """(spacing [m], left heights [m], right heights [m], info) of the tracks of an OpenCRG file (see the module
-    docstring). length_m: only the first length_m metres of the reference line."""
+    docstring). length_m: only the first length_m metres of the reference line; lateral_offset_m: the v of the
+    vehicle's centre line (positive: left of the reference line)."""
     pycrg = _pycrg()
     path = Path(path)
     if not path.is_file():
@@ -51,10 +74,9 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
         u0, u1 = surface.u_range()
         v0, v1 = surface.v_range()
         du = surface.increments()[0]
-        half = 0.5 * float(track_width_m)
-        if not (v0 <= -half and half <= v1):
-            raise UserInputError(f"{path}: the track width {track_width_m:g} m needs the surface from v = {-half:g} to "
-                                 f"{half:g} m; the file covers v in [{v0:g}, {v1:g}] m")
+        v_left, v_right = track_positions(track_width_m, lateral_offset_m)
+        if not (v0 <= v_right and v_left <= v1):
+            raise UserInputError(_placement_error(path, track_width_m, lateral_offset_m, v0, v1))
         step = float(du) if spacing_m is None else float(spacing_m)
         span = (u1 - u0) if length_m is None else float(length_m)
         if not 0 < span <= (u1 - u0) * (1 + 1e-9):
@@ -63,11 +85,11 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
         if n < 2:
             raise UserInputError(f"{path}: spacing {step:g} m leaves fewer than 2 points over {span:g} m")
         u = u0 + step * np.arange(n)
-        left = np.asarray(surface.uv_to_z_many(u, half), float)
-        right = np.asarray(surface.uv_to_z_many(u, -half), float)
+        left = np.asarray(surface.uv_to_z_many(u, v_left), float)
+        right = np.asarray(surface.uv_to_z_many(u, v_right), float)
     check_plausible_tracks(str(path), step, left, right, start_m=float(u0), coordinate="u = ")
     offset = 0.5 * (left[0] + right[0])
     info = {"source": str(path), "format": "OpenCRG", "u_start_m": float(u0), "u_end_m": float(u1),
             "u_increment_m": float(du), "v_range_m": [float(v0), float(v1)], "track_width_m": float(track_width_m),
-            "z_offset_m": float(offset)}
+            "lateral_offset_m": float(lateral_offset_m), "z_offset_m": float(offset)}
     return step, left - offset, right - offset, info

@@ -288,11 +288,12 @@ class Road:
 
     @classmethod
     def from_crg(cls, path: str | Path, track_width_m: float, spacing_m: float | None = None,
-                 length_m: float | None = None) -> "Road":
-        """The left and right tracks of an OpenCRG surface at the vehicle's track width (terrain.crg)."""
+                 length_m: float | None = None, lateral_offset_m: float = 0.0) -> "Road":
+        """The left and right tracks of an OpenCRG surface at the vehicle's track width, centred on
+        v = lateral_offset_m [m] (positive: left of the reference line; terrain.crg)."""
         from .crg import read_crg
 
-        step, left, right, info = read_crg(path, track_width_m, spacing_m, length_m)
+        step, left, right, info = read_crg(path, track_width_m, spacing_m, length_m, lateral_offset_m)
         return cls(step, left, right, info=info, copy=False)
 
     @classmethod
