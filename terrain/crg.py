@@ -14,16 +14,27 @@ shift is kept in the road's info as z_offset_m).
 """
 from __future__ import annotations
 
+import logging
+import os
+import stat
+import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.files import kind_of
 
 from .plausibility import check_plausible_tracks
 
 EXTRA_MESSAGE = 'reading OpenCRG files needs the OpenCRG library\'s Python bindings: pip install "hpsim[crg]"'
 SUFFIXES = (".crg",)
+LOG = logging.getLogger("hpsim.crg")
+# the C library's message levels (crgMsgPrint), as its own lines name them
+LIBRARY_LEVELS = {1: "FATAL", 2: "WARNING", 3: "NOTICE", 4: "INFO", 5: "DEBUG"}
+# the library's message routing is one global callback: one load at a time owns it
+_MESSAGES_LOCK = threading.Lock()
 
 
 def _pycrg():
@@ -32,6 +43,35 @@ def _pycrg():
     except ImportError:
         raise UserInputError(EXTRA_MESSAGE) from None
     return pycrg
+
+
+def _log_library_message(level: int, text: str) -> None:
+    LOG.debug("OpenCRG %s: %s", LIBRARY_LEVELS.get(level, level), text.rstrip())
+
+
+@contextmanager
+def library_messages_logged(pycrg):
+    """Inside the block, the OpenCRG library's messages (statistics and warnings, some 40 lines per load) are debug
+    records of the "hpsim.crg" logger (hpsim -v shows them), never lines on the terminal. pycrg's own routing to
+    its "pycrg" logger is back after the block."""
+    with _MESSAGES_LOCK:
+        pycrg.set_message_callback(_log_library_message)
+        try:
+            yield
+        finally:
+            pycrg.clear_message_callback()
+
+
+def _check_regular_file(path: Path) -> None:
+    """UserInputError unless path is a regular file: the library opens it by name and would block on a FIFO."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise UserInputError(f"{path}: no such OpenCRG file") from None
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot read ({exc.strerror or exc.__class__.__name__})") from None
+    if not stat.S_ISREG(mode):
+        raise UserInputError(f"{path}: is {kind_of(mode)}, expected an OpenCRG file (a regular file)")
 
 
 def is_crg(path) -> bool:
@@ -64,8 +104,14 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
     vehicle's centre line (positive: left of the reference line)."""
     pycrg = _pycrg()
     path = Path(path)
-    if not path.is_file():
-        raise UserInputError(f"{path}: no such OpenCRG file")
+    _check_regular_file(path)
+    with library_messages_logged(pycrg):
+        return _tracks(pycrg, path, track_width_m, spacing_m, length_m, lateral_offset_m)
+
+
+def _tracks(pycrg, path: Path, track_width_m: float, spacing_m: float | None, length_m: float | None,
+            lateral_offset_m: float) -> tuple[float, np.ndarray, np.ndarray, dict]:
+    """read_crg's work once the file is known to be a regular file and the library's messages are routed."""
     try:
         surface = pycrg.RoadSurface.open(str(path))
     except Exception as exc:          # the library's load error: a damaged or unsupported file

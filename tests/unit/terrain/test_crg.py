@@ -6,6 +6,8 @@ sections, and the PSD class it was made with."""
 from __future__ import annotations
 
 import json
+import logging
+import os
 import sys
 
 import numpy as np
@@ -170,3 +172,66 @@ def test_cells_without_elevation_are_filled_by_the_library_or_refused_where_a_wh
     written = z.astype(np.float32).astype(float)
     np.testing.assert_allclose(beside.left_m + beside.info["z_offset_m"], 0.5 * (written[:, 3] + written[:, 4]),
                                atol=1e-6)
+
+
+# -- the library's messages, and paths that are not files ----------------------------------------------------------
+
+class _Records(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.DEBUG)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record):
+        self.records.append(record)
+
+
+@pytest.fixture
+def log_records():
+    """The records of the "hpsim.crg" and "pycrg" loggers at every level, whatever the CLI set up before."""
+    records = _Records()
+    loggers = [logging.getLogger(name) for name in ("hpsim.crg", "pycrg")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.addHandler(records)
+        lg.setLevel(logging.DEBUG)
+    yield records.records
+    for lg, level in zip(loggers, levels):
+        lg.removeHandler(records)
+        lg.setLevel(level)
+
+
+def test_the_librarys_messages_are_debug_records_of_hpsims_log(crg_file, log_records):
+    """Every load: the library's statistics (NOTICE) and any warning are debug records of "hpsim.crg", never
+    above; after the load pycrg routes messages to its own logger again."""
+    from terrain.crg import library_messages_logged
+
+    Road.from_crg(crg_file[0], 2.5)
+    with library_messages_logged(pycrg):
+        pycrg.msg_print(pycrg.MSG_LEVEL_WARN, "hpsim test: a warning from the library\n")
+    assert {r.name for r in log_records} == {"hpsim.crg"}
+    assert {r.levelno for r in log_records} == {logging.DEBUG}
+    texts = [r.getMessage() for r in log_records]
+    assert any(t.startswith("OpenCRG NOTICE: crgCalcStatistics") for t in texts)
+    assert "OpenCRG WARNING: hpsim test: a warning from the library" in texts
+    log_records.clear()
+    pycrg.msg_print(pycrg.MSG_LEVEL_WARN, "hpsim test: outside a load\n")
+    assert [(r.name, r.levelno) for r in log_records] == [("pycrg", logging.WARNING)]
+
+
+def test_the_terminal_shows_the_librarys_messages_only_with_verbose(crg_file, tmp_path, hpsim):
+    quiet = hpsim(["road", "import", str(crg_file[0]), "-o", str(tmp_path / "a.csv")])
+    assert quiet.returncode == 0 and quiet.stderr == "" and len(quiet.stdout.splitlines()) == 1
+    verbose = hpsim(["road", "import", "-v", str(crg_file[0]), "-o", str(tmp_path / "b.csv")])
+    assert verbose.returncode == 0 and "OpenCRG NOTICE: crgCalcStatistics" in verbose.stderr
+
+
+def test_a_fifo_or_a_folder_given_as_opencrg_file_is_named_as_such(tmp_path, capsys):
+    fifo, folder = tmp_path / "pipe.crg", tmp_path / "folder.crg"
+    os.mkfifo(fifo)
+    folder.mkdir()
+    for path, what in ((fifo, "a FIFO (named pipe)"), (folder, "a directory"), (tmp_path / "none.crg", None)):
+        assert cli.main(["road", "import", str(path), "-o", str(tmp_path / "r.csv")]) == 2
+        err = capsys.readouterr().err.strip()
+        expected = "no such OpenCRG file" if what is None else f"is {what}, expected an OpenCRG file (a regular file)"
+        assert err == f"hpsim road: error: {path}: {expected}"
+    assert not (tmp_path / "r.csv").exists()
