@@ -130,13 +130,6 @@ class RoadSpec(Model):
                 raise ValueError(str(exc)) from None
         return v
 
-    @field_validator("lateral_offset")
-    @classmethod
-    def _lateral(cls, v):
-        if not np.isfinite(v):
-            raise ValueError("lateral_offset must be a finite distance (e.g. 1.5 m)")
-        return v
-
     @field_validator("seed")
     @classmethod
     def _seed(cls, v):
