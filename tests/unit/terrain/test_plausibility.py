@@ -78,6 +78,13 @@ def test_a_csv_road_with_a_100_m_step_is_refused_naming_file_and_distance(tmp_pa
         Road.from_csv(src)
     err = _refused(["road", "psd", str(src)], capsys)
     assert str(src) in err and "at 149.7 m the left track goes from 0 m to 100 m" in err
+    # a drive on it stops before the results file is created
+    scenario = tmp_path / "drive.yaml"
+    scenario.write_text("vehicle: {name: apc_8x8}\nroad: {csv: step.csv}\nspeed: 20 km/h\ndistance: 80 m\n"
+                        "ambient_temperature: 25 degC\n")
+    out = tmp_path / "drive.h5"
+    err = _refused(["run", str(scenario), "-o", str(out), "--no-progress"], capsys)
+    assert f"drive.yaml: road: {src}: not a vehicle road: at 149.7 m" in err and not out.exists()
 
 
 def test_a_generated_road_with_a_3_m_step_event_is_refused_and_nothing_written(tmp_path, capsys):
