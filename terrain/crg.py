@@ -52,8 +52,9 @@ def _log_library_message(level: int, text: str) -> None:
 @contextmanager
 def library_messages_logged(pycrg):
     """Inside the block, the OpenCRG library's messages (statistics and warnings, some 40 lines per load) are debug
-    records of the "hpsim.crg" logger (hpsim -v shows them), never lines on the terminal. pycrg's own routing to
-    its "pycrg" logger is back after the block."""
+    records of the "hpsim.crg" logger (hpsim -v shows them), never lines on the terminal. After the block pycrg
+    routes them to its "pycrg" logger again; a callback set before with pycrg.set_message_callback is not
+    restored (pycrg cannot tell which one is set)."""
     with _MESSAGES_LOCK:
         pycrg.set_message_callback(_log_library_message)
         try:

@@ -34,7 +34,7 @@ _CHUNK = 1 << 20               # points per block of the rise scan (bounded work
 
 @dataclass(frozen=True)
 class Implausibility:
-    """Where and why a track is not a road: the track name, its distance [m] and the offending value."""
+    """Where and why a track is not a road: the track name, its distance [m], and the reason with the value."""
     track: str
     distance_m: float
     reason: str
