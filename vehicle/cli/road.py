@@ -8,9 +8,9 @@
     hpsim road import track.crg -o road.csv [--track 2.5m] [--spacing 50mm] [--lateral-offset 1.5m]
 
 A road comes either from a CSV file (distance_m,left_m,right_m), an OpenCRG file (*.crg: its tracks at
-lateral offset +-track/2 across the reference line, v positive to the left; needs the extra crg) or from a spec: --class / --gd-n0
-options, or --spec road.yaml (a RoadSpec, with events; options given on the command line override
-its keys). Bad input raises UserInputError naming the argument, file or line (exit code 2).
+lateral offset +-track/2 across the reference line, v positive to the left; needs the extra crg) or from a
+spec: --class / --gd-n0 options, or --spec road.yaml (a RoadSpec, with events; options given on the command
+line override its keys). Bad input raises UserInputError naming the argument, file or line (exit code 2).
 """
 from __future__ import annotations
 
@@ -92,7 +92,8 @@ def _spec_options(p):
     s.add_argument("--coherence", metavar="|".join(COHERENCE_MODELS),
                    help="left/right coherence model (default isotropic)")
     s.add_argument("--lateral-offset", dest="lateral_offset", metavar="Q",
-                   help="OpenCRG file: v of the vehicle's centre line, positive left of the reference line (default 0m)")
+                   help="OpenCRG file: v of the vehicle's centre line, positive left of the reference line "
+                        "(default 0m)")
 
 
 def _spec_given(args) -> bool:
@@ -178,7 +179,8 @@ def _load_road(args) -> tuple[Road, RoadSpec | None]:
             return Road.from_crg(args.csv, _track(args.track_width), spacing_m=spacing,
                                  lateral_offset_m=_lateral_offset(args.lateral_offset)), None
         if args.lateral_offset is not None:
-            raise UserInputError(f"--lateral-offset: places the tracks on an OpenCRG file (*.crg); {args.csv} is not one")
+            raise UserInputError(f"--lateral-offset: places the tracks on an OpenCRG file (*.crg); {args.csv} is not "
+                                 "one")
         return Road.from_csv(args.csv, spacing_m=spacing), None
     if not _spec_given(args):
         raise UserInputError("give a road CSV file, or a spec: --class A-H (or --gd-n0) --length ..., "

@@ -1,7 +1,8 @@
 """OpenCRG surfaces as proving grounds deliver them: a Belgian-block-like cobbled surface written as a binary file
 (KRBI) starting at u = 730 m gives back, through hpsim's import, the OpenCRG C library's own evaluation at 100
-points and the written grid (single precision) within 1e-6 m, and drives 10 m in a scenario (`road: {crg: ...}`). With HPSIM_ASAM_CRG_DIR naming a folder of the ASAM OpenCRG sample files (not part of
-this repository), every sample either imports as a plausible road or is refused with one line naming it."""
+points and the written grid (single precision) within 1e-6 m, and drives 10 m in a scenario (`road: {crg: ...}`).
+With HPSIM_ASAM_CRG_DIR naming a folder of the ASAM OpenCRG sample files (not part of this repository), every
+sample either imports as a plausible road or is refused with one line naming it."""
 from __future__ import annotations
 
 import os

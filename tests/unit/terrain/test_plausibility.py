@@ -1,9 +1,9 @@
-"""Road plausibility (terrain.plausibility): a road a vehicle can drive on has finite elevations, rises of at
-most 2 m within a tyre's contact length and an elevation range within 100 m. Checked at the bounds (a sharp step
-and a wall-like grade just below and above 2 m per contact length, a range just below and above 100 m), on the
-roughest ISO 8608 class (H, accepted), and on every source: a CSV road with a 100 m step, an OpenCRG grid holding
-1e38 m, a binary OpenCRG file damaged in its data section, a generated road with a 3 m step event. Each refusal is one line naming the file (or
-the generated road), the track and the distance, exit code 2, and nothing is written."""
+"""Road plausibility (terrain.plausibility): a road a vehicle can drive on has finite elevations, rises of at most 2 m
+within a tyre's contact length and an elevation range within 100 m. Checked at the bounds (a sharp step and a wall-like
+grade just below and above 2 m per contact length, a range just below and above 100 m), on the roughest ISO
+8608 class (H, accepted), and on every source: a CSV road with a 100 m step, an OpenCRG grid holding 1e38 m, a
+binary OpenCRG file damaged in its data section, a generated road with a 3 m step event. Each refusal is one line
+naming the file (or the generated road), the track and the distance, exit code 2, and nothing is written."""
 from __future__ import annotations
 
 import numpy as np
