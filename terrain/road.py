@@ -28,6 +28,7 @@ from hpsim.threads import beside_map
 
 from .envelope import envelope_profile
 from .passes import PassSpec, pass_profile, pass_spec
+from .plausibility import check_plausible_tracks
 from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
 from .store import key_of, stored_arrays
 
@@ -287,17 +288,21 @@ class Road:
 
     @classmethod
     def from_crg(cls, path: str | Path, track_width_m: float, spacing_m: float | None = None,
-                 length_m: float | None = None) -> "Road":
-        """The left and right tracks of an OpenCRG surface at the vehicle's track width (terrain.crg)."""
+                 length_m: float | None = None, lateral_offset_m: float = 0.0) -> "Road":
+        """The left and right tracks of an OpenCRG surface at the vehicle's track width, centred on
+        v = lateral_offset_m [m] (positive: left of the reference line; terrain.crg)."""
         from .crg import read_crg
 
-        step, left, right, info = read_crg(path, track_width_m, spacing_m, length_m)
+        step, left, right, info = read_crg(path, track_width_m, spacing_m, length_m, lateral_offset_m)
         return cls(step, left, right, info=info, copy=False)
 
     @classmethod
     def from_csv(cls, path: str | Path, spacing_m: float | None = None,
                  length_m: float | None = None) -> "Road":
         """Read a measured profile; distance shifted to start at 0 and resampled to a uniform grid.
+
+        Refused (UserInputError naming the file and the distance) unless it is a road a vehicle can drive on
+        (`terrain.plausibility`).
 
         spacing_m: target spacing (default: the file's own spacing if uniform, else its median step).
         length_m: keep only the first length_m metres (must not exceed the file's length).
@@ -322,5 +327,6 @@ class Road:
         else:
             left_u = resample(d, left, step, n)
             right_u = resample(d, right, step, n)
+        check_plausible_tracks(str(path), step, left_u, right_u, start_m=float(d[0]))
         info = {"source": str(path), "distance_offset_m": float(d[0]), "resampled": not keep_grid}
         return cls(step, left_u, right_u, info=info, copy=keep_grid)  # file columns are strided views

@@ -5,6 +5,8 @@ Exactly one source of the profile:
 - `iso_class: D` — ISO 8608 class A..H, Gd(n0) = the class's geometric mean (iso8608 table);
 - `gd_n0: 1.2e-3` (or "1200e-6 m**3") — a custom Gd(n0), with `waviness` w;
 - `csv: measured.csv` — a measured profile (relative paths resolved against `base_dir`);
+- `crg: surface.crg` — an OpenCRG surface: its tracks at `lateral_offset` +- track_width/2 across the
+  reference line (v positive to the left; `terrain.crg`);
 - `flat: true` — a perfectly flat road (events only).
 
 Random roads are generated on a grid of `spacing` over `length` (n = floor(length/spacing) + 1
@@ -33,6 +35,7 @@ from . import iso8608
 from .coherence import coherence_model
 from .events import LEVEL_EVENTS, EventPopulation, EventSpec, apply_events, population_rng
 from .passes import PassSpec
+from .plausibility import check_plausible_tracks
 from .road import Road, check_road_points
 from .store import key_of, stored_arrays
 
@@ -49,7 +52,8 @@ class RoadSpec(Model):
     gd_n0: Quantity("m**3") | None = None
     waviness: float = iso8608.WAVINESS_ISO
     csv: str | None = None
-    crg: str | None = None           # an OpenCRG surface: its tracks at +-track_width/2 (terrain.crg)
+    crg: str | None = None           # an OpenCRG surface: its tracks at lateral_offset +-track_width/2 (terrain.crg)
+    lateral_offset: Quantity("m") = 0.0   # crg: the v of the vehicle's centre line, + left of the reference line
     flat: bool = False
     band: tuple[float, float] = iso8608.DEFAULT_BAND_CYCLE_PER_M  # cycle/m
     length: Quantity("m") | None = None
@@ -149,6 +153,8 @@ class RoadSpec(Model):
         if len(given) != 1:
             raise ValueError("give exactly one road source: iso_class (A-H), gd_n0 (custom Gd(n0)), "
                              f"csv (measured profile), crg (OpenCRG surface) or flat: true (got {', '.join(given) or 'none'})")
+        if self.lateral_offset != 0 and self.crg is None:
+            raise ValueError("lateral_offset places the tracks on an OpenCRG surface: give it with crg only")
         if self.csv is None and self.crg is None and self.length is None:
             raise ValueError("length is required for a random or flat road (e.g. length: 20 km)")
         if self.length is not None:
@@ -175,15 +181,20 @@ def load_road_spec(path: str | Path) -> RoadSpec:
 
 def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     """Build the Road described by `spec` (a relative `csv` path is taken from `base_dir`, default cwd). A random
-    road is read from the road store when it was built before (`terrain.store`: the same arrays, memory-mapped)."""
-    info = {"spec": spec.model_dump(mode="json")}
+    road is read from the road store when it was built before (`terrain.store`: the same arrays, memory-mapped).
+
+    Every road, events included, is checked to be one a vehicle can drive on before it is returned
+    (`terrain.plausibility`: UserInputError naming the source, the track and the distance)."""
+    # a road off an OpenCRG surface only has a lateral offset: the others keep the store keys they had without it
+    info = {"spec": spec.model_dump(mode="json", exclude=None if spec.crg is not None else {"lateral_offset"})}
     if spec.csv is not None or spec.crg is not None:
         path = Path(spec.csv if spec.csv is not None else spec.crg)
         if not path.is_absolute():
             path = Path(base_dir or Path.cwd()) / path
         spacing = spec.spacing if "spacing" in spec.model_fields_set else None
         if spec.crg is not None:
-            road = Road.from_crg(path, spec.track_width, spacing_m=spacing, length_m=spec.length)
+            road = Road.from_crg(path, spec.track_width, spacing_m=spacing, length_m=spec.length,
+                                 lateral_offset_m=spec.lateral_offset)
         else:
             road = Road.from_csv(path, spacing_m=spacing, length_m=spec.length)
         if not spec.events and not spec.populations:
@@ -218,6 +229,7 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     def tracks():
         left, right = profile()
         apply_events(step, left, right, events)
+        check_plausible_tracks(_source_name(spec), step, left, right)
         if not level_events:
             return left, right
         level = (np.zeros_like(left), np.zeros_like(right))
@@ -228,6 +240,16 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     arrays = stored_arrays(key, names, tracks)
     return Road(step, arrays[0], arrays[1], info=info, copy=False, passes=spec.passes,
                 level_m=tuple(arrays[2:]) or None, key=key)
+
+
+def _source_name(spec: RoadSpec) -> str:
+    """The road source as a refusal names it: the file, or what the generated road was built from."""
+    if spec.csv is not None or spec.crg is not None:
+        return f"{spec.csv or spec.crg} with its events"
+    if spec.flat:
+        return "the flat road with its events"
+    what = f"ISO 8608 class {spec.iso_class}" if spec.iso_class else f"Gd(n0) = {spec.gd_n0_m3:.4g} m³"
+    return f"the generated road ({what}, seed {spec.seed}, with its events)"
 
 
 def _random_tracks(spec: RoadSpec, step: float, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -101,6 +101,10 @@ def test_generate_from_yaml_spec_with_events(capsys, tmp_path):
     (["road", "generate", "-o", "x.csv"], "give --class A-H"),
     (["road", "psd", "--class", "D", "--length", "1km", "--coherence", "sometimes"], "--coherence"),
     (["road", "psd", "--class", "D", "--length", "1km", "--band", "2.8,0.01"], "--band"),
+    (["road", "generate", "--class", "D", "--length", "1km", "--lateral-offset", "1m", "-o", "x.csv"],
+     "--lateral-offset places the tracks on an OpenCRG surface: give it with crg only"),
+    (["road", "import", "x.crg", "-o", "x.csv", "--lateral-offset", "2kg"], "--lateral-offset: '2kg' has units"),
+    (["road", "import", "x.crg", "-o", "x.csv", "--lateral-offset", "inf"], "--lateral-offset: 'inf' is not a finite"),
 ])
 def test_bad_arguments_exit_2_with_one_line(capsys, tmp_path, monkeypatch, argv, match):
     monkeypatch.chdir(tmp_path)
@@ -110,6 +114,8 @@ def test_bad_arguments_exit_2_with_one_line(capsys, tmp_path, monkeypatch, argv,
 
 
 @pytest.mark.parametrize("text, match", [
+    ("distance_m,left_m,right_m\n0,0,0\n0.05,0,0\n0.1,0,100\n0.15,0,100\n", "bad.csv: not a vehicle road: at 0 m "
+                                                                           "the right track goes from 0 m to 100 m"),
     ("distance_m,left_m\n0,0\n1,0\n", "bad.csv:1: missing column 'right_m'"),
     ("distance_m,left_m,right_m\n0,0,0\n2,0,0\n1,0,0\n", "bad.csv:4: distance 1 m does not increase"),
     ("distance_m,left_m,right_m\n0,0,0\n1,0,NaN\n2,0,0\n", "bad.csv:3: right_m = nan is not a finite number"),

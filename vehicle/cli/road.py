@@ -5,12 +5,12 @@
     hpsim road psd road.csv [--json] [--plot psd.png]
     hpsim road psd --class D --length 20km --seed 7 [--json]
     hpsim road plot road.csv -o road.png
-    hpsim road import track.crg -o road.csv [--track 2.5m] [--spacing 50mm]
+    hpsim road import track.crg -o road.csv [--track 2.5m] [--spacing 50mm] [--lateral-offset 1.5m]
 
 A road comes either from a CSV file (distance_m,left_m,right_m), an OpenCRG file (*.crg: its tracks at
-+-track/2 along the reference line; needs the extra crg) or from a spec: --class / --gd-n0
-options, or --spec road.yaml (a RoadSpec, with events; options given on the command line override
-its keys). Bad input raises UserInputError naming the argument, file or line (exit code 2).
+lateral offset +-track/2 across the reference line, v positive to the left; needs the extra crg) or from a
+spec: --class / --gd-n0 options, or --spec road.yaml (a RoadSpec, with events; options given on the command
+line override its keys). Bad input raises UserInputError naming the argument, file or line (exit code 2).
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 _OPTIONS = {
     "iso_class": "--class", "gd_n0": "--gd-n0", "waviness": "--waviness", "length": "--length",
     "spacing": "--spacing", "seed": "--seed", "band": "--band", "track_width": "--track",
-    "coherence": "--coherence",
+    "coherence": "--coherence", "lateral_offset": "--lateral-offset",
 }
 _JSON_ARRAYS = ("frequency_cycle_per_m", "psd_left_m3", "psd_right_m3", "coherence")
 
@@ -65,6 +65,9 @@ def register(sub):
     im.add_argument("--track", default="2.5m", help="track width: the tracks lie at +-track/2 of the reference "
                                                      "line (default 2.5m, the apc_8x8)")
     im.add_argument("--spacing", default=None, help="grid spacing (default: the file's u increment)")
+    im.add_argument("--lateral-offset", dest="lateral_offset", default=None, metavar="Q",
+                    help="v of the vehicle's centre line across the reference line, positive to the left (default "
+                         "0m: centred on it; a file covering v from 0 to 3 m needs 1.5m)")
     im.add_argument("--json", action="store_true", help="print only JSON on stdout")
     im.set_defaults(func=cmd_import)
 
@@ -88,6 +91,9 @@ def _spec_options(p):
     s.add_argument("--track", dest="track_width", metavar="Q", help="track width (default 2.5m)")
     s.add_argument("--coherence", metavar="|".join(COHERENCE_MODELS),
                    help="left/right coherence model (default isotropic)")
+    s.add_argument("--lateral-offset", dest="lateral_offset", metavar="Q",
+                   help="OpenCRG file: v of the vehicle's centre line, positive left of the reference line "
+                        "(default 0m)")
 
 
 def _spec_given(args) -> bool:
@@ -170,7 +176,11 @@ def _load_road(args) -> tuple[Road, RoadSpec | None]:
             if not spacing > 0:
                 raise UserInputError(f"--spacing: must be > 0 m (got {args.spacing!r})")
         if is_crg(args.csv):
-            return Road.from_crg(args.csv, _track(args.track_width), spacing_m=spacing), None
+            return Road.from_crg(args.csv, _track(args.track_width), spacing_m=spacing,
+                                 lateral_offset_m=_lateral_offset(args.lateral_offset)), None
+        if args.lateral_offset is not None:
+            raise UserInputError(f"--lateral-offset: places the tracks on an OpenCRG file (*.crg); {args.csv} is not "
+                                 "one")
         return Road.from_csv(args.csv, spacing_m=spacing), None
     if not _spec_given(args):
         raise UserInputError("give a road CSV file, or a spec: --class A-H (or --gd-n0) --length ..., "
@@ -192,6 +202,13 @@ def _track(text) -> float:
     return w
 
 
+def _lateral_offset(text) -> float:
+    """--lateral-offset [m] (default 0: the vehicle centred on the reference line)."""
+    from hpsim.units import parse_quantity
+
+    return 0.0 if text is None else parse_quantity(text, "m", where="--lateral-offset")
+
+
 def cmd_import(args) -> int:
     from hpsim.units import parse_quantity
     from terrain.road import Road
@@ -200,7 +217,8 @@ def cmd_import(args) -> int:
     spacing = None if args.spacing is None else parse_quantity(args.spacing, "m", where="--spacing")
     if spacing is not None and not spacing > 0:
         raise UserInputError(f"--spacing: must be > 0 m (got {args.spacing!r})")
-    road = Road.from_crg(args.crg, _track(args.track), spacing_m=spacing)
+    road = Road.from_crg(args.crg, _track(args.track), spacing_m=spacing,
+                         lateral_offset_m=_lateral_offset(args.lateral_offset))
     road.to_csv(args.output)
     summary = {"output": str(args.output), "length_m": road.length_m, "spacing_m": road.spacing_m,
                "points": road.n_points, **road.info,
@@ -208,8 +226,10 @@ def cmd_import(args) -> int:
     if args.json:
         print_json(summary)
     else:
-        print(f"wrote {args.output}: {road.length_m:.6g} m at {road.spacing_m * 1e3:.4g} mm, tracks at "
-              f"+-{summary['track_width_m'] / 2:g} m of the reference line of {args.crg}")
+        v_left = summary["lateral_offset_m"] + summary["track_width_m"] / 2
+        v_right = summary["lateral_offset_m"] - summary["track_width_m"] / 2
+        print(f"wrote {args.output}: {road.length_m:.6g} m at {road.spacing_m * 1e3:.4g} mm, tracks at v = "
+              f"{v_right:g} and {v_left:g} m across the reference line of {args.crg}")
     return 0
 
 
