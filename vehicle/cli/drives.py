@@ -14,6 +14,7 @@ from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 from vehicle.cli import response, vehicles
+from .options import add_overwrite
 from .stages import command_wall_s, tenths_down
 
 
@@ -55,12 +56,14 @@ def register(sub):
     pp.add_argument("--psd", default=None, metavar="PNG",
                     help="response PSDs (hull heave/pitch/roll acceleration, strut forces; Welch) to this figure, "
                          "peak frequencies in the table / JSON; needs series stored with output.interval <= 1/30 s, e.g. 0.02 s")
+    add_overwrite(pp)
     pp.set_defaults(func=cmd_report)
 
     pc = sub.add_parser("compare", help="compare results files side by side (load redistribution, heights, temperatures)")
     pc.add_argument("results", nargs="+", help="HDF5 files written by `hpsim run`")
     pc.add_argument("--json", action="store_true", help="print JSON only")
     pc.add_argument("--plot", default=None, metavar="PNG", help="grouped bar chart to this file")
+    add_overwrite(pc)
     pc.set_defaults(func=cmd_compare)
 
     ps = sub.add_parser("sweep", help="run a base scenario over a grid or list of overrides (parallel)")
@@ -87,11 +90,13 @@ def register(sub):
     pa.add_argument("--from", dest="start", default=None, metavar="DISTANCE", help="start of the span, e.g. 10km")
     pa.add_argument("--to", dest="end", default=None, metavar="DISTANCE", help="end of the span, e.g. 10.2km")
     pa.add_argument("--fps", type=float, default=None, help="frames per second of driving (default 20: real time)")
+    add_overwrite(pa)
     pa.set_defaults(func=cmd_animate)
 
     pl = sub.add_parser("plot", help="dashboard figure of a results file")
     pl.add_argument("results", help="HDF5 file written by `hpsim run`")
     pl.add_argument("-o", "--output", default=None, help="PNG file (default: <results>.png)")
+    add_overwrite(pl)
     pl.set_defaults(func=cmd_plot)
 
 
@@ -188,7 +193,7 @@ def cmd_report(args):
 
         from vehicle.results.reader import open_results
 
-        check_figure_file(args.psd, "--psd", make_parents=True)
+        check_figure_file(args.psd, "--psd", make_parents=True, inputs=[args.results], overwrite=args.overwrite)
         with open_results(args.results) as r:
             psd = response_psd(r)
             stations = r.stations
@@ -211,7 +216,7 @@ def _shareable_report(args):
 
     for value, flag, suffix in ((args.html, "--html", (".html", ".htm")), (args.pdf, "--pdf", (".pdf",))):
         if value is not None:
-            check_output_file(Path(value), flag, make_parents=True)
+            check_output_file(Path(value), flag, make_parents=True, inputs=[args.results], overwrite=args.overwrite)
             if Path(value).suffix.lower() not in suffix:
                 raise UserInputError(f"{flag}: {value!r} must end in {' or '.join(suffix)}")
     if not Path(args.results).exists():
@@ -230,7 +235,7 @@ def cmd_compare(args):
     from vehicle.presentation.report import compare, format_compare
 
     if args.plot:
-        check_figure_file(args.plot, "--plot", make_parents=True)
+        check_figure_file(args.plot, "--plot", make_parents=True, inputs=args.results, overwrite=args.overwrite)
     cmp = compare(args.results)
     if args.plot:
         from vehicle.presentation.plots import compare_plot
@@ -249,7 +254,8 @@ def cmd_plot(args):
     from vehicle.presentation.plots import dashboard
 
     out = Path(args.output) if args.output is not None else Path(args.results).with_suffix(".png")
-    check_figure_file(out if args.output is None else args.output, "-o/--output", make_parents=True)
+    check_figure_file(out if args.output is None else args.output, "-o/--output", make_parents=True,
+                      inputs=[args.results], overwrite=args.overwrite)
     dashboard(args.results, out)
     print(f"wrote {out}")
     return 0
@@ -274,7 +280,8 @@ def cmd_animate(args):
     fps = FPS if args.fps is None else args.fps
     if not 0 < fps <= 100:
         raise UserInputError(f"--fps: must be in (0, 100] frames per second, got {args.fps}")
-    check_output_file(Path(args.output), "-o/--output", make_parents=True)
+    check_output_file(Path(args.output), "-o/--output", make_parents=True, inputs=[args.results],
+                      overwrite=args.overwrite)
     res = animate(args.results, args.output, start, end, fps)
     print(f"wrote {res['file']} ({res['frames']} frames at {res['fps']:.3g} per second, {res['writer']})")
     return 0

@@ -6,8 +6,11 @@ import argparse
 
 from hpsim.config import parse_yaml
 from hpsim.errors import UserInputError
+from hpsim.outputs import check_output_file
 from hpsim.tables import format_table, print_json
 from hpsim.units import parse_quantity
+
+from .options import add_overwrite
 
 EPILOG = """\
 examples:
@@ -39,6 +42,7 @@ def register(sub):
                                                "temperature)")
     f.add_argument("-o", "--output", required=True, help="the .fmu file to write")
     f.add_argument("--json", action="store_true", help="print what was written as JSON")
+    add_overwrite(f)
     f.set_defaults(func=cmd_export_fmu)
 
 
@@ -73,6 +77,8 @@ def cmd_export_fmu(args):
     from vehicle.fmu.exports import strut_spec, vehicle_spec
 
     fmi_headers()                       # FMPy (the FMI headers) before any work: a one-line error without it
+    check_output_file(args.output, "-o/--output", make_parents=True, overwrite=args.overwrite,
+                      inputs=[args.strut, args.vehicle, args.scenario, args.heat_from])
     overrides = parse_overrides(args.overrides)
     dt = None if args.dt is None else parse_quantity(args.dt, "s", where="--dt")
     if dt is not None and not 1e-5 <= dt <= 0.02:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hpsim.errors import UserInputError
+from hpsim.outputs import atomic_output
 
 from vehicle.results.reader import open_results
 from vehicle.analysis.ride_metrics import axle_rows
@@ -373,8 +374,8 @@ def write_html(doc: Document, out: str | Path) -> Path:
     html = env.get_template(TEMPLATE).render(title=doc.title, intro=doc.intro, sections=sections,
                                              provenance=doc.provenance)
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(html, encoding="utf-8")
+    with atomic_output(out) as tmp:
+        tmp.write_text(html, encoding="utf-8")
     return out
 
 
@@ -447,9 +448,8 @@ def write_pdf(doc: Document, out: str | Path, first_page_png: str | Path | None 
     from matplotlib.backends.backend_pdf import PdfPages
 
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     plt = pyplot()
-    with PdfPages(out) as pdf:
+    with atomic_output(out) as tmp, PdfPages(tmp) as pdf:
         pages = _Pages(pdf, first_page_png)
         pages.text(doc.title, size=14, weight="bold")
         for p in doc.intro:
