@@ -191,3 +191,21 @@ def test_road_generate_quiet_prints_only_the_path(tmp_path, capsys):
     out = tmp_path / "road.csv"
     assert _generate(out) == 0
     assert capsys.readouterr().out.strip() == str(out)
+
+
+# --- a study folder holds one kind of study -------------------------------------------------------------------------
+@pytest.mark.parametrize("command, other, marker", [("sweep", "uq", "samples.csv"), ("uq", "sweep", "summary.csv")])
+def test_a_study_folder_of_the_other_kind_is_refused_before_any_drive(case_dir, command, other, marker):
+    from tests.integration.test_fuzz import SCENARIO, SWEEP
+
+    d = case_dir / "in"
+    (d / "base.yaml").write_text(SCENARIO)
+    (d / "sweep.yaml").write_text(SWEEP)
+    study = case_dir / "work" / "study"
+    study.mkdir()
+    (study / marker).write_text("a,b\n1,2\n")
+    argv = (["sweep", d / "sweep.yaml", "-o", study, "--yes"] if command == "sweep" else
+            ["uq", d / "base.yaml", "--samples", "4", "--method", "lhs", "-o", study, "--yes"])
+    res = run_case(case_dir, argv, timeout=60)
+    check_user_error(res, must_say=(f"hpsim {other}", marker))
+    assert sorted(p.name for p in study.iterdir()) == [marker]

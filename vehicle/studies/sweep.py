@@ -39,7 +39,8 @@ from vehicle.results.validity import summary_cell
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import report
 from vehicle.engines.ensemble import eligible, grouped_jobs
-from vehicle.studies.study_folder import StudyLock, case_state, check_case_count, refuse_changed, safe_names
+from vehicle.studies.study_folder import (StudyLock, case_state, check_case_count, check_study_kind, refuse_changed,
+                                          safe_names)
 
 
 class SweepSpec(Model):
@@ -218,6 +219,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
     path = Path(path)
     spec, base, cases = load_sweep(path)
     out_dir = Path(output_dir) if output_dir else Path(path.stem)
+    check_study_kind(out_dir, "sweep")
     out_dir.mkdir(parents=True, exist_ok=True)
     with StudyLock(out_dir):                 # one study writing into a folder at a time
         return _run_sweep(path, out_dir, cases, workers, scheduler, log, overwrite, before_start, ensemble)
