@@ -98,9 +98,9 @@ def check_output_file(path: str | Path, where: str, *, suffixes: tuple[str, ...]
     if str(path).endswith(os.sep) or p.is_dir():
         raise UserInputError(f"{where}: {path} is a directory; give a file name"
                              + (f", e.g. {p / ('out' + suffixes[0])}" if suffixes else ""))
+    check_not_input(p, where, inputs)
     if suffixes is not None and p.suffix and p.suffix.lower() not in suffixes:
         raise UserInputError(f"{where}: {path}: unknown file type {p.suffix!r}; allowed: {', '.join(suffixes)}")
-    check_not_input(p, where, inputs)
     if (p.exists() or p.is_symlink()) and not overwrite:
         raise UserInputError(f"{where}: {path} exists (--overwrite replaces it)")
     if p.exists() and not os.access(p, os.W_OK):

@@ -37,6 +37,8 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
              length_m: float | None = None) -> tuple[float, np.ndarray, np.ndarray, dict]:
     """(spacing [m], left heights [m], right heights [m], info) of the tracks of an OpenCRG file (see the module
     docstring). length_m: only the first length_m metres of the reference line."""
+    from .road import check_road_points
+
     pycrg = _pycrg()
     path = Path(path)
     if not path.is_file():
@@ -57,6 +59,7 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
         span = (u1 - u0) if length_m is None else float(length_m)
         if not 0 < span <= (u1 - u0) * (1 + 1e-9):
             raise UserInputError(f"{path}: length {span:g} m is not within the reference line's {u1 - u0:g} m")
+        check_road_points(span, step, f"{path}: ")       # before the grid is allocated
         n = int(np.floor(span / step * (1 + 1e-12))) + 1
         if n < 2:
             raise UserInputError(f"{path}: spacing {step:g} m leaves fewer than 2 points over {span:g} m")
