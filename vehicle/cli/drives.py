@@ -6,7 +6,6 @@ stopped (solver failure; what was written is kept), 130 interrupted (Ctrl-C; res
 from __future__ import annotations
 
 import logging
-import re
 import sys
 from pathlib import Path
 
@@ -30,7 +29,6 @@ def register(sub):
                          "(default: the charging temperature)")
     pe.add_argument("--json", action="store_true", help="print JSON only")
     pe.set_defaults(func=cmd_equilibrium)
-    pe._negative_number_matcher = re.compile(r"^-\.?\d")   # "--temperatures -20degC" is a value
     response.register(vsub)
     vehicles.register(vsub)
 
