@@ -17,6 +17,8 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
+from .profile_io import check_road_points
+
 EXTRA_MESSAGE = 'reading OpenCRG files needs the OpenCRG library\'s Python bindings: pip install "hpsim[crg]"'
 SUFFIXES = (".crg",)
 
@@ -37,8 +39,6 @@ def read_crg(path: str | Path, track_width_m: float, spacing_m: float | None = N
              length_m: float | None = None) -> tuple[float, np.ndarray, np.ndarray, dict]:
     """(spacing [m], left heights [m], right heights [m], info) of the tracks of an OpenCRG file (see the module
     docstring). length_m: only the first length_m metres of the reference line."""
-    from .road import check_road_points
-
     pycrg = _pycrg()
     path = Path(path)
     if not path.is_file():

@@ -158,3 +158,18 @@ def test_a_crg_spacing_of_1e300_grid_points_is_refused_before_allocating(case_di
     for argv in (["road", "import", crg, "-o", "x.csv", "--spacing", "1e-300m"], ["road", "psd", crg, "--spacing", "1e-300m"]):
         res = run_case(case_dir, argv)
         check_user_error(res, must_say=("grid points", "at most"))
+
+
+@pytest.mark.parametrize("command", ["sweep", "uq"])
+@pytest.mark.parametrize("lanes", ["1000", "0"])
+def test_an_ensemble_beyond_four_vectors_is_refused_before_any_compile(case_dir, command, lanes):
+    from tests.integration.test_fuzz import SCENARIO, SWEEP
+    from vehicle.engines.ensemble import MAX_LANES
+
+    d = case_dir / "in"
+    (d / "base.yaml").write_text(SCENARIO)
+    (d / "sweep.yaml").write_text(SWEEP)
+    argv = (["sweep", d / "sweep.yaml", "-o", "out", "--yes"] if command == "sweep" else
+            ["uq", d / "base.yaml", "--samples", "4", "--method", "lhs", "-o", "out", "--yes"])
+    res = run_case(case_dir, [*argv, "--ensemble", lanes])
+    check_user_error(res, must_say=(f"--ensemble: must be in [1, {MAX_LANES}] lanes", f"got {lanes}"))

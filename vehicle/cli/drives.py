@@ -296,8 +296,9 @@ def cmd_sweep(args):
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
     check_output_dir(Path(args.sweep).stem if args.output_dir is None else args.output_dir,
                      "-o/--output-dir" if args.output_dir is not None else "output folder (the sweep file's name)")
-    if args.ensemble is not None and args.ensemble < 1:
-        raise UserInputError(f"--ensemble: must be >= 1, got {args.ensemble}")
+    from vehicle.engines.ensemble import check_lanes
+
+    check_lanes(args.ensemble)
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        ensemble=args.ensemble, log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
                        before_start=lambda prepared: _sweep_preview(args, prepared), overwrite=args.overwrite)
