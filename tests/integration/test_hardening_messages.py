@@ -173,3 +173,37 @@ def test_an_ensemble_beyond_four_vectors_is_refused_before_any_compile(case_dir,
             ["uq", d / "base.yaml", "--samples", "4", "--method", "lhs", "-o", "out", "--yes"])
     res = run_case(case_dir, [*argv, "--ensemble", lanes])
     check_user_error(res, must_say=(f"--ensemble: must be in [1, {MAX_LANES}] lanes", f"got {lanes}"))
+
+
+# --- a study of vehicles with different axle counts ------------------------------------------------------------------
+def test_runs_of_3_and_4_axle_vehicles_are_compared_axle_by_axle(tmp_path, monkeypatch):
+    """A sweep over vehicles of 3 and 4 axles: its comparison (text, figure, HTML table) shows each vehicle's axles,
+    '-' (no bar) on the axle a vehicle does not have; it used to stop the sweep with exit code 2 after every case ran.
+    The 3-axle run is the 4-axle file's report cut to its first 3 axles."""
+    import shutil
+
+    from vehicle.analysis import summary
+    from vehicle.presentation.plots import compare_plot
+    from vehicle.presentation.report import format_compare
+
+    four = tmp_path / "apc.h5"
+    shutil.copy(ROOT / "tests" / "data" / "results_v1.h5", four)
+    three = tmp_path / "truck.h5"
+    shutil.copy(four, three)
+    full_report = summary.report
+
+    def report(path, *args, **kwargs):
+        rep = full_report(path, *args, **kwargs)
+        return {**rep, "axles": rep["axles"][:3]} if Path(path).name == "truck.h5" else rep
+
+    monkeypatch.setattr(summary, "report", report)
+    cmp = summary.compare([four, three])
+    assert cmp["n_axles"] == 4 and [len(r["axles"]) for r in cmp["runs"]] == [4, 3]
+    assert summary.axle_value(cmp["runs"][1], 3, "dN_pct") is None
+    assert summary.axle_value(cmp["runs"][0], 3, "dN_pct") == cmp["runs"][0]["axles"][3]["dN_pct"]
+    text = format_compare(cmp)
+    row4 = next(line for line in text.splitlines() if line.split()[:1] == ["4"])
+    assert row4.split()[-1] == "-" and row4.split()[1] != "-"
+    out = compare_plot([four, three], tmp_path / "compare.png")
+    assert out.stat().st_size > 10_000
+

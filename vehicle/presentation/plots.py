@@ -386,7 +386,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     cmp = compare(paths)
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
-    n_ax = len(runs[0]["axles"])
+    n_ax = cmp["n_axles"]
     hist = [_history(p) for p in paths]
     tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -418,6 +418,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
                      for a in r["axles"]]
             else:
                 y = [np.nan if a[key] is None else a[key] for a in r["axles"]]
+            y += [np.nan] * (n_ax - len(y))             # a vehicle of fewer axles: no bar on the axles it lacks
             panel.bar(x - 0.4 + w * (j + 0.5), y, w, color=colors[j % len(colors)])
         panel.set_xticks(x, [f"axle {k + 1}" for k in range(n_ax)])
         panel.set(ylabel=ylabel, title=title)
