@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+from pathlib import Path
 
 import pytest
 
@@ -209,3 +210,20 @@ def test_a_study_folder_of_the_other_kind_is_refused_before_any_drive(case_dir, 
     res = run_case(case_dir, argv, timeout=60)
     check_user_error(res, must_say=(f"hpsim {other}", marker))
     assert sorted(p.name for p in study.iterdir()) == [marker]
+
+
+def test_vehicle_new_never_writes_over_its_strut_file_and_writes_whole(tmp_path, capsys, monkeypatch):
+    from vehicle.cli import main
+
+    strut = tmp_path / "my.yaml"
+    strut.write_bytes((Path(__file__).resolve().parents[2] / "struts" / "data" / "apc.yaml").read_bytes())
+    before = strut.read_bytes()
+    args = ["--positions", "0m,3.5m,4.9m", "--axle-loads", "7t", "--track", "2m", "--ride-height", "1.2m",
+            "--strut", str(strut)]
+    assert main(["vehicle", "new", "-o", str(strut), *args, "--overwrite"]) == 2
+    assert "also an input" in capsys.readouterr().err and strut.read_bytes() == before
+    out = tmp_path / "v.yaml"
+    out.write_bytes(OLD)
+    assert main(["vehicle", "new", "-o", str(out), *args]) == 2
+    assert "--overwrite" in capsys.readouterr().err and out.read_bytes() == OLD
+    assert _leftovers(tmp_path) == []
