@@ -138,6 +138,7 @@ def test_a_command_never_writes_over_its_input(case_dir, argv):
     ["plot", "{in}/r.h5", "-o", "{out}.png"],
     ["compare", "{in}/r.h5", "{in}/r.h5", "--plot", "{out}.png"],
     ["validate", "{in}/r.h5", "--plot", "{out}.png"],
+    ["vehicle", "response", "--plot", "{out}.png"],
 ], ids=lambda a: " ".join(a[:2]))
 def test_an_existing_output_is_refused_without_overwrite(case_dir, argv):
     d = _inputs(case_dir)
