@@ -228,3 +228,41 @@ def test_vehicle_new_never_writes_over_its_strut_file_and_writes_whole(tmp_path,
     assert main(["vehicle", "new", "-o", str(out), *args]) == 2
     assert "--overwrite" in capsys.readouterr().err and out.read_bytes() == OLD
     assert _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("stop, code", [(KeyboardInterrupt, 130), (Terminated, 143)])
+def test_animate_and_report_stopped_midway_keep_the_old_output(tmp_path, monkeypatch, stop, code):
+    """Ctrl-C or SIGTERM after the first frame of a movie, or halfway through the HTML: the old movie and report are
+    as they were, no temporary file is left (they used to be left truncated, 0 B to 760 kB)."""
+    import shutil
+
+    from matplotlib.animation import PillowWriter
+
+    from vehicle.cli import main
+
+    r = tmp_path / "r.h5"
+    shutil.copy(Path(__file__).resolve().parents[1] / "data" / "results_v1.h5", r)
+    gif, html = tmp_path / "a.gif", tmp_path / "r.html"
+    for f in (gif, html):
+        f.write_bytes(OLD)
+    grab = PillowWriter.grab_frame
+    grabbed = []
+
+    def grab_then_stop(self, **kwargs):
+        grab(self, **kwargs)
+        grabbed.append(1)
+        if len(grabbed) == 2:
+            raise stop()
+
+    monkeypatch.setattr(PillowWriter, "grab_frame", grab_then_stop)
+    assert main(["animate", str(r), "-o", str(gif), "--from", "0.1km", "--to", "0.12km", "--overwrite"]) == code
+    write_text = Path.write_text
+
+    def half_then_stop(self, text, *args, **kwargs):
+        write_text(self, text[:len(text) // 2], *args, **kwargs)
+        raise stop()
+
+    monkeypatch.setattr(Path, "write_text", half_then_stop)
+    assert main(["report", str(r), "--html", str(html), "--overwrite"]) == code
+    assert gif.read_bytes() == OLD and html.read_bytes() == OLD
+    assert _leftovers(tmp_path) == []

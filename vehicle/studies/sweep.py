@@ -30,6 +30,7 @@ from pydantic import ValidationError
 
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, Terminated, UserInputError
+from hpsim.outputs import atomic_output
 
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
 from vehicle.engines.pool import die_with_parent, stop_workers
@@ -352,7 +353,7 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
             if k not in columns:
                 columns.append(k)
     csv_path = out_dir / "summary.csv"
-    with open(csv_path, "w", newline="") as fh:
+    with atomic_output(csv_path) as tmp, open(tmp, "w", newline="") as fh:    # an old summary kept until complete
         w = csv.DictWriter(fh, fieldnames=columns)
         w.writeheader()
         for row in table:
