@@ -117,6 +117,7 @@ def _inputs(case_dir):
     ["report", "{in}/r.h5", "--html", "{in}/r.h5"],
     ["plot", "{in}/r.h5", "-o", "{in}/r.h5", "--overwrite"],
     ["validate", "{in}/r.h5", "--plot", "{in}/r.h5", "--overwrite"],
+    ["run", "{in}/s.yaml", "-o", "{in}/s.yaml", "--overwrite", "--no-progress"],
 ], ids=lambda a: " ".join(a[:2]))
 def test_a_command_never_writes_over_its_input(case_dir, argv):
     d = _inputs(case_dir)

@@ -131,7 +131,8 @@ def cmd_run(args):
 
     scen = Path(args.scenario)
     out = Path(args.output) if args.output is not None else Path(scen.stem + ".h5")
-    check_output_file(out if args.output is None else args.output, "-o/--output", make_parents=True)  # before any work
+    check_output_file(out if args.output is None else args.output, "-o/--output", make_parents=True,  # before any work
+                      inputs=[scen])
     if args.resume and not scen.exists() and out.exists():
         scen_arg = None        # resume from the scenario stored in the file
     else:
