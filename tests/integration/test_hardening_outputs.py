@@ -267,3 +267,15 @@ def test_animate_and_report_stopped_midway_keep_the_old_output(tmp_path, monkeyp
     assert main(["report", str(r), "--html", str(html), "--overwrite"]) == code
     assert gif.read_bytes() == OLD and html.read_bytes() == OLD
     assert _leftovers(tmp_path) == []
+
+
+def test_export_fmu_never_writes_over_a_file_its_scenario_reads(case_dir):
+    d = case_dir / "in"
+    road = d / "road.csv"
+    road.write_text("distance_m,left_m,right_m\n" + "".join(f"{0.05 * i:.2f},0.0,0.0\n" for i in range(4000)))
+    (d / "s.yaml").write_text(f"vehicle: {{name: apc_8x8}}\nroad: {{csv: '{road}'}}\nspeed: 20 km/h\n"
+                              "distance: 100 m\nambient_temperature: 25 degC\n")
+    before = road.read_bytes()
+    res = run_case(case_dir, ["export", "fmu", "--scenario", d / "s.yaml", "-o", road, "--overwrite"], timeout=60)
+    check_user_error(res, must_say=("also an input",))
+    assert road.read_bytes() == before
