@@ -206,4 +206,13 @@ def test_runs_of_3_and_4_axle_vehicles_are_compared_axle_by_axle(tmp_path, monke
     assert row4.split()[-1] == "-" and row4.split()[1] != "-"
     out = compare_plot([four, three], tmp_path / "compare.png")
     assert out.stat().st_size > 10_000
+    # the sweep folder's HTML report: the per-axle table of both vehicles
+    from vehicle.presentation import html_report
+
+    (tmp_path / "summary.csv").write_text(f"case,status,file,vehicle.name,distance_km\napc,done,{four},apc_8x8,0.3\n"
+                                          f"truck,done,{three},truck_6x6,0.3\n")
+    doc = html_report.document(tmp_path)
+    table = next(t for s in doc.sections if s.title == "Comparison" for t in s.tables)
+    row = next(r for r in table.rows if r[0] == "axle 4 dN [%]")
+    assert row[1] != "-" and row[2] == "-"
 
