@@ -133,8 +133,45 @@ def test_compilers_started_from_any_thread_are_killed_at_exit(tmp_path):
     t.join()
     proc, job = started[0]
     assert proc in codegen._RUNNING and proc.poll() is None
-    codegen._kill_running_compilers()
+    codegen.kill_running_compilers()
     assert proc.returncode is not None and not codegen._RUNNING
+
+
+def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
+    """An ensemble lane's thread waits for a compiler (its own session) when SIGTERM reaches the main thread: the
+    compiler's process group is killed before Terminated propagates (it used to leave gcc/cc1 running)."""
+    import signal
+    import threading
+
+    from hpsim.errors import Terminated
+    from vehicle.engines.ensemble import run_lockstep
+    from vehicle.numerics import codegen
+
+    script = tmp_path / "cc"
+    script.write_text("#!/bin/sh\nsleep 60\n")
+    script.chmod(0o755)
+    started = []
+
+    def compile_in_lane():
+        proc, job = codegen._start_build(str(script), [], b"int x;", "sha", tmp_path, "lib")
+        started.append(proc)
+        return {"status": "done", "error": codegen._finish_build(proc, job)}
+
+    def raise_terminated(signum, frame):
+        raise Terminated
+
+    old = signal.signal(signal.SIGTERM, raise_terminated)
+    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGTERM))
+    try:
+        timer.start()
+        with pytest.raises(Terminated):
+            run_lockstep(lambda: compile_in_lane(), [("case", ())], lanes=2)
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGTERM, old)
+    proc = started[0]
+    proc.wait(timeout=5)
+    assert proc.returncode == -signal.SIGKILL and not codegen._RUNNING
 
 
 # --- checks before work -----------------------------------------------------------------------------------------

@@ -34,6 +34,7 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
+from vehicle.numerics.codegen import kill_running_compilers
 from vehicle.numerics.lanes import ISAS, LaneStepper, default_lanes
 from vehicle.numerics.solvers import Ros2
 
@@ -254,6 +255,11 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
         for t in threads:
             while t.is_alive():
                 t.join(0.2)
+    except BaseException:
+        # SIGTERM (or an error) in the main thread: a lane's thread may be waiting for a compiler, which runs in its
+        # own session and would outlive this process; the lanes' threads are daemons and end with it
+        kill_running_compilers()
+        raise
     finally:
         if old is not None:
             signal.signal(signal.SIGINT, old)

@@ -218,7 +218,9 @@ _RUNNING_LOCK = threading.Lock()
 
 
 @atexit.register
-def _kill_running_compilers() -> None:
+def kill_running_compilers() -> None:
+    """Kill every compiler this process started and is still waiting for, from any thread (their own sessions
+    keep them from a terminal's signals): for a command or an ensemble stopped while its lanes' threads compile."""
     with _RUNNING_LOCK:
         running = list(_RUNNING)
     for proc in running:
