@@ -120,14 +120,24 @@ def check_figure_file(path: str | Path, where: str, *, make_parents: bool = Fals
 _DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
+def _umask() -> int:
+    """The process's umask, read without changing it where the system tells it (Linux /proc): setting it to read
+    it back would be seen by any thread creating a file at that moment."""
+    try:
+        with open("/proc/self/status") as fh:
+            return int(next(ln for ln in fh if ln.startswith("Umask:")).split()[1], 8)
+    except (OSError, StopIteration, ValueError, IndexError):
+        umask = os.umask(0o022)
+        os.umask(umask)
+        return umask
+
+
 def _new_file_mode(replaced: Path) -> int:
     """The mode the output gets: the replaced file's, else what the umask gives a new file (mkstemp's is 0600)."""
     try:
         return replaced.stat().st_mode & 0o7777
     except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
+        return 0o666 & ~_umask()
 
 
 @contextlib.contextmanager
@@ -143,7 +153,10 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     folder.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.stem[:60]}-", suffix=path.suffix, dir=folder)
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{path.stem[:60]}-", suffix=path.suffix, dir=folder)
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot write ({exc.strerror or exc.__class__.__name__})") from None
     os.close(fd)
     tmp = Path(name)
     try:

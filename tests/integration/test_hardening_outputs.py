@@ -279,3 +279,13 @@ def test_export_fmu_never_writes_over_a_file_its_scenario_reads(case_dir):
     res = run_case(case_dir, ["export", "fmu", "--scenario", d / "s.yaml", "-o", road, "--overwrite"], timeout=60)
     check_user_error(res, must_say=("also an input",))
     assert road.read_bytes() == before
+
+
+def test_a_new_output_gets_the_umask_mode_not_mkstemps_0600(tmp_path):
+    old = os.umask(0o027)
+    try:
+        with atomic_output(tmp_path / "new.csv") as tmp:
+            tmp.write_text("a\n")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "new.csv").stat().st_mode) == 0o640
