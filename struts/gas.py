@@ -287,10 +287,10 @@ def polytropic_pressure(p_ref_Pa, V_ref_m3, V_m3, n):
 def _check_range(p, T, gas):
     if np.any(~np.isfinite(T)) or np.any(T < gas.T_min) or np.any(T > gas.T_max):
         bad = T[(~np.isfinite(T)) | (T < gas.T_min) | (T > gas.T_max)].ravel()[0]
-        raise UserInputError(f"T_K: {bad!r} K is outside the {gas.name} model range {gas.T_min:g}-{gas.T_max:g} K")
+        raise UserInputError(f"T_K: {float(bad):.6g} K is outside the {gas.name} model range {gas.T_min:g}-{gas.T_max:g} K")
     if np.any(~np.isfinite(p)) or np.any(p <= 0) or np.any(p > gas.p_max):
         bad = p[(~np.isfinite(p)) | (p <= 0) | (p > gas.p_max)].ravel()[0]
-        raise UserInputError(f"p_Pa: {bad!r} Pa is outside the {gas.name} model range 0 < p <= {gas.p_max:g} Pa")
+        raise UserInputError(f"p_Pa: {float(bad):.6g} Pa is outside the {gas.name} model range 0 < p <= {gas.p_max:g} Pa")
 
 
 def specific_volume(p_Pa, T_K, gas: GasProperties, eos: str = "bwr"):

@@ -28,6 +28,8 @@ from hpsim.files import kind_of
 
 from .plausibility import check_plausible_tracks
 
+from .profile_io import check_road_points
+
 EXTRA_MESSAGE = 'reading OpenCRG files needs the OpenCRG library\'s Python bindings: pip install "hpsim[crg]"'
 SUFFIXES = (".crg",)
 LOG = logging.getLogger("hpsim.crg")
@@ -128,6 +130,7 @@ def _tracks(pycrg, path: Path, track_width_m: float, spacing_m: float | None, le
         span = (u1 - u0) if length_m is None else float(length_m)
         if not 0 < span <= (u1 - u0) * (1 + 1e-9):
             raise UserInputError(f"{path}: length {span:g} m is not within the reference line's {u1 - u0:g} m")
+        check_road_points(span, step, f"{path}: ")       # before the grid is allocated
         n = int(np.floor(span / step * (1 + 1e-12))) + 1
         if n < 2:
             raise UserInputError(f"{path}: spacing {step:g} m leaves fewer than 2 points over {span:g} m")

@@ -23,6 +23,19 @@ CSV_COLUMNS = ("distance_m", "left_m", "right_m")
 UNIFORM_TOLERANCE = 1e-6  # relative deviation of a step from the mean step still called "uniform"
 
 
+MAX_ROAD_POINTS = 25_000_000
+
+
+def check_road_points(length_m: float, spacing_m: float, where: str = "") -> int:
+    """Number of grid points of a road; refuses more than MAX_ROAD_POINTS before anything is allocated."""
+    n = length_m / spacing_m + 1
+    if not n <= MAX_ROAD_POINTS:
+        raise UserInputError(f"{where}spacing {spacing_m:g} m over {length_m:g} m is {n:.3g} grid points, "
+                             f"at most {MAX_ROAD_POINTS:,} (e.g. {MAX_ROAD_POINTS * 0.05 / 1e3:g} km at 50 mm); "
+                             "use a coarser spacing or a shorter road")
+    return int(n)
+
+
 def _header(path: Path, lines: list[str]) -> tuple[int, list[str]]:
     """(line number of the header, lower-case column names)."""
     for lineno, line in enumerate(lines, start=1):

@@ -29,21 +29,8 @@ from hpsim.threads import beside_map
 from .envelope import envelope_profile
 from .passes import PassSpec, pass_profile, pass_spec
 from .plausibility import check_plausible_tracks
-from .profile_io import is_uniform, read_profile_csv, resample, write_profile_csv
+from .profile_io import check_road_points, is_uniform, read_profile_csv, resample, write_profile_csv
 from .store import key_of, stored_arrays
-
-
-MAX_ROAD_POINTS = 25_000_000
-
-
-def check_road_points(length_m: float, spacing_m: float, where: str = "") -> int:
-    """Number of grid points of a road; refuses more than MAX_ROAD_POINTS before anything is allocated."""
-    n = length_m / spacing_m + 1
-    if not n <= MAX_ROAD_POINTS:
-        raise UserInputError(f"{where}spacing {spacing_m:g} m over {length_m:g} m is {n:.3g} grid points, "
-                             f"at most {MAX_ROAD_POINTS:,} (e.g. {MAX_ROAD_POINTS * 0.05 / 1e3:g} km at 50 mm); "
-                             "use a coarser spacing or a shorter road")
-    return int(n)
 
 
 TRACKS = ("left", "right")

@@ -27,6 +27,7 @@ import json
 import os
 import shutil
 import tempfile
+import warnings
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Callable, Sequence
@@ -84,14 +85,26 @@ def _read(entry: Path, names: Sequence[str]) -> tuple[np.ndarray, ...] | None:
 def _write(folder: Path, entry: Path, names: Sequence[str], arrays: Sequence[np.ndarray]) -> None:
     """The arrays written to a temporary folder beside the entry, then renamed into place (another process that
     wrote the same entry first wins; this one's copy is dropped)."""
-    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", dir=folder))
+    tmp = None
     try:
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", dir=folder))
         for n, a in zip(names, arrays):
             np.save(tmp / f"{n}.npy", np.ascontiguousarray(a, dtype=float), allow_pickle=False)
         os.rename(tmp, entry)
-    except OSError:
-        shutil.rmtree(tmp, ignore_errors=True)
+    except OSError as exc:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        if not entry.is_dir():              # not another process's copy in place first: the store cannot be written
+            _unwritable(folder, exc.strerror or exc.__class__.__name__)
+
+
+@functools.lru_cache(maxsize=None)
+def _unwritable(folder: Path, why: str) -> None:
+    """Warn once per folder and reason that the store cannot be written (a read-only or full cache): the runs go on,
+    computing their roads each time."""
+    warnings.warn(f"road store {folder}: cannot write ({why}); roads are computed again on every run "
+                  f"({ROAD_CACHE_MAX_ENV}=0 turns the store off)", stacklevel=2)
 
 
 def _size(entry: Path) -> int:

@@ -68,6 +68,9 @@ def test_every_help_ends_with_examples():
                    and path in ("strut", "road", "vehicle")), path
 
 
+OUTPUT_OPTIONS = ("-o", "--output", "--plot", "--html", "--pdf", "--psd")
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     d = tmp_path_factory.mktemp("examples")
@@ -101,6 +104,11 @@ def test_the_examples_run(workdir, monkeypatch, capsys):
                 if not Path(name).exists():
                     Path(name).write_bytes(Path("demo.h5").read_bytes())
         argv = _argv(line)
+        if argv[0] not in ("run", "sweep", "uq") and "--overwrite" not in argv:
+            # each example is shown on its own: a file an earlier example wrote is not this one's to replace
+            for flag, value in zip(argv, argv[1:]):
+                if flag in OUTPUT_OPTIONS and Path(value).is_file():
+                    Path(value).unlink()
         t0 = time.perf_counter()
         long = next((reason for start, reason in LONG.items() if line.startswith(start)), None)
         try:

@@ -139,6 +139,7 @@ class Series:
     uncertainty: float
     file: str
     source: str = ""
+    x_unit: str = ""               # the x unit as written ("" for an MDF channel's time stamps: s)
 
     @property
     def label(self) -> str:
@@ -340,7 +341,8 @@ def read_csv_columns(path: Path, columns: list[str], where: str) -> list[np.ndar
     if len(lines) < 3:
         raise UserInputError(f"{path}: expected a header and at least two rows ({where})")
     if len(lines) > MAX_SERIES_ROWS:
-        raise UserInputError(f"{path}: more than {MAX_SERIES_ROWS} rows")
+        raise UserInputError(f"{path}: more than {MAX_SERIES_ROWS} rows, at most {MAX_SERIES_ROWS} in one series "
+                             "(resample the log)")
     try:
         dialect = csv.Sniffer().sniff(lines[0], delimiters=",;\t")
     except csv.Error:
@@ -377,20 +379,44 @@ def read_mdf_channels(path: Path, y_channel: str, x_channel: str | None, where: 
         raise UserInputError(f"{where}.mdf: {path}: not a readable MDF file ({exc.__class__.__name__})") from None
     try:
         sig = _mdf_get(mdf, y_channel, path, where)
-        y, x = np.asarray(sig.samples, float), np.asarray(sig.timestamps, float)
+        y, x = _mdf_numbers(sig.samples, y_channel, path, where), np.asarray(sig.timestamps, float)
         if x_channel is not None:
             xs = _mdf_get(mdf, x_channel, path, where)
-            x = np.interp(sig.timestamps, xs.timestamps, np.asarray(xs.samples, float))
+            x = np.interp(sig.timestamps, xs.timestamps, _mdf_numbers(xs.samples, x_channel, path, where))
     finally:
         mdf.close()
     return x, y
 
 
 def _mdf_get(mdf, name, path, where):
+    """The channel's signal; its length is checked against MAX_SERIES_ROWS (the CSV row limit) before it is read."""
     try:
-        return mdf.get(name)
+        found = mdf.whereis(name)
     except Exception:
-        raise UserInputError(f"{where}: channel {name!r} not in {path}") from None
+        found = ()
+    if not found:
+        raise UserInputError(f"{where}: channel {name!r} not in {path}")
+    try:
+        samples = int(mdf.groups[found[0][0]].channel_group.cycles_nr)
+    except (AttributeError, IndexError, TypeError, ValueError):
+        samples = 0                 # not told by the file: the length is checked on the samples read
+    try:
+        sig = None if samples > MAX_SERIES_ROWS else mdf.get(name)
+    except Exception:
+        raise UserInputError(f"{where}: channel {name!r} of {path} cannot be read") from None
+    if sig is None or len(sig.samples) > MAX_SERIES_ROWS:
+        raise UserInputError(f"{where}: channel {name!r} of {path}: {max(samples, 0 if sig is None else len(sig.samples))}"
+                             f" samples, at most {MAX_SERIES_ROWS} in one series (resample the log)")
+    return sig
+
+
+def _mdf_numbers(samples, name, path, where) -> np.ndarray:
+    """A channel's samples as floats; a channel of text, bytes or records is a one-line error naming it."""
+    a = np.asarray(samples)
+    if a.dtype.kind not in "biuf":
+        what = {"S": "byte strings", "U": "text", "O": "objects", "V": "records"}.get(a.dtype.kind, str(a.dtype))
+        raise UserInputError(f"{where}: channel {name!r} of {path} holds {what}, not numbers")
+    return a.astype(float)
 
 
 def _series(item: Any, where: str, instruments: dict, base: Path, default_source: str) -> Series:
@@ -430,7 +456,8 @@ def _series(item: Any, where: str, instruments: dict, base: Path, default_source
                              f"allowed range [{lo:g}, {hi:g}] {kind.si}")
     inst, u = _instrument_of(item, quantity, instruments, where)
     return Series(where=where, quantity=quantity, axle=axle, side=side, x=x, x_kind=x_kind, y=y, unit=ys["unit"],
-                  instrument=inst, uncertainty=u, file=str(path), source=str(item.get("source", default_source)))
+                  instrument=inst, uncertainty=u, file=str(path), source=str(item.get("source", default_source)),
+                  x_unit=xs["unit"])
 
 
 def read_measurements(path: str | Path) -> MeasurementFile:

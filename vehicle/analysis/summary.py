@@ -231,12 +231,16 @@ def weighing_difference_bands(eq, n_axles: int) -> dict:
 
 
 # --- compare -------------------------------------------------------------------------------------
+def axle_value(run: dict, k: int, key: str):
+    """Run `run`'s value of `key` on axle k + 1 (a compare() run), None when the run's vehicle has fewer axles."""
+    return run["axles"][k].get(key) if k < len(run["axles"]) else None
+
+
 def compare(paths) -> dict:
+    """The runs side by side; `n_axles` is the most axles of any run (vehicles of different axle counts are compared
+    axle by axle, `axle_value` is None on an axle a vehicle does not have)."""
     reps = [report(p) for p in paths]
-    n = {len(r["axles"]) for r in reps}
-    if len(n) > 1:
-        raise UserInputError(f"compare: the files have different numbers of axles ({sorted(n)})")
-    return {"runs": [{"file": r["file"], "status": r["status"], "distance_km": r["distance_km"],
+    return {"n_axles": max(len(r["axles"]) for r in reps), "runs": [{"file": r["file"], "status": r["status"], "distance_km": r["distance_km"],
                       "compensation": r["compensation"], "load_shift_pct": r["load_shift_pct"],
                       "load_shift_vs_charged_pct": r["load_shift_vs_charged_pct"],
                       "mean_temperature_rise_K": r["mean_temperature_rise_K"], "axles": r["axles"],

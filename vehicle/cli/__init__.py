@@ -19,14 +19,22 @@ import atexit
 import contextlib
 import logging
 import os
+import re
 import signal
 import sys
+import warnings
 
 from hpsim.errors import SimulationError, Terminated, UserInputError
 from hpsim.threads import one_blas_thread
 
 
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # a negative quantity with its unit ("--dt -1ms", "--temperatures -20degC") is a value, not an option: the
+        # value's own check then names the allowed range (argparse's pattern takes bare numbers only)
+        self._negative_number_matcher = re.compile(r"^-\.?\d")
+
     def error(self, message):  # one line, exit code 2 (argparse's convention)
         self.exit(2, f"{self.prog}: error: {message}\n")
 
@@ -81,6 +89,12 @@ def setup_logging(verbosity: int) -> None:
     log.addHandler(handler)
     log.setLevel(level)
     log.propagate = False
+    warnings.showwarning = _warning_line
+
+
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A Python warning as one logged line "warning: ..." (not a file name, line number and source line)."""
+    logging.getLogger("hpsim").warning(str(message))
 
 
 def _stdout_gone() -> int:

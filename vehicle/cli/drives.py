@@ -6,7 +6,6 @@ stopped (solver failure; what was written is kept), 130 interrupted (Ctrl-C; res
 from __future__ import annotations
 
 import logging
-import re
 import sys
 from pathlib import Path
 
@@ -14,6 +13,7 @@ from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 from vehicle.cli import response, vehicles
+from .options import add_overwrite
 from .stages import command_wall_s, tenths_down
 
 
@@ -29,7 +29,6 @@ def register(sub):
                          "(default: the charging temperature)")
     pe.add_argument("--json", action="store_true", help="print JSON only")
     pe.set_defaults(func=cmd_equilibrium)
-    pe._negative_number_matcher = re.compile(r"^-\.?\d")   # "--temperatures -20degC" is a value
     response.register(vsub)
     vehicles.register(vsub)
 
@@ -55,12 +54,14 @@ def register(sub):
     pp.add_argument("--psd", default=None, metavar="PNG",
                     help="response PSDs (hull heave/pitch/roll acceleration, strut forces; Welch) to this figure, "
                          "peak frequencies in the table / JSON; needs series stored with output.interval <= 1/30 s, e.g. 0.02 s")
+    add_overwrite(pp)
     pp.set_defaults(func=cmd_report)
 
     pc = sub.add_parser("compare", help="compare results files side by side (load redistribution, heights, temperatures)")
     pc.add_argument("results", nargs="+", help="HDF5 files written by `hpsim run`")
     pc.add_argument("--json", action="store_true", help="print JSON only")
     pc.add_argument("--plot", default=None, metavar="PNG", help="grouped bar chart to this file")
+    add_overwrite(pc)
     pc.set_defaults(func=cmd_compare)
 
     ps = sub.add_parser("sweep", help="run a base scenario over a grid or list of overrides (parallel)")
@@ -87,11 +88,13 @@ def register(sub):
     pa.add_argument("--from", dest="start", default=None, metavar="DISTANCE", help="start of the span, e.g. 10km")
     pa.add_argument("--to", dest="end", default=None, metavar="DISTANCE", help="end of the span, e.g. 10.2km")
     pa.add_argument("--fps", type=float, default=None, help="frames per second of driving (default 20: real time)")
+    add_overwrite(pa)
     pa.set_defaults(func=cmd_animate)
 
     pl = sub.add_parser("plot", help="dashboard figure of a results file")
     pl.add_argument("results", help="HDF5 file written by `hpsim run`")
     pl.add_argument("-o", "--output", default=None, help="PNG file (default: <results>.png)")
+    add_overwrite(pl)
     pl.set_defaults(func=cmd_plot)
 
 
@@ -128,7 +131,8 @@ def cmd_run(args):
 
     scen = Path(args.scenario)
     out = Path(args.output) if args.output is not None else Path(scen.stem + ".h5")
-    check_output_file(out if args.output is None else args.output, "-o/--output", make_parents=True)  # before any work
+    check_output_file(out if args.output is None else args.output, "-o/--output", make_parents=True,  # before any work
+                      inputs=[scen])
     if args.resume and not scen.exists() and out.exists():
         scen_arg = None        # resume from the scenario stored in the file
     else:
@@ -188,7 +192,7 @@ def cmd_report(args):
 
         from vehicle.results.reader import open_results
 
-        check_figure_file(args.psd, "--psd", make_parents=True)
+        check_figure_file(args.psd, "--psd", make_parents=True, inputs=[args.results], overwrite=args.overwrite)
         with open_results(args.results) as r:
             psd = response_psd(r)
             stations = r.stations
@@ -211,7 +215,7 @@ def _shareable_report(args):
 
     for value, flag, suffix in ((args.html, "--html", (".html", ".htm")), (args.pdf, "--pdf", (".pdf",))):
         if value is not None:
-            check_output_file(Path(value), flag, make_parents=True)
+            check_output_file(Path(value), flag, make_parents=True, inputs=[args.results], overwrite=args.overwrite)
             if Path(value).suffix.lower() not in suffix:
                 raise UserInputError(f"{flag}: {value!r} must end in {' or '.join(suffix)}")
     if not Path(args.results).exists():
@@ -230,7 +234,7 @@ def cmd_compare(args):
     from vehicle.presentation.report import compare, format_compare
 
     if args.plot:
-        check_figure_file(args.plot, "--plot", make_parents=True)
+        check_figure_file(args.plot, "--plot", make_parents=True, inputs=args.results, overwrite=args.overwrite)
     cmp = compare(args.results)
     if args.plot:
         from vehicle.presentation.plots import compare_plot
@@ -249,7 +253,8 @@ def cmd_plot(args):
     from vehicle.presentation.plots import dashboard
 
     out = Path(args.output) if args.output is not None else Path(args.results).with_suffix(".png")
-    check_figure_file(out if args.output is None else args.output, "-o/--output", make_parents=True)
+    check_figure_file(out if args.output is None else args.output, "-o/--output", make_parents=True,
+                      inputs=[args.results], overwrite=args.overwrite)
     dashboard(args.results, out)
     print(f"wrote {out}")
     return 0
@@ -274,7 +279,8 @@ def cmd_animate(args):
     fps = FPS if args.fps is None else args.fps
     if not 0 < fps <= 100:
         raise UserInputError(f"--fps: must be in (0, 100] frames per second, got {args.fps}")
-    check_output_file(Path(args.output), "-o/--output", make_parents=True)
+    check_output_file(Path(args.output), "-o/--output", make_parents=True, inputs=[args.results],
+                      overwrite=args.overwrite)
     res = animate(args.results, args.output, start, end, fps)
     print(f"wrote {res['file']} ({res['frames']} frames at {res['fps']:.3g} per second, {res['writer']})")
     return 0
@@ -291,8 +297,9 @@ def cmd_sweep(args):
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
     check_output_dir(Path(args.sweep).stem if args.output_dir is None else args.output_dir,
                      "-o/--output-dir" if args.output_dir is not None else "output folder (the sweep file's name)")
-    if args.ensemble is not None and args.ensemble < 1:
-        raise UserInputError(f"--ensemble: must be >= 1, got {args.ensemble}")
+    from vehicle.engines.ensemble import check_lanes
+
+    check_lanes(args.ensemble)
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        ensemble=args.ensemble, log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
                        before_start=lambda prepared: _sweep_preview(args, prepared), overwrite=args.overwrite)

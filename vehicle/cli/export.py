@@ -6,8 +6,11 @@ import argparse
 
 from hpsim.config import parse_yaml
 from hpsim.errors import UserInputError
+from hpsim.outputs import check_not_input, check_output_file
 from hpsim.tables import format_table, print_json
 from hpsim.units import parse_quantity
+
+from .options import add_overwrite
 
 EPILOG = """\
 examples:
@@ -39,6 +42,7 @@ def register(sub):
                                                "temperature)")
     f.add_argument("-o", "--output", required=True, help="the .fmu file to write")
     f.add_argument("--json", action="store_true", help="print what was written as JSON")
+    add_overwrite(f)
     f.set_defaults(func=cmd_export_fmu)
 
 
@@ -71,8 +75,11 @@ def _vehicle_prepared(args, overrides: dict):
 def cmd_export_fmu(args):
     from vehicle.fmu.build import build_fmu, fmi_headers
     from vehicle.fmu.exports import strut_spec, vehicle_spec
+    from vehicle.results.provenance import input_files
 
     fmi_headers()                       # FMPy (the FMI headers) before any work: a one-line error without it
+    check_output_file(args.output, "-o/--output", make_parents=True, overwrite=args.overwrite,
+                      inputs=[args.strut, args.vehicle, args.scenario, args.heat_from])
     overrides = parse_overrides(args.overrides)
     dt = None if args.dt is None else parse_quantity(args.dt, "s", where="--dt")
     if dt is not None and not 1e-5 <= dt <= 0.02:
@@ -86,7 +93,10 @@ def cmd_export_fmu(args):
         for key in ("heat_from", "mean", "start_temperature"):
             if getattr(args, key) not in (None, "apc_8x8"):
                 raise UserInputError(f"--{key.replace('_', '-')}: only with --strut")
-        spec = vehicle_spec(_vehicle_prepared(args, overrides), dt_s=dt)
+        prepared = _vehicle_prepared(args, overrides)
+        # nor any file the scenario reads (its vehicle, struts, road)
+        check_not_input(args.output, "-o/--output", input_files(prepared).values())
+        spec = vehicle_spec(prepared, dt_s=dt)
     info = build_fmu(spec, args.output)
     info.update(model=spec.model_name, internal_step_s=spec.dt_s, parameters=len(spec.parameters),
                 inputs=len(spec.inputs), outputs=len(spec.output_variables))

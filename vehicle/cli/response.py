@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import re
 
 from hpsim.errors import UserInputError
+
+from .options import add_overwrite
 
 EPILOG = """The linearisation holds for small motions about the standing equilibrium; the valves are their
 laminar bleed; seal friction is either differentiated at rest (a very stiff damper) or replaced by
@@ -46,13 +47,14 @@ def register(vsub):
     p.add_argument("--points", type=int, default=300, help="frequencies, log-spaced (default 300, 10..5000)")
     p.add_argument("--json", action="store_true", help="print JSON only (modes and the full responses)")
     p.add_argument("--plot", default=None, metavar="PNG", help="write the response figure to this file")
+    add_overwrite(p)
     p.set_defaults(func=cmd_response)
-    p._negative_number_matcher = re.compile(r"^-\.?\d")
 
 
 def cmd_response(args):
     import numpy as np
 
+    from hpsim.outputs import check_figure_file
     from hpsim.tables import print_json
     from hpsim.units import parse_quantity
 
@@ -60,6 +62,8 @@ def cmd_response(args):
     from vehicle.physics.params import load_vehicle
     from vehicle.presentation.response import format_response, response_plot, response_report
 
+    if args.plot:
+        check_figure_file(args.plot, "--plot", make_parents=True, inputs=[args.vehicle], overwrite=args.overwrite)
     P = load_vehicle(args.vehicle)
     T = strut_temperatures(P, args.temperatures)
     V = parse_quantity(args.friction_velocity, "m/s", where="--friction-velocity")

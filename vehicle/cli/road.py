@@ -23,10 +23,12 @@ from pydantic import ValidationError
 from hpsim.tables import format_table, print_json
 from hpsim.config import load_yaml, short_repr
 from hpsim.errors import UserInputError
-from hpsim.outputs import check_figure_file, check_output_file
+from hpsim.outputs import atomic_output, check_figure_file, check_output_file
 
 from terrain.coherence import COHERENCE_MODELS, coherence_model
 from terrain.crg import is_crg
+
+from .options import add_overwrite
 
 if TYPE_CHECKING:
     from terrain.road import Road
@@ -50,6 +52,7 @@ def register(sub):
     _spec_options(g)
     g.add_argument("-o", "--output", required=True, help="CSV file to write (distance_m,left_m,right_m)")
     g.add_argument("--json", action="store_true", help="print only JSON on stdout")
+    add_overwrite(g)
     g.set_defaults(func=cmd_generate)
 
     q = rs.add_parser("psd", help="PSD, fitted Gd(n0) and w, ISO class, RMS, coherence, IRI")
@@ -57,6 +60,7 @@ def register(sub):
     _spec_options(q)
     q.add_argument("--json", action="store_true", help="print only JSON on stdout")
     q.add_argument("--plot", metavar="PNG", help="also save the PSD figure")
+    add_overwrite(q)
     q.set_defaults(func=cmd_psd)
 
     im = rs.add_parser("import", help="the left/right tracks of an OpenCRG road surface as a road CSV")
@@ -69,12 +73,14 @@ def register(sub):
                     help="v of the vehicle's centre line across the reference line, positive to the left (default "
                          "0m: centred on it; a file covering v from 0 to 3 m needs 1.5m)")
     im.add_argument("--json", action="store_true", help="print only JSON on stdout")
+    add_overwrite(im)
     im.set_defaults(func=cmd_import)
 
     pl = rs.add_parser("plot", help="plot the profile and its PSD against the ISO class bands")
     pl.add_argument("csv", nargs="?", help="road CSV (distance_m,left_m,right_m) or OpenCRG file (*.crg); or give a spec")
     _spec_options(pl)
     pl.add_argument("-o", "--output", required=True, help="PNG file to write")
+    add_overwrite(pl)
     pl.set_defaults(func=cmd_plot)
 
 
@@ -213,18 +219,21 @@ def cmd_import(args) -> int:
     from hpsim.units import parse_quantity
     from terrain.road import Road
 
-    check_output_file(args.output, "-o/--output")
+    check_output_file(args.output, "-o/--output", inputs=[args.crg], overwrite=args.overwrite)
     spacing = None if args.spacing is None else parse_quantity(args.spacing, "m", where="--spacing")
     if spacing is not None and not spacing > 0:
         raise UserInputError(f"--spacing: must be > 0 m (got {args.spacing!r})")
     road = Road.from_crg(args.crg, _track(args.track), spacing_m=spacing,
                          lateral_offset_m=_lateral_offset(args.lateral_offset))
-    road.to_csv(args.output)
+    with atomic_output(args.output) as tmp:
+        road.to_csv(tmp)
     summary = {"output": str(args.output), "length_m": road.length_m, "spacing_m": road.spacing_m,
                "points": road.n_points, **road.info,
                "rms_left_m": float(np.std(road.left_m)), "rms_right_m": float(np.std(road.right_m))}
     if args.json:
         print_json(summary)
+    elif getattr(args, "verbosity", 0) < 0:
+        print(args.output)
     else:
         v_left = summary["lateral_offset_m"] + summary["track_width_m"] / 2
         v_right = summary["lateral_offset_m"] - summary["track_width_m"] / 2
@@ -255,17 +264,20 @@ def _spec_summary(spec: RoadSpec | None) -> dict:
 def cmd_generate(args) -> int:
     if not _spec_given(args):
         raise UserInputError("give --class A-H (or --gd-n0) and --length, or --spec road.yaml")
-    check_output_file(args.output, "-o/--output")
+    check_output_file(args.output, "-o/--output", inputs=[args.spec], overwrite=args.overwrite)
     from terrain.spec import build_road
 
     spec, base_dir = spec_from_args(args)
     road = build_road(spec, base_dir)
-    road.to_csv(args.output)
+    with atomic_output(args.output) as tmp:
+        road.to_csv(tmp)
     summary = {"output": str(args.output), "length_m": road.length_m, "spacing_m": road.spacing_m,
                "points": road.n_points, **_spec_summary(spec),
                "rms_left_m": float(np.std(road.left_m)), "rms_right_m": float(np.std(road.right_m))}
     if args.json:
         print_json(summary)
+    elif getattr(args, "verbosity", 0) < 0:          # -q: only the path written, as `hpsim run -q`
+        print(args.output)
     else:
         print(_table(summary))
     return 0
@@ -279,13 +291,14 @@ def _statistics(road):
 
 def cmd_psd(args) -> int:
     if args.plot:
-        check_figure_file(args.plot, "--plot")
+        check_figure_file(args.plot, "--plot", inputs=[args.csv, args.spec], overwrite=args.overwrite)
     road, spec = _load_road(args)
     stats = _statistics(road)
     if args.plot:
         from terrain.plots import save_psd_plot
 
-        save_psd_plot(stats, args.plot, title=_title(args, spec))
+        with atomic_output(args.plot) as tmp:
+            save_psd_plot(stats, tmp, title=_title(args, spec))
     out = {k: v for k, v in stats.items() if k not in _JSON_ARRAYS}
     out.update(_spec_summary(spec))
     if args.json:
@@ -298,10 +311,11 @@ def cmd_psd(args) -> int:
 def cmd_plot(args) -> int:
     from terrain.plots import save_road_plot
 
-    check_figure_file(args.output, "-o/--output")
+    check_figure_file(args.output, "-o/--output", inputs=[args.csv, args.spec], overwrite=args.overwrite)
     road, spec = _load_road(args)
     stats = _statistics(road)
-    save_road_plot(road, stats, args.output, title=_title(args, spec))
+    with atomic_output(args.output) as tmp:
+        save_road_plot(road, stats, tmp, title=_title(args, spec))
     print(f"wrote {args.output}")
     return 0
 

@@ -59,8 +59,9 @@ def cmd_uq(args):
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
-    if args.ensemble is not None and args.ensemble < 1:
-        raise UserInputError(f"--ensemble: must be >= 1, got {args.ensemble}")
+    from vehicle.engines.ensemble import check_lanes
+
+    check_lanes(args.ensemble)
     patterns = [s.strip() for s in args.parameters.split(",") if s.strip()] if args.parameters is not None else None
     if patterns == []:
         raise UserInputError(f"--parameters: {args.parameters!r} names no prior; give names, endings or globs "

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+from .options import add_overwrite
+
 EPILOG = """\
 examples:
   hpsim validate results/mileage_106km.h5 test.yaml                  # one drive: its nominal prediction
@@ -25,14 +27,21 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="print the comparison as JSON only")
     p.add_argument("--plot", default=None, metavar="FILE", help="write the report figure (PNG, PDF, SVG)")
     p.add_argument("--seed", type=int, default=0, help="seed of the measurement-model draws (default 0)")
+    add_overwrite(p)
     p.set_defaults(func=cmd_validate)
 
 
 def cmd_validate(args):
+    from hpsim.outputs import check_figure_file
     from hpsim.tables import print_json
 
+    from vehicle.studies.uq import check_seed
     from vehicle.studies.validate import format_readings, format_validation, instrument_readings, validate
 
+    check_seed(args.seed)
+    if args.plot:                       # before the computing, whose result would otherwise be lost
+        check_figure_file(args.plot, "--plot", make_parents=True, inputs=[args.prediction, args.measured],
+                          overwrite=args.overwrite)
     if args.measured is None:
         v = instrument_readings(args.prediction, seed=args.seed)
     else:

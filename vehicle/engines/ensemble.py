@@ -32,7 +32,10 @@ from typing import Callable
 
 import numpy as np
 
-from vehicle.numerics.lanes import LaneStepper, default_lanes
+from hpsim.errors import UserInputError
+
+from vehicle.numerics.codegen import kill_running_compilers
+from vehicle.numerics.lanes import ISAS, LaneStepper, default_lanes
 from vehicle.numerics.solvers import Ros2
 
 # the solver of full drives built in this thread (None: the compiled ROS2): a lane of an ensemble or of a
@@ -252,6 +255,11 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
         for t in threads:
             while t.is_alive():
                 t.join(0.2)
+    except BaseException:
+        # SIGTERM (or an error) in the main thread: a lane's thread may be waiting for a compiler, which runs in its
+        # own session and would outlive this process; the lanes' threads are daemons and end with it
+        kill_running_compilers()
+        raise
     finally:
         if old is not None:
             signal.signal(signal.SIGINT, old)
@@ -266,6 +274,20 @@ def eligible(scenario_data: dict) -> bool:
     return solver.get("mode", "full") in ("full", None) and (tp in (None, 1, "1", False))
 
 
+# The most lanes one lockstep group may have (`--ensemble K`): four vectors of the widest instruction set (AVX-512,
+# 8 doubles). One vector's lanes step fastest per lane (docs/engines.md, "Vector lanes"; 8 lanes already gain little
+# over 4), while the library's C, its compile time and memory grow with the lanes; beyond a few vectors a group only
+# costs a longer compile and masks more lanes when its drives end apart.
+MAX_LANES = 4 * max(width for _, width in ISAS.values())
+
+
+def check_lanes(lanes: int | None, where: str = "--ensemble") -> None:
+    """UserInputError unless `lanes` is None or an integer in [1, MAX_LANES]."""
+    if lanes is not None and not 1 <= lanes <= MAX_LANES:
+        raise UserInputError(f"{where}: must be in [1, {MAX_LANES}] lanes (1: off; {MAX_LANES} = four vectors of "
+                             f"AVX-512, beyond which a group only compiles longer), got {lanes}")
+
+
 def group_size(lanes: int | None, n_cases: int, workers: int | None) -> tuple[int, int]:
     """(lanes of the compiled library, cases per group) for `--ensemble` (None: chosen): given K, K and K; by
     default one vector's lanes when there are more cases than workers, the groups as full as the cases allow
@@ -273,6 +295,7 @@ def group_size(lanes: int | None, n_cases: int, workers: int | None) -> tuple[in
     ones), else 1 (each case on its own, the scalar engine). Lanes: one hardware vector (`default_lanes`: 8 with
     AVX-512, 4 with AVX2; benchmarks/ensemble.py)."""
     if lanes is not None:
+        check_lanes(lanes)
         return int(lanes), int(lanes)
     import os
 

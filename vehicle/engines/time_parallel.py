@@ -53,6 +53,7 @@ from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.scenario.settings import SEGMENTS_RANGE, MultiscaleSettings
+from vehicle.scenario.work_limits import drive_duration_s
 from vehicle.engines.contract import DriveState
 from vehicle.engines.ensemble import current_full_solver, lane_stepper, run_lockstep
 from vehicle.engines.full import Drive
@@ -185,6 +186,9 @@ class TimeParallelDrive(SegmentJoin):
         workers = -(-int(segments) // self.lanes)
         if not lo <= workers <= hi:
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (processes) or auto, got {workers}")
+        # segments too short refused before anything is compiled (the drive's duration as the drive computes it)
+        self.segments = int(segments)
+        self._check_segment_length(drive_duration_s(settings.speed, settings.distance_m), workers)
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
         self.fine = Drive(model, road, settings, partial_last_sample=False)   # segments end on whole intervals
@@ -195,13 +199,6 @@ class TimeParallelDrive(SegmentJoin):
         self.total_time_s = self.fine.total_time_s
         self.T_index = self.fine.T_index
         self.build_s = self.fine.build_s + self.coarse.build_s
-        self.segments = int(segments)
-        seg_s = self.total_time_s / self.segments
-        if self.segments > 1 and seg_s < MIN_SEGMENT_S:
-            key = "solver.time_parallel" + (f" x time_parallel_lanes ({workers} x {self.lanes})" if self.lanes > 1 else "")
-            raise UserInputError(f"{key}: {self.segments} segments of a {self.total_time_s:.4g} s drive "
-                                 f"are {seg_s:.3g} s each, at least {MIN_SEGMENT_S:g} s are needed: use at most "
-                                 f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))} segments")
         self.warm_up_m = float(warm_up_m)
         self.correct = correct
         # segments per worker: `lanes` consecutive segments run in lockstep on the lane library (lane_library
@@ -216,6 +213,15 @@ class TimeParallelDrive(SegmentJoin):
                 self.lane_library = False
             self.build_s += time.perf_counter() - t0
         self.parareal: dict = {}
+
+    def _check_segment_length(self, total_time_s: float, workers: int) -> None:
+        """UserInputError when the segments of a drive of total_time_s [s] are shorter than MIN_SEGMENT_S."""
+        seg_s = total_time_s / self.segments
+        if self.segments > 1 and seg_s < MIN_SEGMENT_S:
+            key = "solver.time_parallel" + (f" x time_parallel_lanes ({workers} x {self.lanes})" if self.lanes > 1 else "")
+            raise UserInputError(f"{key}: {self.segments} segments of a {total_time_s:.4g} s drive "
+                                 f"are {seg_s:.3g} s each, at least {MIN_SEGMENT_S:g} s are needed: use at most "
+                                 f"{max(1, int(total_time_s // MIN_SEGMENT_S))} segments")
 
     # --- the engine contract: the full drive's layout, start and end --------------------------------
     def describe(self):

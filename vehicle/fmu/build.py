@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import os
 import platform
 import shutil
 import tempfile
@@ -25,6 +24,7 @@ from pathlib import Path
 import casadi as ca
 
 from hpsim.errors import UserInputError
+from hpsim.outputs import atomic_output
 from vehicle.fmu.description import model_description
 from vehicle.numerics import codegen
 from vehicle.numerics.codegen import compile_source
@@ -182,12 +182,9 @@ def build_fmu(spec: FmuSpec, path: str | Path, *, verbose: bool = False) -> dict
         compile_s = time.perf_counter() - t1
         generated.unlink()
         (root / "modelDescription.xml").write_bytes(model_description(spec, guid, [c_file]))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp_zip = path.with_name(path.name + ".tmp")
-        with zipfile.ZipFile(tmp_zip, "w", zipfile.ZIP_DEFLATED) as z:
+        with atomic_output(path) as tmp_zip, zipfile.ZipFile(tmp_zip, "w", zipfile.ZIP_DEFLATED) as z:
             for f in sorted(root.rglob("*")):
                 if f.is_file():
                     z.write(f, f.relative_to(root).as_posix())
-        os.replace(tmp_zip, path)
     return {"path": str(path), "bytes": path.stat().st_size, "guid": guid, "build_s": time.perf_counter() - t0,
             "compile_s": compile_s}

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import errno
 import functools
 import hashlib
 import json
@@ -51,6 +52,7 @@ from typing import Callable
 import casadi as ca
 
 from hpsim.cache import CACHE_ENV, cache_problem, least_recently_used, remove_stale_temporaries, size_limit_bytes
+from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time, vector_math
@@ -68,7 +70,9 @@ def _private_cache() -> Path:
 
 
 def cache_dir() -> Path:
-    """The compile cache folder (created 0700); a private temporary one when it cannot be trusted."""
+    """The compile cache folder (created 0700); a private temporary one when it cannot be trusted. A bad
+    HPSIM_CACHE_MAX_MB is a UserInputError whenever the cache is used, not only when it is trimmed."""
+    cache_limit_bytes()
     d, problem = cache_problem()
     if problem is None:
         return d
@@ -198,10 +202,40 @@ def _generate_c(fn: ca.Function, c_library_math: bool = False) -> bytes:
     return generate_c([fn], f"{fn.name()}.c", c_library_math=c_library_math)
 
 
+_DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def _cache_full(d: Path, why: str) -> UserInputError:
+    """The error of a cache folder that cannot take a library: names the folder and the ways out."""
+    return UserInputError(f"compile cache {d}: {why}; free space there, or set {CACHE_ENV} to a folder on another "
+                          f"disk (and {CACHE_MAX_ENV} to bound its size in MB)")
+
+
+# compilers running in this process (started from any thread): killed with their process groups at exit, so that
+# a command ended by SIGTERM while ensemble lanes compile leaves no compiler behind
+_RUNNING: set = set()
+_RUNNING_LOCK = threading.Lock()
+
+
+@atexit.register
+def kill_running_compilers() -> None:
+    """Kill every compiler this process started and is still waiting for, from any thread (their own sessions
+    keep them from a terminal's signals): for a command or an ensemble stopped while its lanes' threads compile."""
+    with _RUNNING_LOCK:
+        running = list(_RUNNING)
+    for proc in running:
+        _kill(proc)
+
+
 def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str, meta: dict | None = None):
     """Start compiling `code` into a private build folder of d: (the compiler process, the job); `meta`: more
     entries of the library's record (a `Library`'s lookup key and signature)."""
-    build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
+    try:
+        build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
+    except OSError as exc:
+        if exc.errno in _DISK_FULL:
+            raise _cache_full(d, exc.strerror) from None
+        raise
     try:
         src = build / f"{stem}.c"
         src.write_bytes(code)
@@ -209,8 +243,12 @@ def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path,
         # it), never the compiler alone (a compiler killed under us used to fall back silently)
         proc = subprocess.Popen([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    except BaseException:
+        with _RUNNING_LOCK:
+            _RUNNING.add(proc)
+    except BaseException as exc:
         shutil.rmtree(build, ignore_errors=True)
+        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:
+            raise _cache_full(d, exc.strerror) from None
         raise
     return proc, (cc, flags, code_sha, meta or {}, d, stem, build)
 
@@ -225,9 +263,15 @@ def _finish_build(proc, job) -> str | None:
         except BaseException:
             _kill(proc)
             raise
+        finally:
+            with _RUNNING_LOCK:
+                _RUNNING.discard(proc)
         if proc.returncode == -signal.SIGINT:
             raise KeyboardInterrupt
         if proc.returncode != 0:
+            full = next((os.strerror(e) for e in _DISK_FULL if os.strerror(e) in stderr), None)
+            if full is not None:        # the cache's disk (or the compiler's temporary folder) is full
+                raise _cache_full(d, f"{full} ({stderr.strip().splitlines()[0][:160]})")
             return stderr.strip()[:300] or f"exit code {proc.returncode}"
         built = build / f"{stem}.so"
         meta = {"c_sha256": code_sha, **_file_record(built), "compiler": cc, "flags": flags, **extra}
@@ -237,6 +281,10 @@ def _finish_build(proc, job) -> str | None:
         os.replace(built, d / f"{stem}.so")
         os.replace(build / f"{stem}.json", d / f"{stem}.json")
         return None
+    except OSError as exc:
+        if exc.errno in _DISK_FULL:
+            raise _cache_full(d, exc.strerror) from None
+        raise
     finally:
         shutil.rmtree(build, ignore_errors=True)
 
@@ -264,6 +312,10 @@ def _abort(started) -> None:
 
 def _kill(proc) -> None:
     """Kill a compiler and what it started (cc1, as: its process group, the session it leads), and reap it."""
+    with _RUNNING_LOCK:
+        _RUNNING.discard(proc)
+    if proc.returncode is not None:     # reaped already: its process group id may be another's by now
+        return
     try:
         os.killpg(proc.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):

@@ -24,6 +24,7 @@ import yaml
 
 from hpsim.config import load_yaml
 from hpsim.errors import UserInputError
+from hpsim.outputs import atomic_output, check_output_file
 from hpsim.units import parse_quantity
 from struts.params import load_strut
 
@@ -240,15 +241,15 @@ def vehicle_text(s: VehicleSpec) -> str:
 
 
 def write_vehicle(s: VehicleSpec, path: str | Path, overwrite: bool = False) -> Path:
-    """Write the vehicle file for the spec to `path` (.yaml)."""
+    """Write the vehicle file for the spec to `path` (.yaml) through hpsim.outputs: never over one of its strut
+    files, over an existing file only with `overwrite`, whole or not at all."""
     p = Path(path)
     if p.suffix not in (".yaml", ".yml"):
         raise UserInputError(f"-o/--output: a vehicle file ends in .yaml, got {p}")
     text = vehicle_text(s)
-    if p.exists() and not overwrite:
-        raise UserInputError(f"-o/--output: {p} exists (--overwrite replaces it)")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(text)
+    check_output_file(p, "-o/--output", make_parents=True, inputs=s.struts, overwrite=overwrite)
+    with atomic_output(p) as tmp:
+        tmp.write_text(text)
     return p
 
 

@@ -25,11 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.outputs import atomic_output
 from terrain.spec import RoadSpec, build_road
 
 from vehicle.physics import hull as hull_eq
 from vehicle.results.reader import open_results
-from vehicle.presentation.plots import pyplot
+from vehicle.presentation.plots import pyplot, save_figure
 
 FPS = 20                       # frames per second of the movie (and of driving shown: real time)
 VIEW_AHEAD_M, VIEW_BEHIND_M = 4.0, 10.0     # the side view's window around the first axle
@@ -185,13 +186,15 @@ def animate(path, out: str | Path, start_m: float | None = None, end_m: float | 
     view.fig.set_layout_engine("none")          # laid out once: every frame keeps the first frame's layout
     real_fps = 1.0 / d["frame_dt_s"]
     writer = (animation.FFMpegWriter(fps=real_fps) if suffix == ".mp4" else animation.PillowWriter(fps=real_fps))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    # frame by frame through the writer (one draw per frame; FuncAnimation.save draws each frame twice)
-    with writer.saving(view.fig, str(out), dpi):
-        for k in range(n):
-            view.update(k)
-            writer.grab_frame()
-    pyplot().close(view.fig)
+    # frame by frame through the writer (one draw per frame; FuncAnimation.save draws each frame twice), to a
+    # temporary file renamed when complete: an interrupted movie never replaces the old one
+    try:
+        with atomic_output(out) as tmp, writer.saving(view.fig, str(tmp), dpi):
+            for k in range(n):
+                view.update(k)
+                writer.grab_frame()
+    finally:
+        pyplot().close(view.fig)
     return {"file": str(out), "frames": n, "writer": "ffmpeg" if suffix == ".mp4" else "pillow", "fps": real_fps}
 
 
@@ -201,6 +204,4 @@ def save_frame(path, out: str | Path, at_m: float | None = None, dpi: int = 100)
     view = SideView(d, _road_of(d["resolved"]))
     k = len(d["time"]) // 2 if at_m is None else int(np.argmin(np.abs(d["distance"] - at_m)))
     view.update(k)
-    view.fig.savefig(out, dpi=dpi)
-    pyplot().close(view.fig)
-    return Path(out)
+    return save_figure(view.fig, out, dpi=dpi)

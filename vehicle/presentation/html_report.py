@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hpsim.errors import UserInputError
+from hpsim.outputs import atomic_output
 
 from vehicle.results.reader import open_results
 from vehicle.analysis.ride_metrics import axle_rows
-from vehicle.analysis.summary import compare, report_from
+from vehicle.analysis.summary import axle_value, compare, report_from
 from vehicle.presentation.plots import compare_plot, dashboard_figure, pyplot
 from vehicle.presentation.report import AXLE_COLUMNS as RIDE_AXLE, SEAT_COLUMNS, format_warnings, shock_notes
 from vehicle.presentation.uq_plots import bands_plot, sensitivity_plot
@@ -315,8 +316,8 @@ def sweep_document(folder: Path) -> Document:
         per_axle = []
         for key, what, spec in (("dN_pct", "dN [%]", ".2f"), ("dN_band_pct", "dN weighing band [%]", ".1f"),
                                 ("dh_mm", "dh [mm]", ".2f"), ("T_end_C", "T end [degC]", ".1f")):
-            for k in range(len(cmp["runs"][0]["axles"])):
-                per_axle.append([f"axle {k + 1} {what}"] + [_fmt(r["axles"][k].get(key), spec) for r in cmp["runs"]])
+            for k in range(cmp["n_axles"]):
+                per_axle.append([f"axle {k + 1} {what}"] + [_fmt(axle_value(r, k, key), spec) for r in cmp["runs"]])
         seats = sorted({s["seat"] for r in cmp["runs"] for s in (r.get("ride") or {}).get("seats", [])})
         for seat in seats:
             for key, what, spec in (("weighted_rms_acceleration_m_s2", "a_w [m/s^2]", ".3f"),
@@ -373,8 +374,8 @@ def write_html(doc: Document, out: str | Path) -> Path:
     html = env.get_template(TEMPLATE).render(title=doc.title, intro=doc.intro, sections=sections,
                                              provenance=doc.provenance)
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(html, encoding="utf-8")
+    with atomic_output(out) as tmp:
+        tmp.write_text(html, encoding="utf-8")
     return out
 
 
@@ -447,9 +448,8 @@ def write_pdf(doc: Document, out: str | Path, first_page_png: str | Path | None 
     from matplotlib.backends.backend_pdf import PdfPages
 
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     plt = pyplot()
-    with PdfPages(out) as pdf:
+    with atomic_output(out) as tmp, PdfPages(tmp) as pdf:
         pages = _Pages(pdf, first_page_png)
         pages.text(doc.title, size=14, weight="bold")
         for p in doc.intro:

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.outputs import atomic_output
 
 from vehicle.physics.outputs import variable_name
 from vehicle.physics.ride import COMFORT_BANDS
@@ -28,6 +29,17 @@ def pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def save_figure(fig, out: str | Path, dpi: int = 110) -> Path:
+    """Write `fig` to `out` whole or not at all (hpsim.outputs.atomic_output) and close it; returns `out`."""
+    out = Path(out)
+    try:
+        with atomic_output(out) as tmp:
+            fig.savefig(tmp, dpi=dpi)
+    finally:
+        pyplot().close(fig)
+    return out
 
 
 def _moving_mean(y: np.ndarray, window: int) -> np.ndarray:
@@ -313,12 +325,7 @@ def dashboard(path, out: str | Path) -> Path:
     statistics rows carry them, ride comfort at the seats and the strut travel per axle against the stroke, and
     the hull's response PSDs when the series are stored densely enough (output.interval <= 1/30 s). `path`: a
     results file or any `vehicle.results.reader.ResultsView` (e.g. in-memory results)."""
-    fig = dashboard_figure(path)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    pyplot().close(fig)
-    return out
+    return save_figure(dashboard_figure(path), out)
 
 
 def _dense_psd(f):
@@ -379,7 +386,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     cmp = compare(paths)
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
-    n_ax = len(runs[0]["axles"])
+    n_ax = cmp["n_axles"]
     hist = [_history(p) for p in paths]
     tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -411,6 +418,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
                      for a in r["axles"]]
             else:
                 y = [np.nan if a[key] is None else a[key] for a in r["axles"]]
+            y += [np.nan] * (n_ax - len(y))             # a vehicle of fewer axles: no bar on the axles it lacks
             panel.bar(x - 0.4 + w * (j + 0.5), y, w, color=colors[j % len(colors)])
         panel.set_xticks(x, [f"axle {k + 1}" for k in range(n_ax)])
         panel.set(ylabel=ylabel, title=title)
@@ -424,11 +432,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     fig.legend(handles, warned, loc="outside lower center", ncol=min(len(runs), 4), fontsize=8, frameon=False)
     same = "" if len({json.dumps(r["axles"], sort_keys=True) for r in runs}) > 1 else " (identical results)"
     fig.suptitle(f"{len(runs)} runs compared: temperatures, heights and load changes{same}")
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out)
 
 
 def psd_plot(psd: dict, out: str | Path, stations=None, title: str = "") -> Path:
@@ -457,7 +461,4 @@ def psd_plot(psd: dict, out: str | Path, stations=None, title: str = "") -> Path
         if P.shape[0] > 1 and stations is not None:
             a.legend(fontsize=6, ncol=2, frameon=False)
     fig.suptitle(title or f"response PSDs (Welch, {psd['duration_s']:.0f} s at {psd['fs_hz']:.0f} Hz)")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out)

@@ -7,7 +7,7 @@ from hpsim.tables import format_table
 
 from vehicle.results.validity import format_warnings as lines
 from vehicle.analysis.ride_metrics import axle_rows
-from vehicle.analysis.summary import compare, open_results, report, report_from  # noqa: F401  (re-exported)
+from vehicle.analysis.summary import axle_value, compare, open_results, report, report_from  # noqa: F401  (re-exported)
 
 
 def format_report(rep: dict) -> str:
@@ -199,8 +199,9 @@ def format_compare(cmp: dict, labels=None) -> str:
                             ("dh_mm", "height change dh [mm]", "+.2f"),
                             ("T_end_C", "strut surface temperature at the end [degC]", ".1f")):
         rows = []
-        for k in range(len(runs[0]["axles"])):
-            rows.append([k + 1] + ["-" if r["axles"][k][key] is None else format(r["axles"][k][key], fmt) for r in runs])
+        for k in range(cmp["n_axles"]):
+            rows.append([k + 1] + ["-" if axle_value(r, k, key) is None else format(axle_value(r, k, key), fmt)
+                                   for r in runs])
         blocks.append(title + "\n" + format_table(["axle"] + labels, rows))
     rows = [["load shift [%]"] + ["-" if r["load_shift_pct"] is None else f"{r['load_shift_pct']:.2f}" for r in runs],
             ["vs charged [%]"] + ["-" if r["load_shift_vs_charged_pct"] is None

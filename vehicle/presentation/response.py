@@ -9,7 +9,7 @@ import numpy as np
 from hpsim.tables import format_table
 
 from vehicle.physics import linear
-from vehicle.presentation.plots import pyplot
+from vehicle.presentation.plots import pyplot, save_figure
 
 
 def response_report(lin: linear.LinearVehicle, f_hz) -> dict:
@@ -126,8 +126,4 @@ def response_plot(rep: dict, out: str | Path) -> Path:
     V = rep["friction_velocity_m_s"]
     fig.suptitle(f"{rep['vehicle']}: linearised road response ({modes_text}; friction "
                  + (f"equivalent linear at {V * 1e3:.0f} mm/s)" if V else "at rest)"), fontsize=10)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out)

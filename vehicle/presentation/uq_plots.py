@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vehicle.presentation.plots import pyplot
+from vehicle.presentation.plots import pyplot, save_figure
 
 AXLE_PANELS = (("rise_K", "strut temperature rise [K]"), ("dh_mm", "height change dh [mm]"),
                ("dN_pct", "wheel load change dN [%]"))
@@ -16,11 +16,6 @@ HEADLINE = ("mean_rise_K", "load_shift_pct")
 TOP = 12          # parameters shown per bar chart
 
 
-def _save(fig, out: Path) -> Path:
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    pyplot().close(fig)
-    return out
 
 
 def _finite(v) -> bool:
@@ -63,7 +58,7 @@ def bands_plot(summary: dict, out: str | Path) -> Path:
              for k in HEADLINE if k in bands]
     fig.suptitle(f"prediction bands over the priors: {summary['done']} drives ({summary['method']})"
                  + ("\n" + "\n".join(extra) if extra else ""), fontsize=10)
-    return _save(fig, Path(out))
+    return save_figure(fig, Path(out))
 
 
 def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
@@ -132,7 +127,7 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
                     label={"ST": "ST", "prcc": "PRCC", "spearman": "Spearman"}[value])
     what = "Sobol' indices" if sobol else "rank correlations"
     fig.suptitle(f"{what} over the priors ({summary['done']} drives, N = {summary['samples']})", fontsize=10)
-    return _save(fig, Path(out))
+    return save_figure(fig, Path(out))
 
 
 def study_plots(summary: dict, out_dir: str | Path) -> dict:

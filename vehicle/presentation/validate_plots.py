@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vehicle.presentation.plots import pyplot
+from vehicle.presentation.plots import pyplot, save_figure
 
 TITLES = {"surface_temperature": "strut surface temperature", "oil_temperature": "oil temperature",
           "height": "hull height", "wheel_load": "wheel load"}
@@ -88,8 +88,4 @@ def validation_plot(v: dict, out: str | Path) -> Path:
         fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=min(4, len(handles)), fontsize=8,
                    frameon=False)
     fig.tight_layout(rect=(0, 0.07 if handles else 0, 1, 0.96))
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out)

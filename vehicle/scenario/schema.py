@@ -46,7 +46,7 @@ from vehicle.scenario.work_limits import check_interval, check_scenario, drive_d
 K_ = Quantity("K")
 
 # ranges (allowed values) of the scenario's own keys
-# 1 m .. 1000 km: the road under a drive is generated whole, at most terrain.road.MAX_ROAD_POINTS
+# 1 m .. 1000 km: the road under a drive is generated whole, at most terrain.profile_io.MAX_ROAD_POINTS
 # (1250 km at the default 50 mm spacing), and must reach past the last axle at the end
 DISTANCE_RANGE_M = (1.0, 1000e3)
 SPEED_RANGE_M_PER_S = (0.1, 150 / 3.6)        # 0.1 m/s .. 150 km/h

@@ -5,6 +5,8 @@
 - `safe_names(names)`: case names as file names: only letters, digits and `._+-`, no leading dot (never `..`),
   at most MAX_NAME_CHARS, and collision-free (case-insensitively: `a` and `A` are one file on some file systems);
   a name that would collide gets `-2`, `-3`, ...
+- `check_study_kind(folder, kind)`: a folder holding another kind of study (a sweep's summary.csv, a UQ study's
+  samples.csv, cases.jsonl or summary.json) is refused: its report would show only one of the two.
 - `case_state(file, source)`: what a re-run does with a case's results file: "new" (none), "complete" (made from
   this very definition: skipped), "resume" (incomplete, same definition) or "changed: <why>" (made from another
   definition: the scenario text after overrides differs, or an input file or the resolved definition changed,
@@ -42,6 +44,20 @@ class StudyLock(OutputLock):
         except UserInputError as exc:
             text = str(exc).replace(f"{self.out}: being written", f"{self.folder}: a study is being written")
             raise UserInputError(text.replace("wait for it", "wait for it (or give another folder with -o)")) from None
+
+
+# the files that make a folder a study of one kind (written by vehicle.studies.sweep and vehicle.studies.uq)
+STUDY_FILES = {"sweep": ("summary.csv",), "uq": ("samples.csv", "cases.jsonl", "summary.json")}
+
+
+def check_study_kind(folder: str | Path, kind: str, where: str = "-o/--output-dir") -> None:
+    """UserInputError when `folder` holds a study of another kind than `kind` ("sweep" or "uq")."""
+    folder = Path(folder)
+    for other, names in STUDY_FILES.items():
+        found = next((n for n in names if (folder / n).exists()), None) if other != kind else None
+        if found:
+            raise UserInputError(f"{where}: {folder} holds an `hpsim {other}` study ({found}); give another folder "
+                                 f"for this `hpsim {kind}`")
 
 
 def safe_name(name: str) -> str:

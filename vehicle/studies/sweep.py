@@ -30,6 +30,7 @@ from pydantic import ValidationError
 
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, Terminated, UserInputError
+from hpsim.outputs import atomic_output
 
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
 from vehicle.engines.pool import die_with_parent, stop_workers
@@ -39,7 +40,8 @@ from vehicle.results.validity import summary_cell
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import report
 from vehicle.engines.ensemble import eligible, grouped_jobs
-from vehicle.studies.study_folder import StudyLock, case_state, check_case_count, refuse_changed, safe_names
+from vehicle.studies.study_folder import (StudyLock, case_state, check_case_count, check_study_kind, refuse_changed,
+                                          safe_names)
 
 
 class SweepSpec(Model):
@@ -218,6 +220,7 @@ def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers
     path = Path(path)
     spec, base, cases = load_sweep(path)
     out_dir = Path(output_dir) if output_dir else Path(path.stem)
+    check_study_kind(out_dir, "sweep")
     out_dir.mkdir(parents=True, exist_ok=True)
     with StudyLock(out_dir):                 # one study writing into a folder at a time
         return _run_sweep(path, out_dir, cases, workers, scheduler, log, overwrite, before_start, ensemble)
@@ -350,7 +353,7 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
             if k not in columns:
                 columns.append(k)
     csv_path = out_dir / "summary.csv"
-    with open(csv_path, "w", newline="") as fh:
+    with atomic_output(csv_path) as tmp, open(tmp, "w", newline="") as fh:    # an old summary kept until complete
         w = csv.DictWriter(fh, fieldnames=columns)
         w.writeheader()
         for row in table:

@@ -57,7 +57,7 @@ from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_pat
 from vehicle.engines.ensemble import eligible, grouped_jobs
 
 from vehicle.results import provenance
-from vehicle.studies.study_folder import StudyLock, check_case_count
+from vehicle.studies.study_folder import StudyLock, check_case_count, check_study_kind
 
 METHODS = ("sobol", "lhs")
 GROUPINGS = ("none", "section")
@@ -553,6 +553,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     for n in notes:
         log(f"{src.name}: {n}")
     out_dir = Path(output_dir) if output_dir else Path(f"{Path(scenario).stem}_uq")
+    check_study_kind(out_dir, "uq")
     runner = DriveRunner(src.data, src.name, str(src.base_dir), params, str((out_dir / "cases").resolve()), distance)
     # every check before any drive: the nominal case and the first draw must be valid scenarios
     nominal_case = prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,

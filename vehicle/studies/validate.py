@@ -36,6 +36,8 @@ from vehicle.analysis.summary import report_from
 BAND = (5.0, 95.0)
 MIN_DRAWS_PER_CASE = 64          # measurement-model draws per drive (a study: at least this many per case)
 TOTAL_DRAWS = 4000               # ... and about this many over all drives
+# the x units a log is tried in when its x does not overlap the drive (a unit mix-up is then named)
+X_UNIT_CANDIDATES = {"distance": ("m", "km", "mm"), "time": ("s", "ms", "min", "h")}
 SERIES_VARIABLES = {"surface_temperature": ("strut_temperature", "station"),
                     "oil_temperature": ("oil_temperature", "station"),
                     "height": ("axle_height_change", "axle")}
@@ -227,6 +229,32 @@ def prediction_files(path: str | Path) -> tuple[str, Path | None, list[Path]]:
     return "study", nominal, design or [nominal]
 
 
+def failed_cases(path: str | Path) -> list[str]:
+    """The cases of an hpsim uq study folder whose last record in cases.jsonl is not 'done' (a failed or interrupted
+    draw: not in the bands); [] for a results file."""
+    records = Path(path) / "cases.jsonl"
+    if not records.is_file():
+        return []
+    last: dict[str, str] = {}
+    for line in records.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(rec, dict) and "case" in rec:
+            last[str(rec["case"])] = str(rec.get("status"))
+    return [case for case, status in last.items() if status != "done"]
+
+
+def _excluded_note(v: dict) -> list[str]:
+    failed = v.get("excluded_cases") or []
+    if not failed:
+        return []
+    names = ", ".join(failed[:5]) + (" ..." if len(failed) > 5 else "")
+    return [f"note: the bands are of the {v['drives']} finished drive(s); {len(failed)} failed draw(s) are excluded "
+            f"({names}), so the bands may be narrower than the priors imply"]
+
+
 def _pct(a) -> list[float]:
     return [float(x) for x in np.percentile(np.asarray(a, float), [BAND[0], 50.0, BAND[1]])]
 
@@ -308,7 +336,7 @@ def compare_series(s: Series, drives: list[DriveState], nominal: DriveState | No
     if not np.any(covered):
         u = "s" if s.x_kind == "time" else "m"
         raise UserInputError(f"{s.where}: the measured {s.x_kind} {s.x[0]:.6g} .. {s.x[-1]:.6g} {u} does not "
-                             f"overlap the drive's {span[0]:.6g} .. {span[1]:.6g} {u}")
+                             f"overlap the drive's {span[0]:.6g} .. {span[1]:.6g} {u}" + _unit_hint(s, span))
     Y = np.array([at(d)[0] for d in drives])
     lo, hi = np.percentile(Y, BAND, axis=0) if len(drives) > 1 else (y_nom, y_nom)
     err = s.y[covered] - y_nom[covered]
@@ -325,6 +353,25 @@ def compare_series(s: Series, drives: list[DriveState], nominal: DriveState | No
             "x": s.x[covered].tolist(), "measured": conv(s.y[covered]).tolist(),
             "predicted": conv(y_nom[covered]).tolist(), "band": [conv(lo[covered]).tolist(), conv(hi[covered]).tolist()],
             "uncertainty": float(dconv(s.uncertainty)), "where": s.where}
+
+
+def _unit_hint(s: Series, span: tuple[float, float]) -> str:
+    """'; read in km it would: ...' when another unit of the same kind makes the measured x overlap the drive
+    (a column in km declared as m, in minutes declared as s, ...); else ''."""
+    Q = registry().Quantity
+    si = "s" if s.x_kind == "time" else "m"
+    declared = s.x_unit or si
+    try:
+        scale = float(Q(1.0, declared).to(si).magnitude)
+    except Exception:
+        return ""
+    for unit in X_UNIT_CANDIDATES[s.x_kind]:
+        f = float(Q(1.0, unit).to(si).magnitude) / scale
+        lo, hi = s.x[0] * f, s.x[-1] * f
+        overlap = min(hi, span[1]) - max(lo, span[0])
+        if unit != declared and overlap > 0.5 * min(hi - lo, span[1] - span[0]):
+            return f"; read in {unit} (not {declared}) it would: check the unit of x in the measurement file"
+    return ""
 
 
 # --- the whole comparison ----------------------------------------------------------------------------------
@@ -363,6 +410,7 @@ def validate(prediction: str | Path, measured: str | Path, *, seed: int = 0, log
     points = compare_points(m.points, drives, nominal, seed) if m.points else []
     series = [compare_series(s, drives, nominal) for s in m.series]
     return {"prediction": str(prediction), "kind": kind, "drives": len(drives),
+            "excluded_cases": failed_cases(prediction) if kind == "study" else [],
             "nominal": str(nominal_path) if nominal_path else None, "measurements": str(measured),
             "description": m.description, "source": m.source, "band_percentiles": list(BAND),
             "points": points, "coverage": coverage(points) if points else None, "series": series,
@@ -402,6 +450,7 @@ def instrument_readings(prediction: str | Path, *, seed: int = 0) -> dict:
                                         for k in ("predicted", "predicted_median", "predicted_band", "band",
                                                   "reading_median")}
     return {"prediction": str(prediction), "kind": kind, "drives": len(drives),
+            "excluded_cases": failed_cases(prediction) if kind == "study" else [],
             "nominal": str(nominal_path) if nominal_path else None, "measurements": None,
             "description": "predicted readings of the usual instruments", "band_percentiles": list(BAND),
             "points": rows, "coverage": None, "series": [], "measurement_model_priors": inst.priors_table(),
@@ -428,7 +477,7 @@ def format_readings(v: dict) -> str:
                               "model 5-95 %", "reading 50 %", "reading 5-95 %"], rows))
     for q, i in v["instruments"].items():
         head.append(f"{i['instrument']}: {i['uncertainty']} per reading ({i['source']})")
-    return "\n".join(head)
+    return "\n".join(head + _excluded_note(v))
 
 
 def format_validation(v: dict) -> str:
@@ -454,4 +503,4 @@ def format_validation(v: dict) -> str:
         lines.append(f"series {s['quantity']} axle {s['wheel'] or s['axle']} ({Path(s['file']).name}, "
                      f"{s['samples']} samples): RMS error {s['rms_error']:.3g} {s['unit'] if s['unit'] != 'degC' else 'K'}, "
                      f"mean error {s['mean_error']:+.3g}{share}")
-    return "\n".join(lines)
+    return "\n".join(lines + _excluded_note(v))
