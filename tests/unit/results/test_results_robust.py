@@ -40,7 +40,8 @@ def work(tmp_path_factory):
 def _values(path: Path) -> dict:
     with h5py.File(path, "r") as f:
         out = {}
-        for g in ("timeseries", "stats", "equilibrium/before", "equilibrium/after", "summary"):
+        for g in ("timeseries", "stats", "equilibrium/before", "equilibrium/before_band", "equilibrium/after",
+                  "equilibrium/after_band", "summary"):
             for k, ds in f[g].items():
                 out[f"{g}/{k}"] = ds[()]
         out["status"] = f["summary"].attrs["status"]
@@ -206,7 +207,7 @@ def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, 
     def full_clone(*a, **kw):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr("vehicle.results.run.clone_group", full_clone)
+    monkeypatch.setattr("vehicle.results.layout.clone_group", full_clone)
     assert cli.main(["run", str(d / "drive.yaml"), "-o", str(out), "--resume", "--no-progress"]) == 3
     assert "disk full" in capsys.readouterr().err
     assert out.read_bytes() == before and not (d / "full.h5.resume").exists()
@@ -267,8 +268,8 @@ def test_a_reader_holding_a_new_file_does_not_stop_the_run(tmp_path):
     without HDF5's lock (issue 27; it used to wait, then fail with "unable to lock file") and goes to SWMR mode."""
     import time
 
-    from vehicle.results.run import open_for_append
-    from vehicle.results.sinks import LIBVER
+    from vehicle.results.layout import LIBVER
+    from vehicle.results.results_file import open_for_append
 
     path = tmp_path / "run.h5"
     with h5py.File(path, "x", libver=LIBVER) as f:

@@ -194,7 +194,7 @@ def _running_workers(p, out, timeout=120.0) -> list[int]:
     import time
 
     from vehicle.results.reader import open_read
-    from vehicle.results.run import valid_counts
+    from vehicle.results.layout import valid_counts
 
     t0 = time.time()
     while time.time() - t0 < timeout:
