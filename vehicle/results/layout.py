@@ -6,9 +6,13 @@ The reading side of the same layout is vehicle.results.reader; the checkpoint sl
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import signal
+import struct
+import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -23,9 +27,70 @@ from vehicle.results.variables import FileVariable, file_variables
 LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
 STATS_CHUNK_ROWS = 64
 FINAL_EQUILIBRIA = ("after", "after_band")      # written by the final write only
-_NO_ROOM = ((errno.ENOSPC, "No space left on device", "disk full (no space left on device)"),
-            (errno.EDQUOT, "Disk quota exceeded", "disk quota exceeded"),
-            (errno.EFBIG, "File too large", "file too large (over the file-size limit, ulimit -f)"))
+
+
+@dataclass(frozen=True)
+class NoRoom:
+    """Why a write found no room (`reason`) and what the user can do about it (`remedy`)."""
+
+    reason: str
+    remedy: str
+
+
+_NO_ROOM = ((errno.ENOSPC, "No space left on device", NoRoom("disk full (no space left on device)", "free some space")),
+            (errno.EDQUOT, "Disk quota exceeded", NoRoom("disk quota exceeded", "free some space or raise the quota")),
+            (errno.EFBIG, "File too large", NoRoom("file too large (over the file-size limit, ulimit -f)",
+                                                   "raise the file-size limit (ulimit -f)")))
+
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def recorded_end(path: Path) -> int | None:
+    """The end of the file its HDF5 superblock records (superblock versions 2 and 3, 8-byte addresses: what
+    LIBVER writes), or None for another file. HDF5 records space as allocated before writing into it, so a write
+    that found no room leaves a file shorter than this (HDF5 File Format Specification, section II.A)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(48)
+    except OSError:
+        return None
+    if len(head) < 36 or head[:8] != HDF5_SIGNATURE or head[8] not in (2, 3) or head[9] != 8:
+        return None
+    base, _extension, end = struct.unpack_from("<QQQ", head, 12)
+    return base + end
+
+
+def _from_h5py_release(exc: BaseException | None, tb) -> bool:
+    """Whether an error was raised by h5py letting go of an object (its traceback ends in h5py's own code)."""
+    if not isinstance(exc, (RuntimeError, OSError)) or tb is None:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return tb.tb_frame.f_code.co_filename.startswith("h5py/")
+
+
+@contextlib.contextmanager
+def h5py_releases_quietly():
+    """Inside the block, h5py's objects that fail to release themselves (their file cannot be written: a full disk,
+    the file-size limit) are let go without the tracebacks h5py prints for each (through sys.excepthook, then
+    sys.unraisablehook: the interpreter's hooks for errors raised where no caller can catch them); anything else is
+    reported as usual."""
+    previous_unraisable, previous_except = sys.unraisablehook, sys.excepthook
+
+    def unraisable(u):
+        if not _from_h5py_release(u.exc_value, u.exc_traceback):
+            previous_unraisable(u)
+
+    def excepthook(kind, value, tb):
+        if not _from_h5py_release(value, tb):
+            previous_except(kind, value, tb)
+
+    sys.unraisablehook, sys.excepthook = unraisable, excepthook
+    try:
+        yield
+    finally:
+        sys.unraisablehook, sys.excepthook = previous_unraisable, previous_except
 
 
 def fault_point(point: str) -> None:
@@ -81,10 +146,9 @@ def sync_replace(tmp: Path, path: Path) -> None:
         os.close(dfd)
 
 
-def out_of_space(exc: BaseException) -> str | None:
-    """Why a write failed for want of room, or None: 'disk full (no space left on device)', 'disk quota exceeded'
-    or 'file too large (over the file-size limit, ulimit -f)'. h5py reports these as an OSError with the errno or
-    as a RuntimeError/OSError naming it in its text."""
+def out_of_space(exc: BaseException) -> NoRoom | None:
+    """Why a write failed for want of room (a full disk, a quota, the file-size limit), or None. h5py reports these
+    as an OSError with the errno or as a RuntimeError/OSError naming it in its text."""
     code = getattr(exc, "errno", None)
     text = str(exc)
     for number, name, reason in _NO_ROOM:

@@ -17,14 +17,15 @@ from __future__ import annotations
 
 import datetime as _dt
 import gc
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
 
-from vehicle.results.layout import (LIBVER, copy_covered, create_file, create_h5, finish_file, remove_stale,
-                                    sync_replace)
+from vehicle.results.layout import (LIBVER, copy_covered, create_file, create_h5, finish_file, h5py_releases_quietly,
+                                    recorded_end, remove_stale, sync_replace)
 from vehicle.results.reader import open_read, open_results
 from vehicle.results.sinks import H5Sink
 
@@ -91,6 +92,22 @@ class DriveFile:
         with open_results(self.path) as r:
             return r.status(), r.version
 
+    def status_to_resume(self) -> tuple[str, int]:
+        """`status` of a file to be resumed. A file whose writer found no room (a full disk, the file-size limit) can
+        be shorter than the end its HDF5 superblock records: the bytes never written are restored as zeros (a hole)
+        before the check, which verifies every chunk's checksum; if the check still fails, the file is cut back to
+        its size and left as it was."""
+        size = self.path.stat().st_size
+        end = recorded_end(self.path)
+        if end is None or end <= size:
+            return self.status()
+        os.truncate(self.path, end)
+        try:
+            return self.status()
+        except BaseException:
+            os.truncate(self.path, size)
+            raise
+
     def stored_run(self) -> StoredRun:
         """The scenario and summary attributes and the last checkpoint (the file was checked by `status`)."""
         with open_results(self.path, check=False) as r:
@@ -107,7 +124,8 @@ class DriveFile:
         """The whole file before the drive (vehicle.results.layout.create_file), written beside it and renamed."""
         tmp = self._beside(".partial")
         try:
-            create_file(tmp, info, block, row, state, stored, compression, chunk_rows)
+            with h5py_releases_quietly():
+                create_file(tmp, info, block, row, state, stored, compression, chunk_rows)
             sync_replace(tmp, self.path)
         except BaseException:
             remove_stale(tmp)
@@ -118,7 +136,7 @@ class DriveFile:
         unchanged if this fails (UserInputError if it holds fewer rows than its checkpoint)."""
         tmp = self._beside(".resume")
         try:
-            with open_read(self.path) as src, create_h5(tmp) as dst:
+            with h5py_releases_quietly(), open_read(self.path) as src, create_h5(tmp) as dst:
                 copy_covered(src, dst, point.n_samples, point.n_stats, f"{_now()}: resumed")
             sync_replace(tmp, self.path)
         except BaseException:
@@ -152,21 +170,24 @@ class DriveFile:
         """Close the file without writing more (after a failure): what its last flush wrote stays. Every handle is
         dropped here, so that nothing is left for the garbage collector to close (and fail) later."""
         f, self._f = self._f, None
-        self.sink = None
-        if f is None:
-            return
-        try:
-            f.close()
-        except Exception:          # e.g. a full disk: the file keeps what its last flush wrote
-            pass
-        finally:
-            del f
+        sink, self.sink = self.sink, None
+        with h5py_releases_quietly():
+            if sink is not None:
+                sink.release()
+                del sink
+            if f is not None:
+                try:
+                    f.close()
+                except Exception:          # e.g. a full disk: the file keeps what its last flush wrote
+                    pass
+                del f
             gc.collect()
 
     def finish(self, final: dict) -> None:
         """The after-drive equilibrium and the summary, written into a copy that replaces the file when complete."""
-        finish_file(self.path, final)
+        with h5py_releases_quietly():
+            finish_file(self.path, final)
 
     def set_status(self, status: str, **attrs) -> None:
         """Record the run's status in /summary (after the drive's writer closed; through a copy, as `finish`)."""
-        finish_file(self.path, {"summary": {"status": status, "complete": status == "complete", **attrs}})
+        self.finish({"summary": {"status": status, "complete": status == "complete", **attrs}})

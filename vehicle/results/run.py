@@ -42,6 +42,7 @@ import signal
 import socket
 import subprocess
 import time
+import traceback
 from pathlib import Path
 from typing import Callable
 
@@ -60,7 +61,7 @@ from vehicle.engines.contract import DriveState
 from hpsim.cancellation import CancelToken
 
 from vehicle.results import provenance
-from vehicle.results.layout import fault_point, out_of_space, remove_stale
+from vehicle.results.layout import fault_point, h5py_releases_quietly, out_of_space, remove_stale
 from vehicle.results.reader import FORMAT, FORMAT_VERSION
 from vehicle.results.results_file import DriveFile, ResumePoint
 from vehicle.results.sinks import MemorySink
@@ -261,22 +262,24 @@ class RunInterrupted(Exception):
         self.path = path
 
 
-class NoRoom(SimulationError):
+class NoRoomError(SimulationError):
     """A full disk, a quota or the file-size limit met while writing a results file (exit 3, the file named)."""
 
 
 @contextlib.contextmanager
-def _room_for(out: Path, what: str | Callable[[], str], resume_hint: str):
-    """A write inside the block that finds no room raises NoRoom: one line naming the file, where the run was
-    (`what`, or what it returns when called then) and how to go on."""
+def _room_for(out: Path, what: str | Callable[[], str], then: str):
+    """A write inside the block that finds no room raises NoRoomError: one line naming the file, why, where the run
+    was (`what`, or what it returns when called then), the remedy and what to do `then`."""
     try:
         yield
     except (OSError, RuntimeError) as exc:
-        reason = out_of_space(exc)
-        if reason is None:
+        no_room = out_of_space(exc)
+        if no_room is None:
             raise
         where = what() if callable(what) else what
-        raise NoRoom(f"{out}: {reason} {where}; {resume_hint}") from None
+        with h5py_releases_quietly():     # the failed write's finished frames hold h5py handles: let go of them here
+            traceback.clear_frames(exc.__traceback__)
+        raise NoRoomError(f"{out}: {no_room.reason} {where}; {no_room.remedy} and {then}") from None
 
 
 def inspect_results(path: str | Path) -> tuple[str, int]:
@@ -327,7 +330,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     with OutputLock(out):
         if out.exists() and not overwrite:
             try:
-                status, version = results.status()
+                status, version = results.status_to_resume() if resume else results.status()
             except UserInputError as exc:
                 raise type(exc)(f"{exc}; the file was not touched: start again with --overwrite or -o another "
                                 "file") from None
@@ -349,7 +352,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         block, row, state = drive.describe()
         if prep.work.get("announce"):
             log(prep.work["announce"])               # a long run says so up front (vehicle.scenario.work_limits)
-        with _room_for(out, "before the drive started", "free some space and run again"):
+        with _room_for(out, "before the drive started", "run again"):
             results.create(info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
                            chunk_rows(prep.scenario))
         summary = _drive(drive, results, ResumePoint.start(), prep, progress, log, checkpoint_every_blocks, cancel)
@@ -382,7 +385,7 @@ def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, check
         log(f"{out}: warning: the run started with hpsim {stored_version}, resuming with {code_version()}; "
             "if the model changed in between, the result differs from an uninterrupted run")
     point = stored_run.resume_point
-    with _room_for(out, "while preparing the resume (the file was not changed)", "free some space and resume again"):
+    with _room_for(out, "while preparing the resume (the file was not changed)", "resume again"):
         results.truncate_for_resume(point)      # first: a full disk is found before the model is built
     model, drive = build_engine(prep)
     state = None if point.state is None else DriveState.from_dict(point.state)
@@ -481,16 +484,17 @@ def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, 
     def wall_s():
         return sink.wall_s() if sink else point.wall_s
 
-    kept = f"the results up to the last checkpoint are kept; free some space and continue with: {resume_cmd}"
+    then = f"continue with: {resume_cmd}"
     try:
-        with _room_for(out, "when the drive started", f"free some space and continue with: {resume_cmd}"):
+        with _room_for(out, "when the drive started", then):
             sink = results.open_sink(point)
-        with _room_for(out, lambda: f"at {km_done():.3f} km", kept), _ctrl_c_requests(cancel):
+        with _room_for(out, lambda: f"at {km_done():.3f} km (the results up to the last checkpoint are kept)", then), \
+                _ctrl_c_requests(cancel):
             res = timed("drive", drive.run, sink, state=state, progress=bar.callback(),
                         checkpoint_every_blocks=checkpoint_every_blocks, cancel=cancel)
             where, wall = km_done(), wall_s()
             results.close_sink()
-    except NoRoom:
+    except NoRoomError:
         results.abandon_sink()
         bar.close()
         raise
@@ -521,7 +525,7 @@ def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, 
         return _stopped(results, where, wall, total_km, resume_cmd)
     fault_point("before_final_write")
     final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
-    with _room_for(out, "while writing the summary", f"free some space and continue with: {resume_cmd}"):
+    with _room_for(out, "while writing the summary", then):
         timed("summary: write", results.finish, final)
         warnings = timed("summary: validity checks", summary_warnings, out)
         timed("summary: write warnings", results.finish, {"summary": warnings})   # in the file (/summary attrs)

@@ -117,6 +117,13 @@ class H5Sink:
             self.last_state = self.pending_state
             self.pending_state = None
 
+    def release(self) -> None:
+        """Drop every handle into the file (before the file is closed after a failure): nothing of it is left for
+        the garbage collector to close later, when the HDF5 library may no longer hold the file."""
+        self.datasets.clear()
+        self.buffer, self.stats_buffer = {}, []
+        self.f = self.ts = self.st = self.ck = None
+
     def wall_s(self) -> float:
         return self.wall_before_s + (time.perf_counter() - self.session_t0)
 

@@ -217,6 +217,32 @@ def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, 
     assert_same(ref, out)
 
 
+@pytest.mark.parametrize("fraction", [0.45, 0.75])
+def test_the_file_size_limit_stops_the_run_cleanly_and_it_resumes(work, capsys, fraction):
+    """Under a file-size limit (ulimit -f: EFBIG, errno 27) below the result's size, a run stops as on a full disk:
+    one line naming the file and the limit, exit 3, no traceback (h5py's "Exception ignored" included), no crash at
+    exit; the limit lifted, --resume completes it to the uninterrupted result (weighing bands included)."""
+    import resource
+
+    d, ref = work
+    out = d / f"limited_{fraction}.h5"
+    limit = int(ref.stat().st_size * fraction)
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    p = subprocess.run([sys.executable, "-m", "vehicle.cli", "run", str(d / "drive.yaml"), "-o", str(out),
+                        "--no-progress"], capture_output=True, text=True, timeout=TIMEOUT * 2, preexec_fn=limited)
+    assert p.returncode == 3, p.stderr[-2000:]
+    assert "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr[-2000:]
+    assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert str(out) in p.stderr and "file too large" in p.stderr and "ulimit -f" in p.stderr and "--resume" in p.stderr
+    r = hpsim(capsys, ["run", d / "drive.yaml", "-o", out, "--resume", "--no-progress"])
+    assert r.returncode == 0, r.stderr
+    assert_same(ref, out)
+    assert not [q for q in d.iterdir() if q.name.startswith(out.name + ".")]
+
+
 def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(work, capsys):
     d, ref = work
     out = d / "locked.h5"
