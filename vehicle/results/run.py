@@ -318,14 +318,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                              "--overwrite throws it away; give one of them")
     src = scenario if isinstance(scenario, ScenarioSource) else (
         timed("reading", read_scenario, scenario) if scenario is not None else None)
-    if src is not None:
-        timed("output checked against the inputs", provenance.output_is_input, out, src)  # never replace an input
-    if out.is_dir():
-        raise UserInputError(f"{out}: is a directory; give a file name with -o")
-    if out.exists() and not out.is_file():
-        raise UserInputError(f"{out}: is not a regular file")
-    if not out.parent.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
+    _check_output(out, src)
     results = DriveFile(out)
     with OutputLock(out):
         if out.exists() and not overwrite:
@@ -360,6 +353,18 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
                           summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"])
         return summary
+
+
+def _check_output(out: Path, src: ScenarioSource | None) -> None:
+    """Refuse an output that is one of the scenario's inputs, a folder or not a regular file; make its folder."""
+    if src is not None:
+        timed("output checked against the inputs", provenance.output_is_input, out, src)  # never replace an input
+    if out.is_dir():
+        raise UserInputError(f"{out}: is a directory; give a file name with -o")
+    if out.exists() and not out.is_file():
+        raise UserInputError(f"{out}: is not a regular file")
+    if not out.parent.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
 
 
 def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, checkpoint_every_blocks,
@@ -523,11 +528,16 @@ def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, 
     bar.close()
     if cancel.requested:
         return _stopped(results, where, wall, total_km, resume_cmd)
+    return _finish(results, drive, res, sink, then)
+
+
+def _finish(results: DriveFile, drive, res, sink, then: str) -> dict:
+    """The after-drive equilibrium, the summary and the validity warnings written into the file; the summary."""
     fault_point("before_final_write")
     final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
-    with _room_for(out, "while writing the summary", then):
+    with _room_for(results.path, "while writing the summary", then):
         timed("summary: write", results.finish, final)
-        warnings = timed("summary: validity checks", summary_warnings, out)
+        warnings = timed("summary: validity checks", summary_warnings, results.path)
         timed("summary: write warnings", results.finish, {"summary": warnings})   # in the file (/summary attrs)
     return {k: v for k, v in final["summary"].items()}
 
