@@ -217,6 +217,44 @@ def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, 
     assert_same(ref, out)
 
 
+class _RequestedAfter:
+    """A cancellation token requested from its n-th reading on (the drive reads it once per checkpointed block)."""
+
+    def __init__(self, n: int):
+        self.n, self.reads = n, 0
+
+    def request(self) -> None:
+        self.reads = self.n
+
+    @property
+    def requested(self) -> bool:
+        self.reads += 1
+        return self.reads >= self.n
+
+
+def test_a_requested_stop_ends_the_drive_at_a_checkpoint_and_it_resumes(work):
+    """The token passed to run_scenario stops the drive after the block at which it is requested: status
+    interrupted, the rows up to that checkpoint kept (no exception raised from the sink), and --resume completes the
+    file to the uninterrupted result, weighing bands included."""
+    from vehicle.results.reader import open_results
+    from vehicle.results.run import RunInterrupted, run_scenario
+
+    d, ref = work
+    out = d / "cancelled.h5"
+    with pytest.raises(RunInterrupted) as info:
+        run_scenario(d / "drive.yaml", out, progress=False, cancel=_RequestedAfter(5))
+    assert "--resume" in str(info.value)
+    with open_results(out) as r:
+        assert r.status() == "interrupted"
+        n_samples, _ = r.counts()
+        km = r.state()["s_m"] / 1e3
+    with open_results(ref) as r:
+        total = r.counts()[0]
+    assert 0 < n_samples < total and 0 < km < 0.5
+    assert run_scenario(d / "drive.yaml", out, resume=True, progress=False)["status"] == "complete"
+    assert_same(ref, out)
+
+
 @pytest.mark.parametrize("fraction", [0.45, 0.75])
 def test_the_file_size_limit_stops_the_run_cleanly_and_it_resumes(work, capsys, fraction):
     """Under a file-size limit (ulimit -f: EFBIG, errno 27) below the result's size, a run stops as on a full disk:
