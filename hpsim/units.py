@@ -206,11 +206,3 @@ def parse_quantity_list(text: str, unit: str, *, where: str = "value") -> list[f
     if len(items) > MAX_LIST_ITEMS:
         raise UserInputError(f"{where}: {len(items)} values, at most {MAX_LIST_ITEMS}")
     return [parse_quantity(t, unit, where=where) for t in items]
-
-
-def kelvin_to_celsius(t_kelvin):
-    return t_kelvin - 273.15
-
-
-def celsius_to_kelvin(t_celsius):
-    return t_celsius + 273.15

@@ -49,7 +49,7 @@ def reference(workdir):
 
 
 def _final_state(f):
-    from vehicle.results.run import read_state
+    from vehicle.results.layout import read_state
 
     return read_state(f)
 
@@ -149,7 +149,7 @@ def test_report_agrees_with_the_file(reference, capsys):
 
 def _wait_for_samples(path: Path, proc: subprocess.Popen, n: int, timeout: float = 120.0) -> int:
     from vehicle.results.reader import open_read
-    from vehicle.results.run import valid_counts
+    from vehicle.results.layout import valid_counts
 
     t0 = time.time()
     while time.time() - t0 < timeout:

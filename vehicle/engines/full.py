@@ -18,6 +18,7 @@ from typing import Callable
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import SimulationError
 
 from vehicle.physics import thermal
@@ -233,7 +234,10 @@ class Drive:
     # --- run --------------------------------------------------------------------------------------
     def run(self, sink: DriveSink | None = None, state: DriveState | None = None,
             progress: Callable[[float, float, float], None] | None = None,
-            checkpoint_every_blocks: int = 6, observer: "BlockObserver | None" = None) -> "DriveResult":
+            checkpoint_every_blocks: int = 6, observer: "BlockObserver | None" = None,
+            cancel: CancelToken = NEVER) -> "DriveResult":
+        """Drive from `state` to the end; a request on `cancel` stops it after the next checkpointed block (the
+        result then holds that block's state and no after-drive equilibrium)."""
         m, S = self.model, self.settings
         st = self.initial_state() if state is None else state
         self.solver.set_state(st.solver_memory)
@@ -282,6 +286,9 @@ class Drive:
             last = st.t_s + sample_dt > self.total_time_s + 1e-9
             if sink is not None and (blocks % checkpoint_every_blocks == 0 or last):
                 sink.checkpoint(st.as_dict())
+                if cancel.requested:
+                    return DriveResult(state=st, after=None, wall_s=time.perf_counter() - wall0,
+                                       integration_s=integ_s)
             if progress is not None:
                 progress(st.s_m, float(S.speed.speed(st.s_m)), st.t_s)
             if not np.all(keep):

@@ -9,6 +9,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.stages import timed
 
@@ -31,6 +32,7 @@ class MultiscaleDrive(Drive):
     partial_last_sample = False       # windows end on whole output intervals
     mode = MODE
     resumable = False                 # it takes seconds: an interrupted run starts again
+    _cancel: CancelToken = NEVER      # the token of the run in progress
     MIN_CV_WINDOWS = 5      # the control variate needs a few residual degrees of freedom (windows less 3)
 
     def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):
@@ -307,6 +309,8 @@ class MultiscaleDrive(Drive):
                                         "gas_sum": np.zeros(self.model.n), "gas_n": 0},
                             solver_memory=w["memory"])
             sink.checkpoint(st.as_dict())
+            if self._cancel.requested and not records:
+                raise KeyboardInterrupt
 
     def _predicted_start(self, x: np.ndarray, t_from: float, w_prev: dict, s_next_m: float) -> np.ndarray:
         """The vehicle at rest at the start of the window at s_next_m, predicted from the state x at t_from (the start
@@ -451,7 +455,11 @@ class MultiscaleDrive(Drive):
         return bool(np.max(np.abs(x_predicted[nodes] - x_true[nodes])) <= self.ms.PAIRED_START_TOLERANCE_K)
 
     # --- the drive -------------------------------------------------------------------------------
-    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
+            cancel: CancelToken = NEVER):
+        """The windowed drive; a request on `cancel` stops it after the next window written to the sink (raised as
+        KeyboardInterrupt: a multiscale run is not resumed, only its written windows are kept)."""
+        self._cancel = cancel
         if state is not None and state.s_m > 0:
             raise UserInputError("solver.mode multiscale: a multiscale run cannot be resumed (it takes seconds): "
                                  "run it again with --overwrite")

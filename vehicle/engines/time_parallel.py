@@ -49,6 +49,7 @@ from concurrent.futures import Future
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
@@ -419,11 +420,12 @@ class TimeParallelDrive(SegmentJoin):
         return float(np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt)
 
     # --- the drive -------------------------------------------------------------------------------
-    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
+            cancel: CancelToken = NEVER):
         # serially: a resumed run, one segment, no fork, or inside a daemonic worker (which cannot start processes)
         if (state is not None and state.s_m > 0) or self.segments <= 1 or not can_fork():
             self.parareal = {}
-            return self.fine.run(sink, state, progress, checkpoint_every_blocks)       # serially
+            return self.fine.run(sink, state, progress, checkpoint_every_blocks, cancel=cancel)       # serially
         wall0 = time.perf_counter()
         t, tw = self.layout()
         P, L = self.segments, self.lanes

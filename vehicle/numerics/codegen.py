@@ -44,10 +44,10 @@ import tempfile
 import threading
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib.util import find_spec
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import casadi as ca
 
@@ -227,36 +227,60 @@ def kill_running_compilers() -> None:
         _kill(proc)
 
 
-def _start_build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str, meta: dict | None = None):
-    """Start compiling `code` into a private build folder of d: (the compiler process, the job); `meta`: more
-    entries of the library's record (a `Library`'s lookup key and signature)."""
+@dataclass(frozen=True)
+class BuildJob:
+    """A library to compile into the cache: the compiler `cc` and its `flags`, the C `code` and its SHA-256, the cache
+    `folder` and the library's `stem` there (stem.so, stem.json), and more entries of its record (a `Library`'s
+    lookup key and signature)."""
+
+    cc: str
+    flags: Sequence[str]
+    code: bytes
+    code_sha: str
+    folder: Path
+    stem: str
+    record: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StartedBuild:
+    """A compiler process working on `job` in its private build folder `build_dir`."""
+
+    proc: subprocess.Popen
+    job: BuildJob
+    build_dir: Path
+
+
+def _start_build(job: BuildJob) -> StartedBuild:
+    """Start compiling a job in a private build folder of its cache folder."""
     try:
-        build = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
+        build = Path(tempfile.mkdtemp(prefix=f".build-{job.stem}-", dir=job.folder))
     except OSError as exc:
         if exc.errno in _DISK_FULL:
-            raise _cache_full(d, exc.strerror) from None
+            raise _cache_full(job.folder, exc.strerror) from None
         raise
     try:
-        src = build / f"{stem}.c"
-        src.write_bytes(code)
+        src = build / f"{job.stem}.c"
+        src.write_bytes(job.code)
         # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
         # it), never the compiler alone (a compiler killed under us used to fall back silently)
-        proc = subprocess.Popen([cc, *flags, "-fPIC", "-shared", src.name, "-o", f"{stem}.so", "-lm"], cwd=build,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        proc = subprocess.Popen([job.cc, *job.flags, "-fPIC", "-shared", src.name, "-o", f"{job.stem}.so", "-lm"],
+                                cwd=build, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                start_new_session=True)
         with _RUNNING_LOCK:
             _RUNNING.add(proc)
     except BaseException as exc:
         shutil.rmtree(build, ignore_errors=True)
         if isinstance(exc, OSError) and exc.errno in _DISK_FULL:
-            raise _cache_full(d, exc.strerror) from None
+            raise _cache_full(job.folder, exc.strerror) from None
         raise
-    return proc, (cc, flags, code_sha, meta or {}, d, stem, build)
+    return StartedBuild(proc, job, build)
 
 
-def _finish_build(proc, job) -> str | None:
+def _finish_build(started: StartedBuild) -> str | None:
     """Wait for a started compiler and put its library and record into the cache (atomic renames); None when done,
     else the compiler's error. The build folder is removed whatever happens; an interrupt kills the compiler."""
-    cc, flags, code_sha, extra, d, stem, build = job
+    proc, job, build = started.proc, started.job, started.build_dir
     try:
         try:
             _, stderr = proc.communicate()
@@ -271,19 +295,19 @@ def _finish_build(proc, job) -> str | None:
         if proc.returncode != 0:
             full = next((os.strerror(e) for e in _DISK_FULL if os.strerror(e) in stderr), None)
             if full is not None:        # the cache's disk (or the compiler's temporary folder) is full
-                raise _cache_full(d, f"{full} ({stderr.strip().splitlines()[0][:160]})")
+                raise _cache_full(job.folder, f"{full} ({stderr.strip().splitlines()[0][:160]})")
             return stderr.strip()[:300] or f"exit code {proc.returncode}"
-        built = build / f"{stem}.so"
-        meta = {"c_sha256": code_sha, **_file_record(built), "compiler": cc, "flags": flags, **extra}
-        (build / f"{stem}.json").write_text(json.dumps(meta))
+        built = build / f"{job.stem}.so"
+        meta = {"c_sha256": job.code_sha, **_file_record(built), "compiler": job.cc, "flags": job.flags, **job.record}
+        (build / f"{job.stem}.json").write_text(json.dumps(meta))
         # atomic renames, library first: a reader sees an old record with a new library at worst,
         # which fails verification and rebuilds
-        os.replace(built, d / f"{stem}.so")
-        os.replace(build / f"{stem}.json", d / f"{stem}.json")
+        os.replace(built, job.folder / f"{job.stem}.so")
+        os.replace(build / f"{job.stem}.json", job.folder / f"{job.stem}.json")
         return None
     except OSError as exc:
         if exc.errno in _DISK_FULL:
-            raise _cache_full(d, exc.strerror) from None
+            raise _cache_full(job.folder, exc.strerror) from None
         raise
     finally:
         shutil.rmtree(build, ignore_errors=True)
@@ -303,11 +327,11 @@ def _interrupts_held():
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-def _abort(started) -> None:
+def _abort(started: list[StartedBuild]) -> None:
     """Stop started compilers and remove their build folders (for any of them, finished or not)."""
-    for proc, job in started:
-        _kill(proc)
-        shutil.rmtree(job[-1], ignore_errors=True)
+    for build in started:
+        _kill(build.proc)
+        shutil.rmtree(build.build_dir, ignore_errors=True)
 
 
 def _kill(proc) -> None:
@@ -325,20 +349,19 @@ def _kill(proc) -> None:
     proc.wait()
 
 
-def _run_builds(jobs, width: int) -> list[str | None]:
-    """Compile the jobs ((cc, flags, code, code_sha, folder, stem[, record entries]) each) with at most `width`
-    compilers at once; per job None when built, else the compiler's error. An interrupt or an error stops every
+def _run_builds(jobs: list[BuildJob], width: int) -> list[str | None]:
+    """Compile the jobs with at most `width` compilers at once; per job None when built, else the compiler's error. An interrupt or an error stops every
     compiler and keeps nothing of the unfinished ones."""
     errors, running = [], []                    # running: started, removed only once finished
     try:
         for job in jobs:
             if len(running) == width:
-                errors.append(_finish_build(*running[0]))
+                errors.append(_finish_build(running[0]))
                 running.pop(0)
             with _interrupts_held():
-                running.append(_start_build(*job))
+                running.append(_start_build(job))
         while running:
-            errors.append(_finish_build(*running[0]))
+            errors.append(_finish_build(running[0]))
             running.pop(0)
     except BaseException:
         _abort(running)
@@ -346,10 +369,10 @@ def _run_builds(jobs, width: int) -> list[str | None]:
     return errors
 
 
-def _build(cc: str, flags: list[str], code: bytes, code_sha: str, d: Path, stem: str,
-           meta: dict | None = None) -> str | None:
-    """Compile `code` into d/stem.so with its record d/stem.json; None when done, else the compiler's error."""
-    return _run_builds([(cc, flags, code, code_sha, d, stem, meta)], 1)[0]
+def _build(job: BuildJob) -> str | None:
+    """Compile a job into folder/stem.so with its record folder/stem.json; None when done, else the compiler's
+    error."""
+    return _run_builds([job], 1)[0]
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -427,8 +450,8 @@ def _library_stem(lib: Library | CLibrary, cc: str, opt_level: str) -> tuple[Pat
 def _clibrary_job(lib: CLibrary, cc: str, opt_level: str, d: Path, stem: str, key: str):
     """The build job of a `CLibrary` missing from the cache (its C written now)."""
     code = lib.build()
-    return (cc, _c_flags(opt_level, lib.extra_flags), code, hashlib.sha256(code).hexdigest(), d, stem,
-            {"lookup_key": key})
+    return BuildJob(cc, _c_flags(opt_level, lib.extra_flags), code, hashlib.sha256(code).hexdigest(), d, stem,
+                    {"lookup_key": key})
 
 
 def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = None) -> tuple[Path | None, str]:
@@ -441,7 +464,7 @@ def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = N
     so, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(so, record, None, key):
         job = _clibrary_job(lib, cc, opt_level, d, stem, key)
-        compile_time.announce([len(job[2])], 1, d)
+        compile_time.announce([len(job.code)], 1, d)
         t0 = time.perf_counter()
         error = _cache_build(job, key)
         if error is not None:
@@ -452,12 +475,11 @@ def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = N
 
 
 def _library_job(lib: Library, cc: str, opt_level: str, d: Path, stem: str, key: str):
-    """The graph of a `Library` missing from the cache, and its build job (cc, flags, code, code_sha, d, stem, record
-    entries)."""
+    """The graph of a `Library` missing from the cache, and its build job."""
     graph = lib.graph()
     code = _generate_c(graph, c_library_math=lib.c_library_math)
     meta = {"lookup_key": key, "signature": _signature(graph)}
-    return graph, (cc, [opt_level, *COMPILER_FLAGS[1:]], code, hashlib.sha256(code).hexdigest(), d, stem, meta)
+    return graph, BuildJob(cc, [opt_level, *COMPILER_FLAGS[1:]], code, hashlib.sha256(code).hexdigest(), d, stem, meta)
 
 
 def _load_library(lib: Library, d: Path, stem: str) -> ca.Function | None:
@@ -500,19 +522,19 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
         flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
         if _verified(d / f"{stem}.so", d / f"{stem}.json", code_sha):
             return None
-        return (cc, flags, code, code_sha, d, stem)
-    todo = []
+        return BuildJob(cc, flags, code, code_sha, d, stem)
+    todo: list[BuildJob] = []
     for job in timed("compile: looked up in the cache (C generated when missing)", lambda: [plan(f) for f in fns]):
-        if job is not None and job[5] not in {t[5] for t in todo}:
+        if job is not None and job.stem not in {t.stem for t in todo}:
             todo.append(job)
     width = max(1, os.cpu_count() or 1)                         # no more compilers than cores
     if todo:
-        compile_time.announce([len(t[2]) for t in todo], width, todo[0][4])
+        compile_time.announce([len(t.code) for t in todo], width, todo[0].folder)
     t0 = time.perf_counter()
     timed("compile", _run_builds, todo, width=width)
     if todo:
-        compile_time.record([len(t[2]) for t in todo], width, time.perf_counter() - t0, todo[0][4])
-        evict(todo[0][4], cache_limit_bytes(), keep=tuple(t[5] for t in todo))
+        compile_time.record([len(t.code) for t in todo], width, time.perf_counter() - t0, todo[0].folder)
+        evict(todo[0].folder, cache_limit_bytes(), keep=tuple(t.stem for t in todo))
     return len(todo)
 
 
@@ -530,7 +552,7 @@ def compile_c(code: bytes, name: str, extra_flags: tuple[str, ...] = (), *, opt_
     stem = _c_stem(code, name, flags, cc)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
-        error = _cache_build((cc, flags, code, code_sha, d, stem))
+        error = _cache_build(BuildJob(cc, flags, code, code_sha, d, stem))
         if error is not None:
             return None, error
     _touch(record)
@@ -588,7 +610,7 @@ def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool, dire
     graph, job = _library_job(spec, cc, opt_level, d, stem, key)
     if _compile_announced(spec.name, job, verbose) is not None:
         return graph
-    compiled = _load_library(spec, d, stem) if _verified(lib, record, job[3], key) else None
+    compiled = _load_library(spec, d, stem) if _verified(lib, record, job.code_sha, key) else None
     if compiled is None or not _same_signature(compiled, graph):
         warnings.warn(f"compile cache {d}: {lib.name} changed while it was built or does not match the model; "
                       "using CasADi's virtual machine")
@@ -597,34 +619,32 @@ def _compile_library(spec: Library, cc: str, opt_level: str, verbose: bool, dire
     return _loaded(compiled, lib, direct)
 
 
-def _compile_announced(name: str, job, verbose: bool) -> str | None:
+def _compile_announced(name: str, job: BuildJob, verbose: bool) -> str | None:
     """Build one library (announced, its time counted, the cache trimmed); None when built, else the error (warned
     about: the caller falls back to the virtual machine)."""
-    code, d, stem = job[2], job[4], job[5]
-    compile_time.announce([len(code)], 1, d)
+    compile_time.announce([len(job.code)], 1, job.folder)
     t0 = time.perf_counter()
-    error = _build(*job)
+    error = _build(job)
     if error is not None:
         warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
         return error
     compile_time.compiled_s += time.perf_counter() - t0
     if verbose:
         print(f"compiled {name} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-    evict(d, cache_limit_bytes(), keep=(stem,))
+    evict(job.folder, cache_limit_bytes(), keep=(job.stem,))
     return None
 
 
-def _cache_build(job, lookup_key: str | None = None) -> str | None:
-    """Build one job ((cc, flags, code, code_sha, folder, stem[, record entries])) into the cache, trim the cache and
+def _cache_build(job: BuildJob, lookup_key: str | None = None) -> str | None:
+    """Build one job into the cache, trim the cache and
     check what is there now: None when the library is the one built, else why not (the compiler's error, or
     replaced by someone else in between)."""
-    error = _build(*job)
+    error = _build(job)
     if error is not None:
         return error
-    d, stem = job[4], job[5]
-    evict(d, cache_limit_bytes(), keep=(stem,))
-    if not _verified(d / f"{stem}.so", d / f"{stem}.json", job[3], lookup_key):
-        return f"{stem}.so changed while it was built"
+    evict(job.folder, cache_limit_bytes(), keep=(job.stem,))
+    if not _verified(job.folder / f"{job.stem}.so", job.folder / f"{job.stem}.json", job.code_sha, lookup_key):
+        return f"{job.stem}.so changed while it was built"
     return None
 
 

@@ -42,6 +42,7 @@ import casadi as ca
 import numpy as np
 
 from vehicle.numerics.codegen import CLibrary, compile_c, compile_library
+from vehicle.numerics.instructions import Instruction, defining_instructions, instructions
 from vehicle.numerics import vector_math
 
 # instruction sets the lane library can be built for: extra compiler flags, doubles per hardware vector
@@ -269,50 +270,30 @@ def emit_function(fn: ca.Function, cname: str) -> str:
         if sp.nnz() != sp.numel():                       # structural zeros: written as 0
             lines.append(f"  for (int i = 0; i < {sp.numel()}; ++i) o{k}[i] = BC(0.);")
     _dense(fn, "emit_function")
-    for k in range(fn.n_instructions()):
-        i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
-        lines.append(_statement(fn, k, f"a{i_out[0]}", [f"a{i}" for i in i_in[:2]], rows_out))
+    for ins in instructions(fn):
+        lines.append(_statement(fn.name(), ins, f"a{ins.outputs[0]}", [f"a{i}" for i in ins.inputs[:2]], rows_out))
     lines.append("}")
     return "\n".join(lines)
 
 
-def _statement(fn: ca.Function, k: int, target: str, args: list[str], rows_out) -> str:
-    """C of instruction k of `fn`: its value into `target` (a register, or a declaration) from the operands `args`
-    (C names; an output writes args[0])."""
-    op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+def _statement(fname: str, ins: Instruction, target: str, args: list[str], rows_out) -> str:
+    """C of instruction `ins` of the function `fname`: its value into `target` (a register, or a declaration) from
+    the operands `args` (C names; an output writes args[0])."""
+    op, i_in, i_out = ins.op, ins.inputs, ins.outputs
     if op == ca.OP_INPUT:
         return f"  {target}=i{i_in[0]} ? i{i_in[0]}[{i_in[1]}] : BC(0.);"
     if op == ca.OP_OUTPUT:
         return f"  if (o{i_out[0]}!=0) o{i_out[0]}[{rows_out[i_out[0]][i_out[1]]}]={args[0]};"
     if op == ca.OP_CONST:
-        return f"  {target}=BC({_constant(fn.instruction_constant(k))});"
+        return f"  {target}=BC({_constant(ins.constant)});"
     if op in _BINARY:
         return f"  {target}=" + _BINARY[op].format(*args) + ";"
     if op in _UNARY:
         return f"  {target}=" + _UNARY[op].format(*args) + ";"
-    raise NotImplementedError(f"operation {op} of {fn.name()} has no lane form")
+    raise NotImplementedError(f"operation {op} of {fname} has no lane form")
 
 
 _TRANSCENDENTAL = {ca.OP_EXP: "exp", ca.OP_LOG: "log", ca.OP_TANH: "tanh", ca.OP_POW: "pow", ca.OP_CONSTPOW: "pow"}
-
-
-def _values(fn: ca.Function) -> list[tuple[int, list[int]]]:
-    """Per instruction: (its op, the instructions whose values it reads). CasADi reuses work registers; this
-    follows the values (register -> instruction that last wrote it)."""
-    writer: dict[int, int] = {}
-    out = []
-    for k in range(fn.n_instructions()):
-        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
-        if op in (ca.OP_INPUT, ca.OP_CONST):
-            reads = []
-        elif op == ca.OP_OUTPUT or op in _UNARY or op in _TRANSCENDENTAL and op not in (ca.OP_POW, ca.OP_CONSTPOW):
-            reads = [writer[i_in[0]]]
-        else:
-            reads = [writer[i_in[0]], writer[i_in[1]]]
-        out.append((op, reads))
-        if op != ca.OP_OUTPUT:
-            writer[i_out[0]] = k
-    return out
 
 
 def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
@@ -329,11 +310,11 @@ def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
         raise TypeError("emit_batched: expected an SX function")
     n_in, n_out = fn.n_in(), fn.n_out()
     _dense(fn, "emit_batched")
-    values = _values(fn)
+    values = defining_instructions(fn)
     depth = []
-    for op, reads in values:
+    for ins, reads in values:
         d = max((depth[r] for r in reads), default=0)
-        depth.append(d + 1 if op in _TRANSCENDENTAL else d)
+        depth.append(d + 1 if ins.op in _TRANSCENDENTAL else d)
     args = [f"const V* restrict i{k}" for k in range(n_in)] + [f"V* restrict o{k}" for k in range(n_out)]
     lines = [f"NOIPA static void {cname}({', '.join(args)}) {{"]
     rows_out = [fn.sparsity_out(k).row() for k in range(n_out)]
@@ -347,15 +328,15 @@ def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
     for d in sorted(by_depth):
         calls: dict[str, list[int]] = {}
         for k in by_depth[d]:
-            if values[k][0] in _TRANSCENDENTAL:
-                calls.setdefault(_TRANSCENDENTAL[values[k][0]], []).append(k)
+            if values[k][0].op in _TRANSCENDENTAL:
+                calls.setdefault(_TRANSCENDENTAL[values[k][0].op], []).append(k)
         for name, ks in calls.items():
             lines.extend(_batched_calls(name, ks, values, width))
         for k in by_depth[d]:
-            op, reads = values[k]
-            if op in _TRANSCENDENTAL:
+            ins, reads = values[k]
+            if ins.op in _TRANSCENDENTAL:
                 continue
-            lines.append(_statement(fn, k, f"V w{k}", [f"w{r}" for r in reads], rows_out))
+            lines.append(_statement(fn.name(), ins, f"V w{k}", [f"w{r}" for r in reads], rows_out))
     lines.append("}")
     return "\n".join(lines)
 
@@ -387,15 +368,15 @@ def emit_kernel(fn: ca.Function, cname: str, copies: int = 1) -> str:
     for c in range(copies):
         if fn.sz_w():
             lines.append(f"  K_T {', '.join(f'a{j}_{c}' for j in range(fn.sz_w()))};")
-    for k in range(fn.n_instructions()):
-        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
+    for ins in instructions(fn):
+        op, i_in, i_out = ins.op, ins.inputs, ins.outputs
         for c in range(copies):
             if op == ca.OP_INPUT:
                 lines.append(f"  a{i_out[0]}_{c}=K_LOAD(i{i_in[0]}, {i_in[1]}, s0_ + {c} * KSTEP);")
             elif op == ca.OP_OUTPUT:
                 lines.append(f"  K_STORE(o{i_out[0]}, {i_out[1]}, s0_ + {c} * KSTEP, a{i_in[0]}_{c});")
             else:
-                lines.append(_MACRO_NAMES.sub(r"K_\1(", _statement(fn, k, f"a{i_out[0]}_{c}",
+                lines.append(_MACRO_NAMES.sub(r"K_\1(", _statement(fn.name(), ins, f"a{i_out[0]}_{c}",
                                                                      [f"a{i}_{c}" for i in i_in[:2]], [])))
     lines.append("}")
     return "\n".join(lines)

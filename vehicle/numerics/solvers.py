@@ -387,11 +387,6 @@ class Ros2:
                 stepper = _BLOCK_FUNCTIONS[key] = None
         return stepper
 
-    def refined(self, model, factor: int) -> "Ros2":
-        """The same solver with the step divided by `factor`, bound for one output sample (factor*K steps):
-        the second run of a step-doubling error estimate (vehicle.numerics.error_estimate)."""
-        return self.refined_solver(factor).bind(model, self.K * factor, 1)
-
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         """States at the M sample instants (nx, M) from x0 and the inputs U (nu, K*M+1) at every step."""
         Z = np.asarray(self.fn(np.concatenate([x0, self.memory]), U, p))

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from vehicle.numerics.instructions import instructions
 from vehicle.numerics.step_graph import GAMMA, SparseLU, explicit_reciprocals, lift_parameters
 
 
@@ -58,14 +59,7 @@ def _same_graph(f: ca.Function, g: ca.Function) -> bool:
         return False
     if [f.size1_in(k) for k in range(f.n_in())] != [g.size1_in(k) for k in range(g.n_in())]:
         return False
-    for k in range(f.n_instructions()):
-        op = f.instruction_id(k)
-        if (op != g.instruction_id(k) or f.instruction_input(k) != g.instruction_input(k)
-                or f.instruction_output(k) != g.instruction_output(k)):
-            return False
-        if op == ca.OP_CONST and f.instruction_constant(k) != g.instruction_constant(k):
-            return False
-    return True
+    return instructions(f) == instructions(g)
 
 
 def _kernel(model, i: int, jacobian: bool, name: str) -> tuple[ca.Function, ca.Function]:
@@ -73,8 +67,7 @@ def _kernel(model, i: int, jacobian: bool, name: str) -> tuple[ca.Function, ca.F
     [the station's run parameters; p] -> q (both through the step's rewrites)."""
     args, parts, pw, parametric = lift_parameters(model.strut_kernel(i, jacobian), 1, f"{name}_parametric")
     lifted = ca.Function(name, args, [ca.densify(parts[0])])
-    read = sorted({lifted.instruction_input(k)[1] for k in range(lifted.n_instructions())
-                   if lifted.instruction_id(k) == ca.OP_INPUT and lifted.instruction_input(k)[0] == 1})
+    read = sorted({ins.inputs[1] for ins in instructions(lifted) if ins.op == ca.OP_INPUT and ins.inputs[0] == 1})
     q = ca.vertcat(*[pw[k] for k in read]) if read else ca.SX(0, 1)
     fn = ca.Function(name, [args[0], q], [ca.densify(parts[0])])
     p = parametric.sx_in(0)

@@ -7,6 +7,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from vehicle.numerics.instructions import defining_instructions, replay
+
 GAMMA = 1.0 - 1.0 / np.sqrt(2.0)
 
 
@@ -86,33 +88,22 @@ def divisions_as_reciprocals(fn: ca.Function, parameter_inputs: set[int]) -> ca.
     subexpression that `extract_parametric` lifts out of the step, evaluated once per call.
     Results differ from the plain division by rounding only. Replays the function's instructions.
     """
-    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
-    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
-    work, fixed = {}, {}          # register -> SX value; register -> depends on parameters/constants only
-    for k in range(fn.n_instructions()):
-        op = fn.instruction_id(k)
-        i_in, i_out = fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            work[i_out[0]] = inputs[i_in[0]].nz[i_in[1]]
-            fixed[i_out[0]] = i_in[0] in parameter_inputs
-        elif op == ca.OP_OUTPUT:
-            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
-        elif op == ca.OP_CONST:
-            work[i_out[0]] = ca.SX(fn.instruction_constant(k))
-            fixed[i_out[0]] = True
-        else:
-            args = [work[j] for j in i_in]
-            if op == ca.OP_DIV and fixed[i_in[1]] and not fixed[i_in[0]]:
-                value = args[0] * (1.0 / args[1])
-            elif len(args) == 2:
-                value = ca.SX.binary(op, args[0], args[1])
-            else:
-                value = ca.SX.unary(op, args[0])
-            work[i_out[0]] = value
-            fixed[i_out[0]] = all(fixed[j] for j in i_in)
-    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
-            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
-    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
+    defs = defining_instructions(fn)
+    fixed: dict[int, bool] = {}          # instruction -> its value depends on parameters and constants only
+    for ins, reads in defs:
+        if ins.op == ca.OP_INPUT:
+            fixed[ins.index] = ins.inputs[0] in parameter_inputs
+        elif ins.op == ca.OP_CONST:
+            fixed[ins.index] = True
+        elif ins.op != ca.OP_OUTPUT:
+            fixed[ins.index] = all(fixed[r] for r in reads)
+
+    def value(ins, operands):
+        reads = defs[ins.index][1]
+        if ins.op == ca.OP_DIV and fixed[reads[1]] and not fixed[reads[0]]:
+            return operands[0] * (1.0 / operands[1])
+        return None
+    return replay(fn, value)
 
 
 def explicit_reciprocals(fn: ca.Function, threshold: int = 3) -> ca.Function:
@@ -123,42 +114,24 @@ def explicit_reciprocals(fn: ca.Function, threshold: int = 3) -> ca.Function:
     engine and the vector lanes (vehicle.numerics.lanes) give the same bits (with -freciprocal-math GCC rewrote
     other divisions in vector code than in scalar code: 1 ulp, grown to 0.1 mm of strut travel in 2 s).
     Replays the function's instructions (values, not registers: CasADi reuses registers)."""
-    count: dict[int, int] = {}
-    value_of: dict[int, int] = {}               # register -> id of the value it holds (the defining instruction)
-    for k in range(fn.n_instructions()):
-        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_DIV:
-            d = value_of[i_in[1]]
-            count[d] = count.get(d, 0) + 1
-        if op != ca.OP_OUTPUT:
-            value_of[i_out[0]] = k
-    inputs = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
-    outputs = [[None] * fn.sparsity_out(i).nnz() for i in range(fn.n_out())]
-    work, value_of, const, recip = {}, {}, {}, {}
-    for k in range(fn.n_instructions()):
-        op, i_in, i_out = fn.instruction_id(k), fn.instruction_input(k), fn.instruction_output(k)
-        if op == ca.OP_INPUT:
-            value = inputs[i_in[0]].nz[i_in[1]]
-        elif op == ca.OP_OUTPUT:
-            outputs[i_out[0]][i_out[1]] = work[i_in[0]]
-            continue
-        elif op == ca.OP_CONST:
-            value = ca.SX(fn.instruction_constant(k))
-            const[k] = fn.instruction_constant(k)
-        elif op == ca.OP_DIV and (value_of[i_in[1]] in const or count[value_of[i_in[1]]] >= threshold):
-            d = value_of[i_in[1]]
-            if d not in recip:
-                recip[d] = ca.SX(1.0 / const[d]) if d in const else 1.0 / work[i_in[1]]
-            value = work[i_in[0]] * recip[d]
-        elif len(i_in) == 2:
-            value = ca.SX.binary(op, work[i_in[0]], work[i_in[1]])
-        else:
-            value = ca.SX.unary(op, work[i_in[0]])
-        work[i_out[0]] = value
-        value_of[i_out[0]] = k
-    outs = [ca.SX(fn.sparsity_out(i), ca.vertcat(*[v if v is not None else ca.SX(0) for v in vals]))
-            if vals else ca.SX(fn.sparsity_out(i)) for i, vals in enumerate(outputs)]
-    return ca.Function(fn.name(), inputs, outs, fn.name_in(), fn.name_out())
+    defs = defining_instructions(fn)
+    count: dict[int, int] = {}                  # divisor (its defining instruction) -> divisions by it
+    for ins, reads in defs:
+        if ins.op == ca.OP_DIV:
+            count[reads[1]] = count.get(reads[1], 0) + 1
+    const = {ins.index: ins.constant for ins, _ in defs if ins.op == ca.OP_CONST}
+    recip: dict[int, ca.SX] = {}
+
+    def value(ins, operands):
+        if ins.op != ca.OP_DIV:
+            return None
+        d = defs[ins.index][1][1]
+        if d not in const and count[d] < threshold:
+            return None
+        if d not in recip:
+            recip[d] = ca.SX(1.0 / const[d]) if d in const else 1.0 / operands[1]
+        return operands[0] * recip[d]
+    return replay(fn, value)
 
 
 def lift_parameters(raw: ca.Function, p_index: int, parametric_name: str) -> tuple:

@@ -290,18 +290,19 @@ class ResultsFile(ResultsView):
             self._read_once[key] = read()
         return _copied(self._read_once[key])
 
-    def _checkpoint(self):
+    def checkpoint(self) -> tuple[dict, dict] | None:
+        """The last checkpoint: (DriveState dict, {n_samples, n_stats, wall_s}), or None before the first."""
         def read():
             with self._reading("/checkpoint"):
                 return Checkpoint(self.f["checkpoint"]).read()
         return self._once("/checkpoint", read)
 
     def counts(self) -> tuple[int, int]:
-        ck = self._checkpoint()
+        ck = self.checkpoint()
         return (ck[1]["n_samples"], ck[1]["n_stats"]) if ck is not None else (0, 0)
 
     def state(self) -> dict | None:
-        ck = self._checkpoint()
+        ck = self.checkpoint()
         return None if ck is None else ck[0]
 
     def _record(self, group: str, name: str, n: int):

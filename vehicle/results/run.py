@@ -33,6 +33,7 @@ variables, read through the same interface.
 from __future__ import annotations
 
 import datetime as _dt
+import contextlib
 import functools
 import json
 import logging
@@ -41,10 +42,10 @@ import signal
 import socket
 import subprocess
 import time
+import traceback
 from pathlib import Path
 from typing import Callable
 
-import h5py
 import numpy as np
 
 from hpsim import __version__
@@ -57,12 +58,14 @@ from vehicle.physics.weighing import band_datasets, weighing_bands
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
 from vehicle.engines.build import build_engine
 from vehicle.engines.contract import DriveState
-from vehicle.results import provenance, sinks
-from vehicle.results.reader import FORMAT, FORMAT_VERSION, open_read, open_results
-from vehicle.results.checkpoint import Checkpoint
-from vehicle.results.sinks import (LIBVER, H5Sink, MemorySink, clone_group, create_file, create_h5, finish_file, is_disk_full,
-                                   remove_stale, sync_replace)
-from vehicle.results.validity import check, record, summary_cell
+from hpsim.cancellation import CancelToken
+
+from vehicle.results import provenance
+from vehicle.results.layout import fault_point, h5py_releases_quietly, out_of_space, remove_stale
+from vehicle.results.reader import FORMAT, FORMAT_VERSION
+from vehicle.results.results_file import DriveFile, ResumePoint
+from vehicle.results.sinks import MemorySink
+from vehicle.results.validity import check, summary_cell, summary_warnings
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 LOG = logging.getLogger("hpsim")
@@ -259,14 +262,29 @@ class RunInterrupted(Exception):
         self.path = path
 
 
-def _disk_full(out: Path, exc: BaseException, what: str, resume_hint: str) -> SimulationError:
-    return SimulationError(f"{out}: disk full (no space left on device) {what}; {resume_hint}")
+class NoRoomError(SimulationError):
+    """A full disk, a quota or the file-size limit met while writing a results file (exit 3, the file named)."""
+
+
+@contextlib.contextmanager
+def _room_for(out: Path, what: str | Callable[[], str], then: str):
+    """A write inside the block that finds no room raises NoRoomError: one line naming the file, why, where the run
+    was (`what`, or what it returns when called then), the remedy and what to do `then`."""
+    try:
+        yield
+    except (OSError, RuntimeError) as exc:
+        no_room = out_of_space(exc)
+        if no_room is None:
+            raise
+        where = what() if callable(what) else what
+        with h5py_releases_quietly():     # the failed write's finished frames hold h5py handles: let go of them here
+            traceback.clear_frames(exc.__traceback__)
+        raise NoRoomError(f"{out}: {no_room.reason} {where}; {no_room.remedy} and {then}") from None
 
 
 def inspect_results(path: str | Path) -> tuple[str, int]:
     """(status, format version) of a results file, after checking all of it; DamagedResults if it is damaged."""
-    with open_results(path) as r:
-        return r.status(), r.version
+    return DriveFile(path).status()
 
 
 def results_status(path: str | Path) -> str | None:
@@ -282,13 +300,16 @@ def results_status(path: str | Path) -> str | None:
 
 def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, *, resume: bool = False,
                  overwrite: bool = False, progress: bool = True, log: Callable[[str], None] | None = None,
-                 checkpoint_every_blocks: int = 1) -> dict:
+                 checkpoint_every_blocks: int = 1, cancel: CancelToken | None = None) -> dict:
     """Run a scenario into an HDF5 file; returns the summary attributes.
 
-    Raises UserInputError (bad scenario, file exists, damaged, locked, cannot resume), SimulationError
-    (solver failure after writing status 'failed'; disk full) or RunInterrupted (Ctrl-C, status 'interrupted').
+    cancel: a token whose request stops the drive at its next checkpoint (a study's scheduler, a worker whose
+    parent died); Ctrl-C requests it too. Raises UserInputError (bad scenario, file exists, damaged, locked, cannot
+    resume), SimulationError (solver failure after writing status 'failed'; no room on the disk) or RunInterrupted
+    (a stop requested, status 'interrupted').
     """
     log = log or (lambda msg: None)
+    cancel = cancel if cancel is not None else CancelToken()
     t_start = time.perf_counter()
     beside(code_version)             # `git describe` (a child process) looked up while the scenario is prepared
     out = Path(out)
@@ -297,18 +318,12 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                              "--overwrite throws it away; give one of them")
     src = scenario if isinstance(scenario, ScenarioSource) else (
         timed("reading", read_scenario, scenario) if scenario is not None else None)
-    if src is not None:
-        timed("output checked against the inputs", provenance.output_is_input, out, src)  # never replace an input
-    if out.is_dir():
-        raise UserInputError(f"{out}: is a directory; give a file name with -o")
-    if out.exists() and not out.is_file():
-        raise UserInputError(f"{out}: is not a regular file")
-    if not out.parent.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
+    _check_output(out, src)
+    results = DriveFile(out)
     with OutputLock(out):
         if out.exists() and not overwrite:
             try:
-                status, version = inspect_results(out)
+                status, version = results.status_to_resume() if resume else results.status()
             except UserInputError as exc:
                 raise type(exc)(f"{exc}; the file was not touched: start again with --overwrite or -o another "
                                 "file") from None
@@ -316,7 +331,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                 if status != "complete" and version < FORMAT_VERSION:
                     raise UserInputError(f"{out}: written by an older hpsim (results format {version}); it can be "
                                          "read (report, plot, compare) but not resumed: run it again with --overwrite")
-                return _resume(out, src, progress, log, checkpoint_every_blocks)
+                return _resume(results, src, progress, log, checkpoint_every_blocks, cancel)
             hint = "--resume to continue it or " if status != "complete" else ""
             raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o "
                                  "another file")
@@ -330,130 +345,96 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         block, row, state = drive.describe()
         if prep.work.get("announce"):
             log(prep.work["announce"])               # a long run says so up front (vehicle.scenario.work_limits)
-        tmp = out.with_name(out.name + ".partial")
-        try:
-            create_file(tmp, info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
-                        chunk_rows(prep.scenario))
-            sync_replace(tmp, out)
-        except (OSError, RuntimeError) as exc:
-            remove_stale(tmp)
-            if is_disk_full(exc):
-                raise _disk_full(out, exc, "before the drive started", "free some space and run again") from None
-            raise
-        summary = _drive(drive, out, None, (0, 0, 0.0), prep, progress, log, checkpoint_every_blocks)
+        with _room_for(out, "before the drive started", "run again"):
+            results.create(info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
+                           chunk_rows(prep.scenario))
+        summary = _drive(drive, results, ResumePoint.start(), prep, progress, log, checkpoint_every_blocks, cancel)
         # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies
         drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
                           summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"])
         return summary
 
 
-def _copy_truncated(path: Path, n_samples: int, n_stats: int) -> None:
-    """Copy what the checkpoint covers into a fresh file (clears a killed writer's state) and replace."""
-    tmp = path.with_name(path.name + ".resume")
-    try:
-        with open_read(path) as src, create_h5(tmp) as dst:
-            for k, v in src.attrs.items():
-                dst.attrs[k] = v
-            dst.attrs["history"] = str(src.attrs.get("history", "")) + f"\n{_now()}: resumed"
-            for gname, n in (("timeseries", n_samples), ("stats", n_stats)):
-                for ds in src[gname].values():
-                    if ds.maxshape and ds.maxshape[0] is None and ds.shape[0] < n:
-                        raise UserInputError(f"{path}: /{gname}/{ds.name.rsplit('/', 1)[-1]} has {ds.shape[0]} rows, "
-                                             f"fewer than the checkpoint's {n}: the file is damaged, start again "
-                                             "with --overwrite")
-            clone_group(src["scenario"], dst, "scenario")
-            e = dst.create_group("equilibrium")
-            for name in ("charged", "before"):
-                clone_group(src["equilibrium"][name], e, name)
-            clone_group(src["timeseries"], dst, "timeseries", n_samples)
-            clone_group(src["stats"], dst, "stats", n_stats)
-            clone_group(src["checkpoint"], dst, "checkpoint")
-            s = clone_group(src["summary"], dst, "summary", 0)
-            for k in ("error", "stopped_at_km"):
-                if k in s.attrs:
-                    del s.attrs[k]
-            s.attrs["status"] = "running"
-            s.attrs["complete"] = False
-        sync_replace(tmp, path)
-    except BaseException as exc:
-        remove_stale(tmp)
-        if isinstance(exc, (OSError, RuntimeError)) and is_disk_full(exc):
-            raise _disk_full(path, exc, "while preparing the resume (the file was not changed)",
-                             "free some space and resume again") from None
-        raise
+def _check_output(out: Path, src: ScenarioSource | None) -> None:
+    """Refuse an output that is one of the scenario's inputs, a folder or not a regular file; make its folder."""
+    if src is not None:
+        timed("output checked against the inputs", provenance.output_is_input, out, src)  # never replace an input
+    if out.is_dir():
+        raise UserInputError(f"{out}: is a directory; give a file name with -o")
+    if out.exists() and not out.is_file():
+        raise UserInputError(f"{out}: is not a regular file")
+    if not out.parent.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
 
 
-def _resume(out: Path, src: ScenarioSource | None, progress, log, checkpoint_every_blocks) -> dict:
-    with open_results(out, check=False) as r:
-        sc = r.scenario_attrs
-        stored = read_scenario_text(str(sc["yaml"]), str(sc.get("source", out)),
-                                    str(sc.get("base_dir", out.resolve().parent)))
-        stored_version = str(sc.get("hpsim_version", ""))
-        stored_inputs = sc.get("inputs_json")
-        complete = r.status() == "complete"
-        summary = {k: (v.item() if hasattr(v, "item") else v) for k, v in r.summary_attrs().items()}
-        ck = None if complete else r._checkpoint()
+def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, checkpoint_every_blocks,
+            cancel: CancelToken) -> dict:
+    out = results.path
+    stored_run = results.stored_run()
+    sc = stored_run.scenario_attrs
+    stored = read_scenario_text(str(sc["yaml"]), str(sc.get("source", out)), str(sc.get("base_dir", out.resolve().parent)))
+    stored_version = str(sc.get("hpsim_version", ""))
+    stored_inputs = sc.get("inputs_json")
     if src is not None and src.text != stored.text:
         raise UserInputError(f"{out}: the scenario {src.name} differs from the one this run started with "
                              "(stored in the file); resume without changing it, or start again with --overwrite")
-    if complete and stored_inputs is None:           # written before input hashes were recorded
+    if stored_run.complete and stored_inputs is None:           # written before input hashes were recorded
         log(f"{out}: already complete, nothing to do")
-        return summary
+        return stored_run.summary_attrs
     prep = prepare(stored)
     provenance.compare(None if stored_inputs is None else str(stored_inputs), prep, out)   # no input file changed
-    if complete:
+    if stored_run.complete:
         log(f"{out}: already complete, nothing to do")
-        return summary
+        return stored_run.summary_attrs
     if stored_version and stored_version != code_version():
         log(f"{out}: warning: the run started with hpsim {stored_version}, resuming with {code_version()}; "
             "if the model changed in between, the result differs from an uninterrupted run")
-    if ck is None:
-        state, counts = None, (0, 0, 0.0)
-    else:
-        d, meta = ck
-        state = DriveState.from_dict(d)
-        counts = (meta["n_samples"], meta["n_stats"], meta["wall_s"])
-    _copy_truncated(out, counts[0], counts[1])      # first: a full disk is found before the model is built
+    point = stored_run.resume_point
+    with _room_for(out, "while preparing the resume (the file was not changed)", "resume again"):
+        results.truncate_for_resume(point)      # first: a full disk is found before the model is built
     model, drive = build_engine(prep)
+    state = None if point.state is None else DriveState.from_dict(point.state)
     if state is not None and state.x.size != model.nx:
         raise UserInputError(f"{out}: its checkpoint holds {state.x.size} states, this hpsim's model has {model.nx} "
                              f"(the model changed since the run started with hpsim {stored_version or '?'}, e.g. the "
                              "ride-metric states); it can be read but not resumed: run it again with --overwrite")
     if state is not None:
         log(f"{out}: resuming at {state.s_m / 1e3:.3f} km of {prep.scenario.distance / 1e3:.6g} km")
-    return _drive(drive, out, state, counts, prep, progress, log, checkpoint_every_blocks)
+    return _drive(drive, results, point, prep, progress, log, checkpoint_every_blocks, cancel)
+
+
+class _StopAtOnce(KeyboardInterrupt):
+    """A second Ctrl-C: raised wherever the drive is, between a block's samples and its checkpoint perhaps."""
 
 
 SAME_CTRL_C_S = 1.0      # SIGINTs this close together are one Ctrl-C (a study's worker gets it from the terminal
 #                          and again from its parent, vehicle.engines.pool.stop_workers)
 
 
-def _catch_sigint(sink: H5Sink):
-    """First Ctrl-C: finish the current block and checkpoint, then stop (a KeyboardInterrupt raised at
-    an arbitrary point can be swallowed by a weakref callback inside h5py); second, more than SAME_CTRL_C_S
-    later: stop at once."""
-    first = []
+@contextlib.contextmanager
+def _ctrl_c_requests(cancel: CancelToken):
+    """First Ctrl-C: request `cancel` (the drive stops after its next checkpoint; a KeyboardInterrupt raised at an
+    arbitrary point can be swallowed by a weakref callback inside h5py); a second one, more than SAME_CTRL_C_S
+    later: stop at once. Outside the main thread (a Dask worker, an ensemble lane) signals are left alone."""
+    first: list[float] = []
 
     def handler(signum, frame):
         now = time.monotonic()
-        if sink.stop_requested and first and now - first[0] > SAME_CTRL_C_S:
-            raise KeyboardInterrupt
+        if cancel.requested and first and now - first[0] > SAME_CTRL_C_S:
+            raise _StopAtOnce
         if not first:
             first.append(now)
-        sink.stop_requested = True
+        cancel.request()
 
     try:
-        return signal.signal(signal.SIGINT, handler)
-    except ValueError:          # not the main thread (e.g. a Dask worker): leave signals alone
-        return None
-
-
-def _restore_sigint(old) -> None:
-    if old is not None:
-        try:
+        old = signal.signal(signal.SIGINT, handler)
+    except ValueError:
+        old = None
+    try:
+        yield
+    finally:
+        if old is not None:
             signal.signal(signal.SIGINT, old)
-        except ValueError:
-            pass
 
 
 def chunk_rows(scenario) -> int:
@@ -463,152 +444,106 @@ def chunk_rows(scenario) -> int:
     return int(M * max(1, -(-scenario.output.chunk_samples // M)))
 
 
-def set_status(path: Path, status: str, **attrs) -> None:
-    """Record the run's status in /summary (after the SWMR writer closed; through a copy, see finish_file)."""
-    finish_file(path, {"summary": {"status": status, "complete": status == "complete", **attrs}})
+class _ProgressBar:
+    """The drive's progress in km on the terminal (tqdm), or nothing."""
+
+    def __init__(self, shown: bool, name: str, total_km: float, start_km: float):
+        self.total_km = total_km
+        self.bar = None
+        if shown:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=round(total_km, 3), initial=round(start_km, 3), unit="km", desc=name,
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} km "
+                                       "[{elapsed}<{remaining}{postfix}]",
+                            dynamic_ncols=True, mininterval=0.5)
+
+    def callback(self):
+        if self.bar is None:
+            return None
+
+        def cb(s_m, v, t_s):
+            self.bar.update(round(min(s_m / 1e3, self.total_km), 3) - self.bar.n)
+            self.bar.set_postfix_str(f"{v * 3.6:.1f} km/h, simulated {t_s / 3600:.2f} h", refresh=False)
+        return cb
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
-def _fault(point: str) -> None:
-    """Test hook: HPSIM_FAULT=<point> kills the process there (tests/test_results_robust.py)."""
-    if os.environ.get("HPSIM_FAULT") == point:
-        os.kill(os.getpid(), signal.SIGKILL)
-
-
-def _close_quietly(f: h5py.File) -> None:
-    try:
-        f.close()
-    except Exception:          # e.g. a full disk: the file keeps what its last flush wrote
-        pass
-
-
-LOCKED_RETRY_S = 10.0          # how long a run waits for a reader (hpsim report, a notebook) to let go of its file
-
-
-def open_for_append(out: Path, wait_s: float = LOCKED_RETRY_S) -> h5py.File:
-    """The results file opened for the drive to write into, without HDF5's file lock: a reader that opened the file
-    (not SWMR) between its creation and this moment must not stop the run (issue 27). A lock error (a file system
-    that insists) is retried for up to wait_s."""
-    t_end = time.monotonic() + wait_s
-    while True:
-        try:
-            # no HDF5 file lock: a plain reader (h5py.File(path, "r"), xarray) holding the file must not stop the
-            # run; the one writer is the output's lock file (OutputLock), readers read in SWMR mode (docs/hdf5.md)
-            return h5py.File(out, "r+", libver=LIBVER, locking=False)
-        except OSError as exc:
-            if "unable to lock file" not in str(exc) or time.monotonic() > t_end:
-                raise
-            time.sleep(0.05)
-
-
-def _drive(drive, out: Path, state, counts, prep, progress: bool, log, checkpoint_every_blocks) -> dict:
+def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, log, checkpoint_every_blocks,
+           cancel: CancelToken) -> dict:
+    out = results.path
     total_km = prep.scenario.distance / 1e3
     resume_cmd = f"hpsim run {prep.source.name} -o {out} " + ("--resume" if getattr(drive, "resumable", True) else
                                                               f"--overwrite (a {drive.mode} run starts again)")
-    bar = cb = None
-    if progress:
-        from tqdm import tqdm
+    state = None if point.state is None else DriveState.from_dict(point.state)
+    bar = _ProgressBar(progress, out.name, total_km, 0.0 if state is None else state.s_m / 1e3)
+    sink = None
 
-        start_km = 0.0 if state is None else state.s_m / 1e3
-        bar = tqdm(total=round(total_km, 3), initial=round(start_km, 3), unit="km", desc=out.name,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} km "
-                              "[{elapsed}<{remaining}{postfix}]",
-                   dynamic_ncols=True, mininterval=0.5)
-
-        def cb(s_m, v, t_s):
-            bar.update(round(min(s_m / 1e3, total_km), 3) - bar.n)
-            bar.set_postfix_str(f"{v * 3.6:.1f} km/h, simulated {t_s / 3600:.2f} h", refresh=False)
-
-    def close_bar():
-        if bar is not None:
-            bar.close()
-
-    def km_done(sink):
+    def km_done():
         return sink.last_state["s_m"] / 1e3 if sink and sink.last_state else (state.s_m / 1e3 if state else 0.0)
 
-    f = open_for_append(out)
-    sink = None
-    old_handler = None
+    def wall_s():
+        return sink.wall_s() if sink else point.wall_s
+
+    then = f"continue with: {resume_cmd}"
     try:
-        sink = H5Sink(f, counts[0], counts[1], counts[2])
-        f.swmr_mode = True
-        old_handler = _catch_sigint(sink)
-        res = timed("drive", drive.run, sink, state=state, progress=cb, checkpoint_every_blocks=checkpoint_every_blocks)
-        sink.flush()
+        with _room_for(out, "when the drive started", then):
+            sink = results.open_sink(point)
+        with _room_for(out, lambda: f"at {km_done():.3f} km (the results up to the last checkpoint are kept)", then), \
+                _ctrl_c_requests(cancel):
+            res = timed("drive", drive.run, sink, state=state, progress=bar.callback(),
+                        checkpoint_every_blocks=checkpoint_every_blocks, cancel=cancel)
+            where, wall = km_done(), wall_s()
+            results.close_sink()
+    except NoRoomError:
+        results.abandon_sink()
+        bar.close()
+        raise
     except SimulationError as exc:
         try:
-            if sink is not None:
-                sink.flush()             # the blocks before the failure, with their checkpoint
+            results.close_sink()              # the blocks before the failure, with their checkpoint
         except (OSError, RuntimeError):
             pass
-        _close_quietly(f)
-        close_bar()
-        where = km_done(sink)
-        set_status(out, "failed", error=str(exc), wall_s=sink.wall_s() if sink else 0.0, stopped_at_km=float(where))
+        bar.close()
+        where = km_done()
+        results.set_status("failed", error=str(exc), wall_s=wall_s(), stopped_at_km=float(where))
         raise SimulationError(f"{exc} (results up to {where:.3f} km kept in {out})") from None
-    except KeyboardInterrupt:
-        _close_quietly(f)
-        close_bar()
-        where = km_done(sink)
-        set_status(out, "interrupted", wall_s=sink.wall_s() if sink else 0.0, stopped_at_km=float(where))
-        raise RunInterrupted(f"interrupted at {where:.3f} km of {total_km:.6g} km; {out} holds what was done. "
-                             f"Continue with: {resume_cmd}", out) from None
-    except (OSError, RuntimeError) as exc:
-        _close_quietly(f)
-        close_bar()
-        if is_disk_full(exc):
-            raise _disk_full(out, exc, f"at {km_done(sink):.3f} km",
-                             f"the results up to the last checkpoint are kept; free some space and continue with: "
-                             f"{resume_cmd}") from None
-        raise
+    except KeyboardInterrupt as exc:
+        # an engine that stops on `cancel` by raising does so right after a checkpoint: what the sink holds is
+        # consistent and is written; any other interruption (a second Ctrl-C) keeps the last written checkpoint
+        if cancel.requested and not isinstance(exc, _StopAtOnce):
+            with contextlib.suppress(OSError, RuntimeError):
+                results.close_sink()
+        results.abandon_sink()
+        bar.close()
+        return _stopped(results, km_done(), wall_s(), total_km, resume_cmd)
     except BaseException:
-        _close_quietly(f)
-        close_bar()
+        results.abandon_sink()
+        bar.close()
         raise
-    finally:
-        _restore_sigint(old_handler)
-    try:
-        f.close()
-    except (OSError, RuntimeError) as exc:
-        if is_disk_full(exc):
-            raise _disk_full(out, exc, "at the end of the drive", f"free some space and continue with: {resume_cmd}") \
-                from None
-        raise
-    close_bar()
-    _fault("before_final_write")
+    bar.close()
+    if cancel.requested:
+        return _stopped(results, where, wall, total_km, resume_cmd)
+    return _finish(results, drive, res, sink, then)
+
+
+def _finish(results: DriveFile, drive, res, sink, then: str) -> dict:
+    """The after-drive equilibrium, the summary and the validity warnings written into the file; the summary."""
+    fault_point("before_final_write")
     final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
-    try:
-        timed("summary: write", _final_write, out, final)
-        timed("summary: validity checks", record, out)      # the validity warnings, in the file (/summary attrs)
-    except (OSError, RuntimeError) as exc:
-        if is_disk_full(exc):
-            raise _disk_full(out, exc, "while writing the summary", f"free some space and continue with: {resume_cmd}") \
-                from None
-        raise
+    with _room_for(results.path, "while writing the summary", then):
+        timed("summary: write", results.finish, final)
+        warnings = timed("summary: validity checks", summary_warnings, results.path)
+        timed("summary: write warnings", results.finish, {"summary": warnings})   # in the file (/summary attrs)
     return {k: v for k, v in final["summary"].items()}
 
 
-def _final_write(out: Path, final: dict) -> None:
-    if os.environ.get("HPSIM_FAULT") == "during_final_write":
-        real = sinks.write_static_group
-
-        def dying(parent, name, *a, **kw):          # test hook: killed with the copy half written
-            real(parent, name, *a, **kw)
-            os.kill(os.getpid(), signal.SIGKILL)
-
-        sinks.write_static_group = dying
-    finish_file(out, final)
-
-
-def valid_counts(f) -> tuple[int, int]:
-    """(samples, statistics rows) covered by the last checkpoint: the rows to trust in a file
-    whose writer may have been stopped between appending data and checkpointing."""
-    ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
-    if ck is not None:
-        return ck[1]["n_samples"], ck[1]["n_stats"]
-    return 0, 0
-
-
-def read_state(f) -> dict | None:
-    """The last checkpointed DriveState dict (t_s, s_m, x, ...) or None."""
-    ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
-    return None if ck is None else ck[0]
+def _stopped(results: DriveFile, where_km: float, wall_s: float, total_km: float, resume_cmd: str):
+    """A drive stopped on request: status 'interrupted' recorded, RunInterrupted raised (the file is resumable)."""
+    results.set_status("interrupted", wall_s=wall_s, stopped_at_km=float(where_km))
+    raise RunInterrupted(f"interrupted at {where_km:.3f} km of {total_km:.6g} km; {results.path} holds what was "
+                         f"done. Continue with: {resume_cmd}", results.path)

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -29,7 +28,6 @@ from struts.oil import viscosity_extrapolation_range
 from vehicle.physics import shocks
 from vehicle.physics.outputs import variable_name
 from vehicle.results.reader import open_results
-from vehicle.results.sinks import finish_file
 
 CODES = ("end_stop_time", "end_stop_energy", "equilibrium_on_stop", "seal_temperature", "oil_temperature",
          "oil_data_range", "tyre_lift_off", "solver_error")
@@ -73,18 +71,17 @@ def check(view, thresholds: Thresholds | None = None) -> list[dict]:
     return out
 
 
-def record(path) -> list[dict]:
-    """Check a finished results file and write the warnings into it: /summary attributes
-    `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the full list); with them, when the
-    series are dense enough, the seats' shock numbers (`seat_shocks_json`, `seat_shocks`)."""
+def summary_warnings(path) -> dict:
+    """Check a finished results file: the /summary attributes that record its warnings, `warnings` (the short form,
+    as in the sweep CSV) and `warnings_json` (the full list); with them, when the series are dense enough, the
+    seats' shock numbers (`seat_shocks_json`)."""
     with open_results(path, check=False) as r:
         found = check(r)
         shocks = seat_shocks(r)
     attrs = {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}
     if shocks:
         attrs["seat_shocks_json"] = json.dumps(shocks)
-    finish_file(Path(path), {"summary": attrs})
-    return found
+    return attrs
 
 
 SHOCK_KEYS = ("crest_factor", "mtvv_m_s2", "mtvv_ratio", "dose_z_m_s2", "dose_y_m_s2", "sed_MPa", "daily_sed_MPa",

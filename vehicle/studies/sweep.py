@@ -16,10 +16,12 @@ file holds a complete summary is skipped on a re-run (an incomplete one is resum
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import os
 import re
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -28,6 +30,7 @@ from typing import Any, Callable
 import yaml
 from pydantic import ValidationError
 
+from hpsim.cancellation import CancelToken
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, Terminated, UserInputError
 from hpsim.outputs import atomic_output
@@ -35,7 +38,6 @@ from hpsim.outputs import atomic_output
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
 from vehicle.engines.pool import die_with_parent, stop_workers
 from vehicle.results.run import RunInterrupted, run_scenario
-from vehicle.results.sinks import add_checkpoint_hook
 from vehicle.results.validity import summary_cell
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import report
@@ -118,12 +120,39 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
     return spec, base, cases
 
 
+ORPHAN_CHECK_S = 0.5        # how often a running case looks whether its process lost its parent
+
+
+@contextlib.contextmanager
+def stop_when_orphaned(cancel: CancelToken):
+    """Request `cancel` if this process's parent changes while the block runs: a worker whose study died stops its
+    drive at the next checkpoint (its file stays resumable) where the kernel does not end it
+    (vehicle.engines.pool.die_with_parent)."""
+    parent = os.getppid()
+    done = threading.Event()
+
+    def watch():
+        while not done.wait(ORPHAN_CHECK_S):
+            if os.getppid() != parent:
+                cancel.request()
+                return
+
+    watcher = threading.Thread(target=watch, name="hpsim-orphan-watch", daemon=True)
+    watcher.start()
+    try:
+        yield cancel
+    finally:
+        done.set()
+        watcher.join()
+
+
 def run_case(text: str, name: str, base_dir: str, out: str, overwrite: bool = False) -> dict:
     """One case in a worker process: never raises, returns status and message (overwrite: start it again)."""
     t0 = time.perf_counter()
     try:
         src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=parse_yaml(text, name))
-        summary = run_scenario(src, out, resume=not overwrite, overwrite=overwrite, progress=False)
+        with stop_when_orphaned(CancelToken()) as cancel:
+            summary = run_scenario(src, out, resume=not overwrite, overwrite=overwrite, progress=False, cancel=cancel)
         return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
         return {"status": "failed", "error": str(exc), "seconds": time.perf_counter() - t0}
@@ -204,10 +233,9 @@ def execute(fn: Callable[..., dict], jobs: list[tuple[str, tuple]], *, workers: 
 
 
 def worker_init(parent_pid: int) -> None:
-    """In each local worker process: die with the parent (vehicle.engines.pool.die_with_parent), and, where the
-    kernel cannot do that, the worker's results sink stops the drive at the next block once the parent is gone."""
+    """In each local worker process: die with the parent (vehicle.engines.pool.die_with_parent); where the kernel
+    cannot do that, a running case stops at its next checkpoint (`stop_when_orphaned`)."""
     die_with_parent(parent_pid)
-    add_checkpoint_hook(lambda: os.getppid() != parent_pid)
 
 
 def run_sweep(path: str | Path, *, output_dir: str | Path | None = None, workers: int | None = None,

@@ -465,14 +465,38 @@ def run_study(out_dir: str | Path, params: list[Parameter], runner: Callable[[st
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with StudyLock(out_dir):                       # one study writing into a folder at a time
-        return _run_study(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model, log,
-                          nominal, label, before_start, ensemble)
+        return _run_study(StudyPlan(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model,
+                                    log, nominal, label, before_start, ensemble))
 
 
-def _run_study(out_dir, params, runner, method, samples, seed, groups, workers, scheduler, model, log, nominal,
-               label, before_start, ensemble) -> dict:
+@dataclass(frozen=True)
+class StudyPlan:
+    """A study to run (`run_study`'s arguments, checked): its folder, parameters and case runner; the design
+    (method, samples, seed, groups); where the cases run (workers, scheduler, ensemble lanes); what identifies the
+    runner's model; whether the nominal case runs too; how it reports (log, label, before_start)."""
+
+    out_dir: Path
+    params: list[Parameter]
+    runner: Callable[[str, dict], dict]
+    method: str
+    samples: int
+    seed: int
+    groups: str
+    workers: int | None
+    scheduler: str | None
+    model: str
+    log: Callable[[str], None]
+    nominal: bool
+    label: str
+    before_start: Callable[[int], None] | None
+    ensemble: int | None
+
+
+def _run_study(plan: StudyPlan) -> dict:
+    out_dir, params, runner, log = plan.out_dir, plan.params, plan.runner, plan.log
+    method, samples, seed, groups, nominal = plan.method, plan.samples, plan.seed, plan.groups, plan.nominal
     names = [p.name for p in params]
-    meta = _fingerprint(params, method, samples, seed, groups, model)
+    meta = _fingerprint(params, method, samples, seed, groups, plan.model)
     samples_csv = out_dir / "samples.csv"
     if samples_csv.exists():
         stored, stored_names, rows = _read_samples(samples_csv)
@@ -491,13 +515,13 @@ def _run_study(out_dir, params, runner, method, samples, seed, groups, workers, 
     records = {k: r for k, r in _read_records(records_path).items() if r.get("status") == "done"}
     todo = [(name, x) for name, x in rows if name not in records]
     n_design = sum(1 for name, _ in rows if name != NOMINAL)
-    log(f"{label or out_dir}: {len(params)} parameters, {method} design of {samples} -> {n_design} cases"
+    log(f"{plan.label or out_dir}: {len(params)} parameters, {method} design of {samples} -> {n_design} cases"
         + (" + nominal" if nominal else "") + f"; {len(rows) - len(todo)} done earlier, {len(todo)} to run")
-    if before_start is not None:
-        before_start(len(todo))          # the cost preview (vehicle.studies.cost) may stop it here
+    if plan.before_start is not None:
+        plan.before_start(len(todo))     # the cost preview (vehicle.studies.cost) may stop it here
     t0 = time.perf_counter()
     done, failed_now = 0, {}
-    client = dask_client(scheduler) if scheduler else None
+    client = dask_client(plan.scheduler) if plan.scheduler else None
 
     with open(records_path, "a") as fh:
         def finished(case, r):
@@ -516,9 +540,9 @@ def _run_study(out_dir, params, runner, method, samples, seed, groups, workers, 
         jobs = [(name, (runner, name, dict(zip(names, map(float, x))))) for name, x in todo]
         # --ensemble K: the drives K at a time in lockstep (vehicle.engines.ensemble)
         can_join = [isinstance(runner, DriveRunner) and eligible(runner.base)] * len(jobs)
-        fn, jobs, unpack = grouped_jobs(run_one, jobs, ensemble, can_join, workers)
+        fn, jobs, unpack = grouped_jobs(run_one, jobs, plan.ensemble, can_join, plan.workers)
         try:
-            execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-uq-{out_dir.resolve().name}",
+            execute(fn, jobs, workers=plan.workers, client=client, key_prefix=f"hpsim-uq-{out_dir.resolve().name}",
                     finished=lambda tag, r: [finished(case, rr) for case, rr in unpack(tag, r)])
         finally:
             if client is not None:

@@ -94,20 +94,31 @@ def multiscale_report_line(rep: dict) -> str:
 
 
 def test_an_interrupted_multiscale_run_keeps_its_windows_and_says_to_start_again(tmp_path, monkeypatch):
-    """Ctrl-C (a checkpoint hook, as a sweep worker's) in the third window: the windows before it are in the file
-    (written while the next ones integrate, and on the way out), the status says interrupted, and the message says
-    to start again (a multiscale run is not resumed)."""
-    from vehicle.results import sinks
+    """A stop requested (Ctrl-C, a sweep worker's orphan watch) in the third window: the windows before it are in the
+    file (written while the next ones integrate, and on the way out), the status says interrupted, and the message
+    says to start again (a multiscale run is not resumed)."""
     from vehicle.results.reader import open_results
     from vehicle.results.run import RunInterrupted, run_scenario
 
-    calls = []
-    monkeypatch.setattr(sinks, "_HOOKS", [lambda: calls.append(1) or len(calls) >= 3])
+    class AtThirdCheck:
+        """A cancellation token requested from the third time the drive reads it (once per written window)."""
+
+        def __init__(self):
+            self.reads = 0
+
+        def request(self):
+            self.reads = 3
+
+        @property
+        def requested(self):
+            self.reads += 1
+            return self.reads >= 3
+
     scen = tmp_path / "ms.yaml"
     scen.write_text(yaml.safe_dump({**BASE, "solver": {**BASE["solver"], "paired_windows": True}}))
     out = tmp_path / "ms.h5"
     with pytest.raises(RunInterrupted) as info:
-        run_scenario(scen, out, progress=False)
+        run_scenario(scen, out, progress=False, cancel=AtThirdCheck())
     assert "--overwrite" in str(info.value) and "--resume" not in str(info.value)
     with open_results(out) as r:
         assert r.status() == "interrupted"

@@ -40,7 +40,8 @@ def work(tmp_path_factory):
 def _values(path: Path) -> dict:
     with h5py.File(path, "r") as f:
         out = {}
-        for g in ("timeseries", "stats", "equilibrium/before", "equilibrium/after", "summary"):
+        for g in ("timeseries", "stats", "equilibrium/before", "equilibrium/before_band", "equilibrium/after",
+                  "equilibrium/after_band", "summary"):
             for k, ds in f[g].items():
                 out[f"{g}/{k}"] = ds[()]
         out["status"] = f["summary"].attrs["status"]
@@ -206,7 +207,7 @@ def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, 
     def full_clone(*a, **kw):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr("vehicle.results.run.clone_group", full_clone)
+    monkeypatch.setattr("vehicle.results.layout.clone_group", full_clone)
     assert cli.main(["run", str(d / "drive.yaml"), "-o", str(out), "--resume", "--no-progress"]) == 3
     assert "disk full" in capsys.readouterr().err
     assert out.read_bytes() == before and not (d / "full.h5.resume").exists()
@@ -214,6 +215,70 @@ def test_full_disk_says_so_keeps_a_readable_file_and_resumes(work, monkeypatch, 
     monkeypatch.undo()
     assert cli.main(["run", str(d / "drive.yaml"), "-o", str(out), "--resume", "--no-progress"]) == 0
     assert_same(ref, out)
+
+
+class _RequestedAfter:
+    """A cancellation token requested from its n-th reading on (the drive reads it once per checkpointed block)."""
+
+    def __init__(self, n: int):
+        self.n, self.reads = n, 0
+
+    def request(self) -> None:
+        self.reads = self.n
+
+    @property
+    def requested(self) -> bool:
+        self.reads += 1
+        return self.reads >= self.n
+
+
+def test_a_requested_stop_ends_the_drive_at_a_checkpoint_and_it_resumes(work):
+    """The token passed to run_scenario stops the drive after the block at which it is requested: status
+    interrupted, the rows up to that checkpoint kept (no exception raised from the sink), and --resume completes the
+    file to the uninterrupted result, weighing bands included."""
+    from vehicle.results.reader import open_results
+    from vehicle.results.run import RunInterrupted, run_scenario
+
+    d, ref = work
+    out = d / "cancelled.h5"
+    with pytest.raises(RunInterrupted) as info:
+        run_scenario(d / "drive.yaml", out, progress=False, cancel=_RequestedAfter(5))
+    assert "--resume" in str(info.value)
+    with open_results(out) as r:
+        assert r.status() == "interrupted"
+        n_samples, _ = r.counts()
+        km = r.state()["s_m"] / 1e3
+    with open_results(ref) as r:
+        total = r.counts()[0]
+    assert 0 < n_samples < total and 0 < km < 0.5
+    assert run_scenario(d / "drive.yaml", out, resume=True, progress=False)["status"] == "complete"
+    assert_same(ref, out)
+
+
+@pytest.mark.parametrize("fraction", [0.45, 0.75])
+def test_the_file_size_limit_stops_the_run_cleanly_and_it_resumes(work, capsys, fraction):
+    """Under a file-size limit (ulimit -f: EFBIG, errno 27) below the result's size, a run stops as on a full disk:
+    one line naming the file and the limit, exit 3, no traceback (h5py's "Exception ignored" included), no crash at
+    exit; the limit lifted, --resume completes it to the uninterrupted result (weighing bands included)."""
+    import resource
+
+    d, ref = work
+    out = d / f"limited_{fraction}.h5"
+    limit = int(ref.stat().st_size * fraction)
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    p = subprocess.run([sys.executable, "-m", "vehicle.cli", "run", str(d / "drive.yaml"), "-o", str(out),
+                        "--no-progress"], capture_output=True, text=True, timeout=TIMEOUT * 2, preexec_fn=limited)
+    assert p.returncode == 3, p.stderr[-2000:]
+    assert "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr[-2000:]
+    assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert str(out) in p.stderr and "file too large" in p.stderr and "ulimit -f" in p.stderr and "--resume" in p.stderr
+    r = hpsim(capsys, ["run", d / "drive.yaml", "-o", out, "--resume", "--no-progress"])
+    assert r.returncode == 0, r.stderr
+    assert_same(ref, out)
+    assert not [q for q in d.iterdir() if q.name.startswith(out.name + ".")]
 
 
 def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(work, capsys):
@@ -267,8 +332,8 @@ def test_a_reader_holding_a_new_file_does_not_stop_the_run(tmp_path):
     without HDF5's lock (issue 27; it used to wait, then fail with "unable to lock file") and goes to SWMR mode."""
     import time
 
-    from vehicle.results.run import open_for_append
-    from vehicle.results.sinks import LIBVER
+    from vehicle.results.layout import LIBVER
+    from vehicle.results.results_file import open_for_append
 
     path = tmp_path / "run.h5"
     with h5py.File(path, "x", libver=LIBVER) as f:

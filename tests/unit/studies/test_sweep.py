@@ -5,7 +5,7 @@ the wheel loads less than without it."""
 from __future__ import annotations
 
 import csv
-import importlib.util
+import sys
 from pathlib import Path
 
 import h5py
@@ -159,8 +159,10 @@ def test_every_case_is_validated_before_any_runs(tmp_path, capsys):
     assert "nope.yaml" in capsys.readouterr().err
 
 
-@pytest.mark.skipif(importlib.util.find_spec("distributed") is not None, reason="dask installed")
-def test_scheduler_without_dask_is_a_clear_error(tmp_path, capsys):
+def test_scheduler_without_dask_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    """Without Dask's distributed package (made unimportable here, as where the extra is not installed) --scheduler
+    says which extra to install."""
+    monkeypatch.setitem(sys.modules, "distributed", None)       # `import distributed` raises ImportError
     (tmp_path / "base.yaml").write_text(BASE)
     (tmp_path / "sweep.yaml").write_text(SWEEP)
     code = cli.main(["sweep", str(tmp_path / "sweep.yaml"), "--scheduler", "tcp://127.0.0.1:8786",
@@ -194,7 +196,7 @@ def _running_workers(p, out, timeout=120.0) -> list[int]:
     import time
 
     from vehicle.results.reader import open_read
-    from vehicle.results.run import valid_counts
+    from vehicle.results.layout import valid_counts
 
     t0 = time.time()
     while time.time() - t0 < timeout:
