@@ -164,13 +164,16 @@ def _reading(d: DriveState, p: Point, rng, n, T_oil_r, T_surf_r, grow) -> np.nda
     before_T = float(np.mean(d.T_start[stations]))
     if p.quantity in ("surface_temperature", "oil_temperature"):
         if p.quantity == "surface_temperature" and p.instrument.type == "pyrometer":
-            after = np.mean([inst.pyrometer_after_K(np.broadcast_to(T_oil_r[i], n), np.broadcast_to(T_surf_r[i], n),
-                                                    d.ambient_K, rng, n, p.instrument.emissivity_setting)
-                             for i in stations], axis=0)
+            spots = [inst.PyrometerSpot.draw(rng, n) for _ in stations]
+            read = lambda T_oil, T_surf: np.mean([   # noqa: E731
+                inst.pyrometer_reading_K(T_oil[i], T_surf[i], d.ambient_K, spot, p.instrument.emissivity_setting)
+                for i, spot in zip(stations, spots)], axis=0)
+            after, before = read(T_oil_r, T_surf_r), read(d.T_start, d.T_start)
         else:
             T = T_surf_r if p.quantity == "surface_temperature" else T_oil_r
             after = np.broadcast_to(np.mean(T[stations], axis=0), n).astype(float)
-        return {"change": after - before_T, "after": after, "before": np.full(n, before_T)}[p.compared]
+            before = np.full(n, before_T)
+        return {"change": after - before, "after": after, "before": before}[p.compared]
     if p.quantity == "height":
         dh = d.h_after[k] - d.h_before[k]
         band = d.dh_band_m[k]
