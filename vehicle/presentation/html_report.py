@@ -80,7 +80,7 @@ AXLE_COLUMNS = (("axle", "axle", "d"), ("T_start_C", "T start [degC]", ".2f"),
                 ("dh_band_mm", "dh weighing band [mm]", ".2f"), ("N_before_daN", "N before [daN]", ".2f"),
                 ("N_after_daN", "N after [daN]", ".2f"), ("dN_pct", "dN [%]", ".2f"),
                 ("dN_band_pct", "dN weighing band [%]", ".2f"), ("N_charged_daN", "N charged [daN]", ".2f"),
-                ("dN_charged_pct", "dN vs charged [%]", ".2f"), ("energy_dissipated_MJ", "E dissipated [MJ]", ".4f"))
+                ("dN_charged_pct", "dN vs charged [%]", ".2f"), ("energy_dissipated_MJ", "E dissipated, both struts [MJ]", ".4f"))
 
 
 def scenario_words(resolved: dict, rep: dict) -> str:
