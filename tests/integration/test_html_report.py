@@ -10,10 +10,12 @@ import re
 import shutil
 from html.parser import HTMLParser
 
+import numpy as np
 import pytest
 
 from vehicle import cli
 from vehicle.presentation import html_report
+from vehicle.results.reader import open_results
 from tests.helpers import REPO
 
 QUICK = REPO / "scenarios" / "quick_demo.yaml"
@@ -216,10 +218,39 @@ def test_animation_has_one_frame_per_frame_interval_of_a_200_m_span(drive, tmp_p
     assert res["frames"] == expected and res["writer"] == "pillow"
     with Image.open(out) as im:
         assert im.n_frames == expected
+    # played in real time: the frame durations add up to the driving time from the first frame to the last
+    # and one frame interval (1 s) for the last
+    assert _gif_duration_s(out) == pytest.approx(expected * 1.0, abs=0.005)
     assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.gif"), "--from", "0.1km", "--to", "0.5km"]) == 2
     if shutil.which("ffmpeg") is None:
         assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.mp4")]) == 2
         assert "needs ffmpeg" in capsys.readouterr().err
+
+
+def _gif_duration_s(path) -> float:
+    from PIL import Image, ImageSequence
+
+    with Image.open(path) as im:
+        return sum(frame.info["duration"] for frame in ImageSequence.Iterator(im)) / 1e3
+
+
+def test_gif_frames_of_39_ms_play_in_real_time(drive, tmp_path, capsys):
+    """25 frames a second of a 0.013 s series: every 3rd sample, 39 ms a frame, which a GIF cannot store (whole
+    centiseconds: 3 cs played it 23 % fast); the durations, rounded from the frame times, add up to the driving
+    time within 5 ms. The command line shows a progress bar of the frames on stderr."""
+    from vehicle.presentation import animation
+
+    times = np.arange(200) * 0.039
+    ms = animation.gif_durations_ms(times, 0.039)
+    assert sum(ms) == pytest.approx(1e3 * 200 * 0.039, abs=5) and set(ms) == {40, 30}
+    out = tmp_path / "a.gif"
+    assert cli.main(["animate", str(drive), "-o", str(out), "--from", "0km", "--to", "0.05km", "--fps", "25"]) == 0
+    captured = capsys.readouterr()
+    assert "frame" in captured.err and "100%" in captured.err
+    with open_results(drive) as r:
+        t, s = r.series("time"), r.series("distance")
+    span = t[(s >= 0.0) & (s <= 50.0)][::2]                         # 50 Hz, 25 frames/s: every 2nd sample
+    assert _gif_duration_s(out) == pytest.approx(span[-1] - span[0] + 0.04, abs=0.005)
 
 
 def test_shock_numbers_are_in_the_file_the_json_and_the_api(drive):
