@@ -8,6 +8,8 @@ import json
 import math
 import re
 import shutil
+import subprocess
+from html import unescape as html_unescape
 from html.parser import HTMLParser
 
 import numpy as np
@@ -96,6 +98,61 @@ def test_html_is_self_contained_and_has_every_per_axle_number(drive, tmp_path, c
         assert needle in text, needle
     seat = rep["ride"]["seats"][0]
     assert seat["crest_factor"] > math.sqrt(2) and seat["daily_sed_MPa"] > seat["sed_MPa"] > 0
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+# after the page has loaded, every image's decoded size and the table cells, written into the DOM for --dump-dom
+PROBE = """<script>
+window.addEventListener("load", () => {
+  const out = document.createElement("pre"); out.id = "probe";
+  out.textContent = JSON.stringify({
+    images: Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.getBoundingClientRect().width]),
+    cells: Array.from(document.querySelectorAll("table")).map(t => Array.from(t.rows).map(r => Array.from(r.cells).map(c => c.innerText.trim())))});
+  document.body.appendChild(out);
+});
+</script>"""
+
+
+def _chromium(*args, cwd) -> subprocess.CompletedProcess:
+    return subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                           "--disable-component-update", "--disable-sync", "--no-first-run",
+                           f"--user-data-dir={cwd / 'profile'}", *args], capture_output=True, text=True, timeout=180,
+                          cwd=cwd)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (Debian: apt-get install chromium): the "
+                                             "HTML report is not opened in a browser here")
+def test_html_report_renders_in_a_real_browser_with_every_figure_and_the_json_numbers(drive, tmp_path, capsys):
+    """The report opened by headless Chromium: every <img> decodes to a picture with a size on the page, the
+    per-axle table the browser shows holds the numbers of `report --json`, and a screenshot is a page with
+    content (not blank)."""
+    from PIL import Image
+
+    out = tmp_path / "report.html"
+    assert cli.main(["report", str(drive), "--html", str(out)]) == 0
+    capsys.readouterr()
+    assert cli.main(["report", str(drive), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    probed = tmp_path / "probed.html"
+    probed.write_text(out.read_text().replace("</body>", PROBE + "</body>"))
+    dom = _chromium("--virtual-time-budget=10000", "--dump-dom", probed.as_uri(), cwd=tmp_path).stdout
+    probe = json.loads(html_unescape(re.search(r'<pre id="probe">(.*?)</pre>', dom, re.S).group(1)))
+    n_img = out.read_text().count("<img")
+    assert n_img >= 1 and len(probe["images"]) == n_img
+    assert all(done and w > 100 and h > 100 and shown > 100 for done, w, h, shown in probe["images"]), probe["images"]
+    table = next(t for t in probe["cells"] if t and t[0] and t[0][0] == "axle" and "T start [degC]" in t[0])
+    assert len(table) == 1 + len(rep["axles"])
+    for row_json, row in zip(rep["axles"], table[1:]):
+        cells = dict(zip(table[0], row))
+        for key, header, spec in html_report.AXLE_COLUMNS:
+            want = row_json[key] if isinstance(row_json[key], list) else [row_json[key]]
+            decimals = int(spec[1:-1]) if spec.endswith("f") else 0
+            assert all(abs(a - b) <= 0.5 * 10 ** -decimals + 1e-12 for a, b in zip(_numbers(cells[header]), want)), key
+    shot = tmp_path / "report.png"
+    _chromium("--window-size=1200,3000", "--hide-scrollbars", f"--screenshot={shot}", out.as_uri(), cwd=tmp_path)
+    with Image.open(shot) as im:
+        gray = np.asarray(im.convert("L"), float)
+    assert gray.shape == (3000, 1200) and gray.std() > 10          # text and figures, not a blank page
 
 
 def test_pdf_tables_fit_the_page_and_the_first_page_is_a_png(tmp_path):
