@@ -206,6 +206,14 @@ def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):
     text = (tmp_path / "sweep.html").read_text()
     assert "Comparison" in text and "axle 1 dN [%]" in text and text.count("data:image/png") == 1
     assert "30 km/h" in text and "axle 1 dN weighing band [%]" in text and "driver Sed daily [MPa]" in text
+    # who ran it: the hpsim version stored in the cases' files, not "unknown"
+    p = Tables()
+    p.feed(text)
+    run_by = next(row[1] for t in p.tables for row in t if row and row[0] == "run by")
+    from vehicle.results.reader import open_results as _open
+
+    with _open(drive) as r:
+        assert run_by == str(r.scenario_attrs['hpsim_version']) and "unknown" not in run_by
 
     priors = yaml.safe_load("a: {value: 1, prior: {uniform: [0, 2]}}\nb: {value: 1, prior: {uniform: [0, 2]}}")
     params = uq.parameters_from(collect_priors(priors, "toy.yaml"))

@@ -246,4 +246,5 @@ def compare(paths) -> dict:
                       "compensation": r["compensation"], "load_shift_pct": r["load_shift_pct"],
                       "load_shift_vs_charged_pct": r["load_shift_vs_charged_pct"],
                       "mean_temperature_rise_K": r["mean_temperature_rise_K"], "axles": r["axles"],
-                      "ride": r.get("ride", {}), "warnings": r.get("warnings", [])} for r in reps]}
+                      "ride": r.get("ride", {}), "warnings": r.get("warnings", []),
+                      "hpsim_version": r.get("hpsim_version", "")} for r in reps]}
