@@ -347,3 +347,12 @@ def test_vehicle_new_names_an_own_strut_from_its_own_folder_and_writes_nothing_t
     assert main(args[:3] + ["sub/w.yaml"] + args[4:] + ["--track", "0.6m"]) == 2
     out = capsys.readouterr().out
     assert "falls over on its springs" in out and "not written" in out and not (tmp_path / "sub" / "w.yaml").exists()
+
+
+def test_every_mode_has_its_own_name(shipped):
+    """Wheel modes of several axles say which axles move against which (the same axles make an in-phase and an
+    opposed mode: both were 'wheel tramp (axles 1, 2)'); no two modes of a vehicle share a name."""
+    for rep in shipped.values():
+        names = [md["name"] for md in rep.modes]
+        assert len(set(names)) == len(names), names
+    assert any("against" in n for n in (md["name"] for md in shipped["apc_8x8"].modes))
