@@ -306,6 +306,21 @@ def test_a_strut_that_did_not_warm_reads_no_pyrometer_change(work, tmp_path, war
         assert 0.2 < p["reading_median"] < warming_K and lo > -0.3
 
 
+def test_a_temperature_reading_band_width_is_relative_to_its_excess_over_the_ambient(work, tmp_path):
+    """A strut read at 80 degC with the ambient at 25 degC: the band width is a fraction of the 55 K excess, not
+    of 353 K (which makes any band look narrow)."""
+    from vehicle.studies.validate import compare_points, read_drive
+
+    d = read_drive(work / "drive.h5")
+    f = tmp_path / "after.yaml"
+    f.write_text("instruments: {pyro: {type: pyrometer, uncertainty: 1 K}}\npoints:\n"
+                 "  - {quantity: surface_temperature, axle: 1, after: 80 degC, instrument: pyro}\n")
+    p = compare_points(read_measurements(f).points, [d], d, seed=1)[0]
+    width = p["band"][1] - p["band"][0]
+    assert p["relative_width"] == pytest.approx(width / (353.15 - d.ambient_K), rel=1e-9)
+    assert d.ambient_K == pytest.approx(298.15)
+
+
 def test_standing_struts_cool_toward_the_ambient(work):
     from vehicle.studies.validate import read_drive
 
