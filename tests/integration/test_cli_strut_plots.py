@@ -70,3 +70,6 @@ def test_fit_gives_units_and_flags_parameters_the_data_do_not_identify(capsys):
     # (the strut file says so: "NOT identified by those 5 points"); the bleed they do pin
     assert out["not_identified"] == ["pressure_coefficient"]
     assert "warning: pressure_coefficient is not identified by these data" in captured.err
+    # and says what to do: which tests would identify it, and the fit of the others alone
+    assert "slow tests at two or more mean deflections" in captured.err
+    assert "--fit F0,bleed_area" in captured.err and "loops" in captured.err

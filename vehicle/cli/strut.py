@@ -409,11 +409,21 @@ def cmd_fit(args):
         except OSError as exc:
             raise UserInputError(f"--write: cannot write {args.write} ({exc.strerror})") from None
     unidentified = [n for n in names if not _identified(res.confidence_95[n])]
+    log = logging.getLogger("hpsim")
     for n in unidentified:
         lo, hi = res.confidence_95[n]
-        logging.getLogger("hpsim").warning(
-            f"{n} is not identified by these data: 95 % confidence interval {lo:.3g} to {hi:.3g} "
-            f"{FIT_UNITS.get(n, '')} ({_orders(lo, hi)}); hold it at a known value or add tests that excite it")
+        log.warning(f"{n} is not identified by these data: 95 % confidence interval {lo:.3g} to {hi:.3g} "
+                    f"{FIT_UNITS.get(n, '')} ({_orders(lo, hi)}); {EXCITED_BY.get(n, 'tests that excite it')} "
+                    "would identify it")
+    if unidentified:
+        kept = [n for n in names if n not in unidentified]
+        n_tests = len(data.tests())
+        log.warning(f"what to do: {n_tests} test(s) of {data.kind} data for {len(names)} parameter(s); "
+                    + (f"fit {', '.join(kept)} alone (--fit {','.join(kept)}) and hold "
+                       f"{', '.join(unidentified)} at the strut file's value(s) (--set to change them)"
+                       if kept else "hold them at the strut file's values and fit one at a time")
+                    + ("; loops (force against deflection per test) identify more than an energy per cycle"
+                       if data.kind == "energy" else ""))
     if args.json:
         out = res.as_dict()
         out["units"] = {n: FIT_UNITS.get(n, "") for n in names}
@@ -428,6 +438,21 @@ def cmd_fit(args):
                            [(i + 1, m, s, 100 * (s - m) / m) for i, (m, s) in enumerate(zip(res.measured, res.model))]))
 
 
+# the rig tests that excite each fittable parameter (what to add when the data do not identify it): the seal
+# friction dominates where the valve force (~ v^2) is small, its pressure part needs different mean pressures,
+# the gas's heat exchange acts at periods near its time constant, the valves at high velocities
+EXCITED_BY = {
+    "F0": "slow tests (peak velocity below about 0.05 m/s, where the valve force is small)",
+    "F0_compression": "slow tests (peak velocity below about 0.05 m/s) as loops, compression half",
+    "F0_rebound": "slow tests (peak velocity below about 0.05 m/s) as loops, rebound half",
+    "pressure_coefficient": "slow tests at two or more mean deflections (different gas pressures)",
+    "breakaway_ratio": "loops of slow tests (the force step at each reversal)",
+    "viscous": "tests over a range of moderate velocities (0.05-0.3 m/s)",
+    "thermal_time_constant": "slow cycles with periods near the gas's time constant (0.01-0.1 Hz)",
+    "bleed_area": "fast tests (peak velocity above about 0.3 m/s)",
+    "discharge_coefficient": "fast tests (peak velocity above about 0.3 m/s)",
+    "polytropic_exponent": "loops of large-amplitude tests (the gas spring's slope)",
+}
 # SI units of the fittable parameters (struts.fit.FITTABLE), for the table
 FIT_UNITS = {"F0": "N", "F0_compression": "N", "F0_rebound": "N", "pressure_coefficient": "N/Pa",
              "breakaway_ratio": "", "viscous": "N s/m", "thermal_time_constant": "s", "bleed_area": "m^2",
