@@ -342,8 +342,9 @@ def _max_frequency() -> float:
 
 def plot_loops(results, path, name, measured=()):
     """Force-displacement and force-velocity loops; measured loops as wide light lines under the model's thin
-    ones (the same colour for the same test, black without a simulated one); the smallest loop on top and, when
-    it is much smaller than the largest, magnified in an inset of the force-velocity panel."""
+    ones (the same colour for the same test, a colour of its own without a simulated one); the smallest loop on
+    top and, when it is much smaller than the largest, magnified in an inset of the force-velocity panel.
+    Returns the (label, colour) of each line of the force-displacement panel."""
     import matplotlib
     import numpy as np
     matplotlib.use("Agg")
@@ -372,11 +373,13 @@ def plot_loops(results, path, name, measured=()):
                 a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color=c, label=f"measured, E={m['energy_per_cycle_J']:.4g} J",
                         **measured_style)
                 a2.plot(m["v_m_per_s"] * 1e3, (m["force_N"] - gas) / 1e3, color=c, **measured_style)
-    for m in measured:
-        if not any(_same_test(m, r) for r in results):
-            a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color="k",
-                    label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz "
-                          "(no simulated test)", **{**measured_style, "lw": 2.5, "alpha": 0.3})
+    # measured loops without a simulated test: each its own colour after the simulated tests' (in one black
+    # they were one grey in the legend)
+    unmatched = [m for m in measured if not any(_same_test(m, r) for r in results)]
+    for i, m in enumerate(unmatched):
+        a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color=f"C{(len(results) + i) % 10}",
+                label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz "
+                      "(no simulated test)", **{**measured_style, "lw": 2.5})
     if inset is not None:
         inset.set_title(f"A={results[small].amplitude_m * 1e3:.3g} mm magnified", fontsize=7)
         inset.tick_params(labelsize=6)
@@ -386,7 +389,9 @@ def plot_loops(results, path, name, measured=()):
     a2.set_xlabel("velocity [mm/s] (> 0: compression)"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
     fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)"
                  + ("; wide light lines: measured" if len(measured) else ""))
+    legend = [(line.get_label(), matplotlib.colors.to_hex(line.get_color())) for line in a1.get_lines()]
     _save_figure(fig, path, "--plot"); plt.close(fig)
+    return legend
 
 
 def cmd_fit(args):
