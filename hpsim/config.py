@@ -54,9 +54,17 @@ def QuantityList(unit: str):
     return Annotated[list[float], BeforeValidator(_parse)]
 
 
+def _plain_number(value: Any) -> Any:
+    value = _strip_source(value)
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
+        raise ValueError(f"expected a number, got {value!r} (a YAML true/false)")
+    return value
+
+
 def Plain():
-    """Annotated float that also accepts the {value:, source:} provenance form."""
-    return Annotated[float, BeforeValidator(_strip_source)]
+    """Annotated float that also accepts the {value:, source:} provenance form (a boolean is refused: YAML reads
+    `yes`, `true`, `on` as one, and pydantic would take it for 1.0)."""
+    return Annotated[float, BeforeValidator(_plain_number)]
 
 
 class Model(BaseModel):

@@ -70,3 +70,22 @@ def test_fit_gives_units_and_flags_parameters_the_data_do_not_identify(capsys):
     # (the strut file says so: "NOT identified by those 5 points"); the bleed they do pin
     assert out["not_identified"] == ["pressure_coefficient"]
     assert "warning: pressure_coefficient is not identified by these data" in captured.err
+    # and says what to do: which tests would identify it, and the fit of the others alone
+    assert "slow tests at two or more mean deflections" in captured.err
+    assert "--fit F0,bleed_area" in captured.err and "loops" in captured.err
+
+
+def test_measured_loops_without_a_simulated_test_get_colours_of_their_own(tmp_path):
+    """Two measured loops with no simulated test: two legend entries in two colours (both were one grey)."""
+    import numpy as np
+
+    from vehicle.cli.strut import plot_loops
+
+    phase = np.linspace(0.0, 1.0, 50, endpoint=False)
+    loops = [{"amplitude_m": A, "frequency_Hz": 1.0, "mean_m": 0.1, "phase": phase,
+              "x_m": 0.1 + A * np.sin(2 * np.pi * phase), "force_N": 4e4 + 1e3 * np.cos(2 * np.pi * phase),
+              "v_m_per_s": 2 * np.pi * A * np.cos(2 * np.pi * phase), "energy_per_cycle_J": 1.0} for A in (0.01, 0.02)]
+    legend = plot_loops([], tmp_path / "loops.png", "apc", loops)
+    measured = [(label, colour) for label, colour in legend if label.startswith("measured")]
+    assert len(measured) == 2 and measured[0][1] != measured[1][1]
+    assert (tmp_path / "loops.png").stat().st_size > 10_000

@@ -375,3 +375,38 @@ def test_export_command_line_errors(monkeypatch, capsys):
     assert main(["export", "fmu", "--strut", "apc", "-o", "x.fmu"]) == 2
     err = capsys.readouterr().err
     assert 'pip install "hpsim[fmu]"' in err and len(err.strip().splitlines()) == 1
+
+
+# --- hostile use through FMI ---------------------------------------------------------------------------
+def test_parameters_out_of_range_and_a_nan_time_are_fmi2_errors_with_a_logged_message(strut_fmu):
+    """modelDescription.xml carries every parameter's min/max; a value outside (a negative charge pressure or
+    stroke, NaN) is refused with fmi2Error and a logged message, the value kept; fmi2DoStep(t = NaN) is an error,
+    not a step to t = NaN; the importer's process goes on (the FMU is used again after each refusal)."""
+    from fmpy.fmi1 import FMICallException
+
+    md = read_model_description(str(strut_fmu))
+    params = {v.name: v for v in md.modelVariables if v.causality == "parameter"}
+    pressure, stroke = params["strut.charge.pressure"], params["strut.geometry.stroke"]
+    assert 0 < float(pressure.min) < float(pressure.start) < float(pressure.max)
+    assert 0 < float(stroke.min) and float(params["motion_centre"].max) == pytest.approx(float(stroke.start))
+    d = Driven(strut_fmu)
+    for name, bad in (("strut.charge.pressure", -1e6), ("strut.geometry.stroke", -0.1), ("T_start", float("nan"))):
+        with pytest.raises(FMICallException) as err:
+            d.set({name: bad})
+        assert err.value.status == 3                                  # fmi2Error
+    assert d.get(["strut.charge.pressure"])[0] == pytest.approx(float(pressure.start))     # kept
+    d.fmu.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        d.fmu.doStep(float("nan"), 0.01)
+    d.fmu.doStep(0.0, 0.01)                                            # and the instance still steps
+    assert np.isfinite(d.get(["force"])[0])
+    d.close()
+
+
+def test_export_refuses_a_motion_centre_outside_the_stroke(tmp_path, capsys):
+    from vehicle.cli import main
+
+    out = tmp_path / "x.fmu"
+    assert main(["export", "fmu", "--strut", "apc", "--mean", "500mm", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--mean" in err and "[0, 234] mm" in err and len(err.strip().splitlines()) == 1 and not out.exists()

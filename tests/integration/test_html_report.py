@@ -8,12 +8,16 @@ import json
 import math
 import re
 import shutil
+import subprocess
+from html import unescape as html_unescape
 from html.parser import HTMLParser
 
+import numpy as np
 import pytest
 
 from vehicle import cli
 from vehicle.presentation import html_report
+from vehicle.results.reader import open_results
 from tests.helpers import REPO
 
 QUICK = REPO / "scenarios" / "quick_demo.yaml"
@@ -96,6 +100,61 @@ def test_html_is_self_contained_and_has_every_per_axle_number(drive, tmp_path, c
     assert seat["crest_factor"] > math.sqrt(2) and seat["daily_sed_MPa"] > seat["sed_MPa"] > 0
 
 
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+# after the page has loaded, every image's decoded size and the table cells, written into the DOM for --dump-dom
+PROBE = """<script>
+window.addEventListener("load", () => {
+  const out = document.createElement("pre"); out.id = "probe";
+  out.textContent = JSON.stringify({
+    images: Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight, i.getBoundingClientRect().width]),
+    cells: Array.from(document.querySelectorAll("table")).map(t => Array.from(t.rows).map(r => Array.from(r.cells).map(c => c.innerText.trim())))});
+  document.body.appendChild(out);
+});
+</script>"""
+
+
+def _chromium(*args, cwd) -> subprocess.CompletedProcess:
+    return subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                           "--disable-component-update", "--disable-sync", "--no-first-run",
+                           f"--user-data-dir={cwd / 'profile'}", *args], capture_output=True, text=True, timeout=180,
+                          cwd=cwd)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (Debian: apt-get install chromium): the "
+                                             "HTML report is not opened in a browser here")
+def test_html_report_renders_in_a_real_browser_with_every_figure_and_the_json_numbers(drive, tmp_path, capsys):
+    """The report opened by headless Chromium: every <img> decodes to a picture with a size on the page, the
+    per-axle table the browser shows holds the numbers of `report --json`, and a screenshot is a page with
+    content (not blank)."""
+    from PIL import Image
+
+    out = tmp_path / "report.html"
+    assert cli.main(["report", str(drive), "--html", str(out)]) == 0
+    capsys.readouterr()
+    assert cli.main(["report", str(drive), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    probed = tmp_path / "probed.html"
+    probed.write_text(out.read_text().replace("</body>", PROBE + "</body>"))
+    dom = _chromium("--virtual-time-budget=10000", "--dump-dom", probed.as_uri(), cwd=tmp_path).stdout
+    probe = json.loads(html_unescape(re.search(r'<pre id="probe">(.*?)</pre>', dom, re.S).group(1)))
+    n_img = out.read_text().count("<img")
+    assert n_img >= 1 and len(probe["images"]) == n_img
+    assert all(done and w > 100 and h > 100 and shown > 100 for done, w, h, shown in probe["images"]), probe["images"]
+    table = next(t for t in probe["cells"] if t and t[0] and t[0][0] == "axle" and "T start [degC]" in t[0])
+    assert len(table) == 1 + len(rep["axles"])
+    for row_json, row in zip(rep["axles"], table[1:]):
+        cells = dict(zip(table[0], row))
+        for key, header, spec in html_report.AXLE_COLUMNS:
+            want = row_json[key] if isinstance(row_json[key], list) else [row_json[key]]
+            decimals = int(spec[1:-1]) if spec.endswith("f") else 0
+            assert all(abs(a - b) <= 0.5 * 10 ** -decimals + 1e-12 for a, b in zip(_numbers(cells[header]), want)), key
+    shot = tmp_path / "report.png"
+    _chromium("--window-size=1200,3000", "--hide-scrollbars", f"--screenshot={shot}", out.as_uri(), cwd=tmp_path)
+    with Image.open(shot) as im:
+        gray = np.asarray(im.convert("L"), float)
+    assert gray.shape == (3000, 1200) and gray.std() > 10          # text and figures, not a blank page
+
+
 def test_pdf_tables_fit_the_page_and_the_first_page_is_a_png(tmp_path):
     """A table wider than the page gets smaller type until it fits; the first page also as a PNG."""
     wide = html_report.Table([f"a long column header {k}" for k in range(16)], [[f"{k}.00" for k in range(16)]] * 3)
@@ -147,6 +206,14 @@ def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):
     text = (tmp_path / "sweep.html").read_text()
     assert "Comparison" in text and "axle 1 dN [%]" in text and text.count("data:image/png") == 1
     assert "30 km/h" in text and "axle 1 dN weighing band [%]" in text and "driver Sed daily [MPa]" in text
+    # who ran it: the hpsim version stored in the cases' files, not "unknown"
+    p = Tables()
+    p.feed(text)
+    run_by = next(row[1] for t in p.tables for row in t if row and row[0] == "run by")
+    from vehicle.results.reader import open_results as _open
+
+    with _open(drive) as r:
+        assert run_by == str(r.scenario_attrs['hpsim_version']) and "unknown" not in run_by
 
     priors = yaml.safe_load("a: {value: 1, prior: {uniform: [0, 2]}}\nb: {value: 1, prior: {uniform: [0, 2]}}")
     params = uq.parameters_from(collect_priors(priors, "toy.yaml"))
@@ -216,10 +283,39 @@ def test_animation_has_one_frame_per_frame_interval_of_a_200_m_span(drive, tmp_p
     assert res["frames"] == expected and res["writer"] == "pillow"
     with Image.open(out) as im:
         assert im.n_frames == expected
+    # played in real time: the frame durations add up to the driving time from the first frame to the last
+    # and one frame interval (1 s) for the last
+    assert _gif_duration_s(out) == pytest.approx(expected * 1.0, abs=0.005)
     assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.gif"), "--from", "0.1km", "--to", "0.5km"]) == 2
     if shutil.which("ffmpeg") is None:
         assert cli.main(["animate", str(drive), "-o", str(tmp_path / "x.mp4")]) == 2
         assert "needs ffmpeg" in capsys.readouterr().err
+
+
+def _gif_duration_s(path) -> float:
+    from PIL import Image, ImageSequence
+
+    with Image.open(path) as im:
+        return sum(frame.info["duration"] for frame in ImageSequence.Iterator(im)) / 1e3
+
+
+def test_gif_frames_of_39_ms_play_in_real_time(drive, tmp_path, capsys):
+    """25 frames a second of a 0.013 s series: every 3rd sample, 39 ms a frame, which a GIF cannot store (whole
+    centiseconds: 3 cs played it 23 % fast); the durations, rounded from the frame times, add up to the driving
+    time within 5 ms. The command line shows a progress bar of the frames on stderr."""
+    from vehicle.presentation import animation
+
+    times = np.arange(200) * 0.039
+    ms = animation.gif_durations_ms(times, 0.039)
+    assert sum(ms) == pytest.approx(1e3 * 200 * 0.039, abs=5) and set(ms) == {40, 30}
+    out = tmp_path / "a.gif"
+    assert cli.main(["animate", str(drive), "-o", str(out), "--from", "0km", "--to", "0.05km", "--fps", "25"]) == 0
+    captured = capsys.readouterr()
+    assert "frame" in captured.err and "100%" in captured.err
+    with open_results(drive) as r:
+        t, s = r.series("time"), r.series("distance")
+    span = t[(s >= 0.0) & (s <= 50.0)][::2]                         # 50 Hz, 25 frames/s: every 2nd sample
+    assert _gif_duration_s(out) == pytest.approx(span[-1] - span[0] + 0.04, abs=0.005)
 
 
 def test_shock_numbers_are_in_the_file_the_json_and_the_api(drive):

@@ -7,16 +7,20 @@ a scale the load a strut held by its seals leaves on the wheel. Each model below
 the reading, drawing its assumptions from priors (each with its source, `PRIORS`), per station (every wheel's
 strut is read on its own: spot, emissivity) or per drive (the delay: one walk round the vehicle).
 
-Pyrometer (surface_temperature), the after-drive reading of station i:
+Pyrometer (surface_temperature), a reading of station i (before and after the drive alike):
     T_hot  = T_s + h (T_oil - T_s)                the hottest skin, over the valve end, between the mean skin
                                                   (the model's surface node) and the oil (it cannot exceed it)
-    T_spot = T_hot - d                            the visible spot d below the hidden hottest part
+    T_spot = T_hot - f (T_hot - T_bg)             the visible spot below the hidden hottest part by a fraction f
+                                                  of its excess over the ambient (the skin loses heat to the
+                                                  ambient in proportion to that excess: no excess, no deficit)
     T_read = radiometric(T_spot, eps, eps_set, T_bg) + noise
 with the temperatures of the standing network (`standing_network`: no driving power, no wind) `delay` after the
-stop. radiometric: a broadband IR thermometer set to eps_set reading a grey surface of emissivity eps before a
-background at T_bg (the ambient):  eps_set T_r^4 + (1 - eps_set) T_bg^4 = eps T^4 + (1 - eps) T_bg^4
-(the radiometric equation, e.g. Incropera 7th ed. §12.4 with the instrument's emissivity compensation).
-Before the drive every node stands at the start temperature (spot and hidden part alike): only the noise.
+stop; before the drive every node stands at the start temperature. radiometric: a broadband IR thermometer set
+to eps_set reading a grey surface of emissivity eps before a background at T_bg (the ambient):
+eps_set T_r^4 + (1 - eps_set) T_bg^4 = eps T^4 + (1 - eps) T_bg^4 (the radiometric equation, e.g. Incropera
+7th ed. §12.4 with the instrument's emissivity compensation). One station's h, f and eps are drawn once and
+read both times (the same instrument on the same spot), so a change's offset is the difference of the two
+readings' offsets: about zero for a strut that did not warm.
 
 Thermocouple (oil_temperature): T_oil after the delay + noise.
 
@@ -61,10 +65,10 @@ PRIOR_SPECS = {
         "source": "assumed: the hottest skin (over the valve end, hidden by the wheel, seed 000 §4.4) lies between "
                   "the mean skin (the heat network's surface node, h = 0) and the oil (h = 1: the oil wets the "
                   "wall there; the skin cannot be hotter than the oil with no heat source outside)"},
-    "pyrometer.spot_below_hottest": {
-        "value": "5 K", "prior": {"uniform": ["0 K", "10 K"]},
-        "source": "REFERENCE §11 / §10: the visible surface 0-10 K below the part hidden by the wheel "
-                  "(seed 000 §4.4)"},
+    "pyrometer.spot_deficit_fraction": {
+        "value": 0.0925, "prior": {"uniform": [0.0, 0.185]},
+        "source": "REFERENCE §11 / §10: the visible surface 0-10 K below the part hidden by the wheel (seed 000 "
+                  "§4.4) with the skin about 54 K above the ambient (REFERENCE §4): 0-10/54 of the excess"},
     "pyrometer.emissivity": {
         "value": 0.925, "prior": {"uniform": [0.90, 0.95]},
         "source": "REFERENCE §11: painted or oxidised steel 0.90-0.95 (emissivity tables)"},
@@ -92,7 +96,7 @@ EMISSIVITY_SETTING = 0.95   # REFERENCE §11 ("0.95 set"): the usual default of 
                             # measurement file's instrument `emissivity_setting` replaces it
 PRIORS: dict[str, Prior] = {k: parse_prior(v, k, "vehicle.analysis.instruments") for k, v in PRIOR_SPECS.items()}
 # which priors a reading of each instrument type uses (and whether per station)
-STATION_PRIORS = ("pyrometer.hot_fraction", "pyrometer.spot_below_hottest", "pyrometer.emissivity")
+STATION_PRIORS = ("pyrometer.hot_fraction", "pyrometer.spot_deficit_fraction", "pyrometer.emissivity")
 DRIVE_PRIORS = ("delay", "tyre.air_temperature_rise", "tyre.inflation_pressure",
                 "tyre.carcass_pressure_fraction")
 
@@ -170,15 +174,28 @@ class StandingNetwork:
 
 
 # --- readings ------------------------------------------------------------------------------------------
-def pyrometer_after_K(T_oil, T_surface, T_background_K, rng, n, emissivity_setting=None) -> np.ndarray:
-    """n draws of the after-drive pyrometer reading of one station [K] (no noise), from the oil and surface
-    temperatures at the moment of reading (arrays of n: one per drawn delay)."""
-    h = draw("pyrometer.hot_fraction", rng, n)
-    d = draw("pyrometer.spot_below_hottest", rng, n)
-    eps = draw("pyrometer.emissivity", rng, n)
+@dataclass
+class PyrometerSpot:
+    """The drawn assumptions of one station's pyrometer readings (arrays of n draws): the hottest skin's place
+    between surface and oil `hot_fraction`, the visible spot's deficit `spot_deficit_fraction` of its excess over
+    the ambient, the true `emissivity` (module docstring)."""
+
+    hot_fraction: np.ndarray
+    spot_deficit_fraction: np.ndarray
+    emissivity: np.ndarray
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator, n: int) -> "PyrometerSpot":
+        return cls(*(draw(name, rng, n) for name in STATION_PRIORS))
+
+
+def pyrometer_reading_K(T_oil, T_surface, T_background_K, spot: PyrometerSpot, emissivity_setting=None) -> np.ndarray:
+    """The pyrometer reading of one station [K] (no noise) for the oil and surface temperatures at the moment of
+    reading (arrays broadcast against the n draws of `spot`), the ambient T_background_K (module docstring)."""
     eps_set = EMISSIVITY_SETTING if emissivity_setting is None else emissivity_setting
-    T_hot = T_surface + h * (T_oil - T_surface)
-    return radiometric_reading_K(T_hot - d, eps, eps_set, T_background_K)
+    T_hot = T_surface + spot.hot_fraction * (T_oil - T_surface)
+    T_spot = T_hot - spot.spot_deficit_fraction * (T_hot - T_background_K)
+    return radiometric_reading_K(T_spot, spot.emissivity, eps_set, T_background_K)
 
 
 def uniform_in_band(low, high, rng, n) -> np.ndarray:

@@ -1,7 +1,8 @@
 """Per-axle summaries of drive results (what `hpsim report` and `hpsim compare` print), from any
 results (a file through vehicle.results.reader.open_results, or a MemorySink).
 
-Per axle, values are the mean of the left and right station:
+Per axle, values are the mean of the left and right station (the dissipated energy: their sum, so that the
+axles add up to the vehicle's total):
   T_start_C / T_end_C    strut temperature before / after the drive: the outer surface (what the
                          seed-000 pyrometer read; the heat network's surface node)
   T_surface_end_C, T_oil_end_C, T_gas_end_C   the surface (= T_end_C) and oil temperatures at the end,
@@ -10,7 +11,7 @@ Per axle, values are the mean of the left and right station:
   dh_mm                  hull height change at the axle, after-drive equilibrium minus
                          before-drive equilibrium (both standing on flat ground)
   N_before_daN / N_after_daN, dN_pct   wheel load in those two equilibria and its change
-  energy_dissipated_MJ   valve + friction + gas heat + end-stop energy of the strut
+  energy_dissipated_MJ   valve + friction + gas heat + end-stop energy of the axle's two struts
   N_charged_daN, dN_charged_pct   the charged (set-up) wheel load and the after-drive change
                          against it
   dN_band_pct, dh_band_mm  [low, high] of dN_pct and dh_mm that two weighings with seal friction
@@ -42,6 +43,11 @@ DISSIPATION = ("valve", "friction", "gas", "end_stop")
 def _axle_mean(a) -> np.ndarray:
     a = np.asarray(a, float)
     return 0.5 * (a[0::2] + a[1::2])
+
+
+def _axle_sum(a) -> np.ndarray:
+    a = np.asarray(a, float)
+    return a[0::2] + a[1::2]
 
 
 def _last_row(r: ResultsView, name: str):
@@ -112,7 +118,7 @@ def report_from(r: ResultsView, name: str) -> dict:
         N1 = np.full(len(axles), np.nan)
         h1 = np.full(len(axles), np.nan)
     E = dissipated_energy_J(r)
-    E_ax = _axle_mean(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
+    E_ax = _axle_sum(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
     bands = weighing_difference_bands({k: r.equilibrium(k) for k in ("before_band", "after_band")}, len(axles))
     n_done = r.counts()[0]
     if "distance_km" in summ and status == "complete":
@@ -244,4 +250,5 @@ def compare(paths) -> dict:
                       "compensation": r["compensation"], "load_shift_pct": r["load_shift_pct"],
                       "load_shift_vs_charged_pct": r["load_shift_vs_charged_pct"],
                       "mean_temperature_rise_K": r["mean_temperature_rise_K"], "axles": r["axles"],
-                      "ride": r.get("ride", {}), "warnings": r.get("warnings", [])} for r in reps]}
+                      "ride": r.get("ride", {}), "warnings": r.get("warnings", []),
+                      "hpsim_version": r.get("hpsim_version", "")} for r in reps]}

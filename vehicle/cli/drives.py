@@ -281,8 +281,9 @@ def cmd_animate(args):
         raise UserInputError(f"--fps: must be in (0, 100] frames per second, got {args.fps}")
     check_output_file(Path(args.output), "-o/--output", make_parents=True, inputs=[args.results],
                       overwrite=args.overwrite)
-    res = animate(args.results, args.output, start, end, fps)
-    print(f"wrote {res['file']} ({res['frames']} frames at {res['fps']:.3g} per second, {res['writer']})")
+    res = animate(args.results, args.output, start, end, fps, progress=getattr(args, "verbosity", 0) >= 0)
+    print(f"wrote {res['file']} ({res['frames']} frames at {res['fps']:.3g} per second, {res['duration_s']:.2f} s, "
+          f"{res['writer']})")
     return 0
 
 

@@ -342,8 +342,9 @@ def _max_frequency() -> float:
 
 def plot_loops(results, path, name, measured=()):
     """Force-displacement and force-velocity loops; measured loops as wide light lines under the model's thin
-    ones (the same colour for the same test, black without a simulated one); the smallest loop on top and, when
-    it is much smaller than the largest, magnified in an inset of the force-velocity panel."""
+    ones (the same colour for the same test, a colour of its own without a simulated one); the smallest loop on
+    top and, when it is much smaller than the largest, magnified in an inset of the force-velocity panel.
+    Returns the (label, colour) of each line of the force-displacement panel."""
     import matplotlib
     import numpy as np
     matplotlib.use("Agg")
@@ -372,11 +373,13 @@ def plot_loops(results, path, name, measured=()):
                 a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color=c, label=f"measured, E={m['energy_per_cycle_J']:.4g} J",
                         **measured_style)
                 a2.plot(m["v_m_per_s"] * 1e3, (m["force_N"] - gas) / 1e3, color=c, **measured_style)
-    for m in measured:
-        if not any(_same_test(m, r) for r in results):
-            a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color="k",
-                    label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz "
-                          "(no simulated test)", **{**measured_style, "lw": 2.5, "alpha": 0.3})
+    # measured loops without a simulated test: each its own colour after the simulated tests' (in one black
+    # they were one grey in the legend)
+    unmatched = [m for m in measured if not any(_same_test(m, r) for r in results)]
+    for i, m in enumerate(unmatched):
+        a1.plot(m["x_m"] * 1e3, m["force_N"] / 1e3, color=f"C{(len(results) + i) % 10}",
+                label=f"measured A={m['amplitude_m'] * 1e3:.3g} mm, f={m['frequency_Hz']:.3g} Hz "
+                      "(no simulated test)", **{**measured_style, "lw": 2.5})
     if inset is not None:
         inset.set_title(f"A={results[small].amplitude_m * 1e3:.3g} mm magnified", fontsize=7)
         inset.tick_params(labelsize=6)
@@ -386,7 +389,9 @@ def plot_loops(results, path, name, measured=()):
     a2.set_xlabel("velocity [mm/s] (> 0: compression)"); a2.set_ylabel("resisting force (F - gas) [kN]"); a2.grid(True)
     fig.suptitle(f"{name}: force-displacement and force-velocity loops (last cycle)"
                  + ("; wide light lines: measured" if len(measured) else ""))
+    legend = [(line.get_label(), matplotlib.colors.to_hex(line.get_color())) for line in a1.get_lines()]
     _save_figure(fig, path, "--plot"); plt.close(fig)
+    return legend
 
 
 def cmd_fit(args):
@@ -409,11 +414,21 @@ def cmd_fit(args):
         except OSError as exc:
             raise UserInputError(f"--write: cannot write {args.write} ({exc.strerror})") from None
     unidentified = [n for n in names if not _identified(res.confidence_95[n])]
+    log = logging.getLogger("hpsim")
     for n in unidentified:
         lo, hi = res.confidence_95[n]
-        logging.getLogger("hpsim").warning(
-            f"{n} is not identified by these data: 95 % confidence interval {lo:.3g} to {hi:.3g} "
-            f"{FIT_UNITS.get(n, '')} ({_orders(lo, hi)}); hold it at a known value or add tests that excite it")
+        log.warning(f"{n} is not identified by these data: 95 % confidence interval {lo:.3g} to {hi:.3g} "
+                    f"{FIT_UNITS.get(n, '')} ({_orders(lo, hi)}); {EXCITED_BY.get(n, 'tests that excite it')} "
+                    "would identify it")
+    if unidentified:
+        kept = [n for n in names if n not in unidentified]
+        n_tests = len(data.tests())
+        log.warning(f"what to do: {n_tests} test(s) of {data.kind} data for {len(names)} parameter(s); "
+                    + (f"fit {', '.join(kept)} alone (--fit {','.join(kept)}) and hold "
+                       f"{', '.join(unidentified)} at the strut file's value(s) (--set to change them)"
+                       if kept else "hold them at the strut file's values and fit one at a time")
+                    + ("; loops (force against deflection per test) identify more than an energy per cycle"
+                       if data.kind == "energy" else ""))
     if args.json:
         out = res.as_dict()
         out["units"] = {n: FIT_UNITS.get(n, "") for n in names}
@@ -428,6 +443,21 @@ def cmd_fit(args):
                            [(i + 1, m, s, 100 * (s - m) / m) for i, (m, s) in enumerate(zip(res.measured, res.model))]))
 
 
+# the rig tests that excite each fittable parameter (what to add when the data do not identify it): the seal
+# friction dominates where the valve force (~ v^2) is small, its pressure part needs different mean pressures,
+# the gas's heat exchange acts at periods near its time constant, the valves at high velocities
+EXCITED_BY = {
+    "F0": "slow tests (peak velocity below about 0.05 m/s, where the valve force is small)",
+    "F0_compression": "slow tests (peak velocity below about 0.05 m/s) as loops, compression half",
+    "F0_rebound": "slow tests (peak velocity below about 0.05 m/s) as loops, rebound half",
+    "pressure_coefficient": "slow tests at two or more mean deflections (different gas pressures)",
+    "breakaway_ratio": "loops of slow tests (the force step at each reversal)",
+    "viscous": "tests over a range of moderate velocities (0.05-0.3 m/s)",
+    "thermal_time_constant": "slow cycles with periods near the gas's time constant (0.01-0.1 Hz)",
+    "bleed_area": "fast tests (peak velocity above about 0.3 m/s)",
+    "discharge_coefficient": "fast tests (peak velocity above about 0.3 m/s)",
+    "polytropic_exponent": "loops of large-amplitude tests (the gas spring's slope)",
+}
 # SI units of the fittable parameters (struts.fit.FITTABLE), for the table
 FIT_UNITS = {"F0": "N", "F0_compression": "N", "F0_rebound": "N", "pressure_coefficient": "N/Pa",
              "breakaway_ratio": "", "viscous": "N s/m", "thermal_time_constant": "s", "bleed_area": "m^2",

@@ -27,7 +27,7 @@ NEW_DESCRIPTION = """Write a complete, commented vehicle file from a few numbers
 Every strut is charged (charging.method load_and_height) to carry its wheel load at the static deflection
 at the charging temperature: the vehicle stands at the given loads and heights. Everything not given
 comes from labelled defaults (vehicle/data/templates/new_vehicle.yaml) and says so in the file; the file
-is checked (hpsim vehicle check) after it is written."""
+is checked (hpsim vehicle check) as the file it will be, and written only when the check passes."""
 
 
 def register(vsub):
@@ -101,20 +101,29 @@ def _as_option(exc: UserInputError) -> UserInputError:
 
 
 def cmd_new(args):
+    """Build the file in memory, check it as the file it will be, and write it only when the check passes."""
+    from pathlib import Path
+
     from hpsim.tables import print_json
 
-    from vehicle.physics.vehicle_builder import write_vehicle
-    from vehicle.physics.vehicle_check import check_file
+    from hpsim.outputs import check_output_file
+    from vehicle.physics.vehicle_builder import built_vehicle, write_text
+    from vehicle.physics.vehicle_check import check_vehicle
     from vehicle.presentation.vehicle_check import format_check
 
+    out = Path(args.output)
     try:
-        path = write_vehicle(spec_from_args(args), args.output, overwrite=args.overwrite)
+        spec = spec_from_args(args)
+        text, params = built_vehicle(spec, out)
     except UserInputError as exc:
         raise _as_option(exc) from None
-    rep = check_file(str(path)).as_dict()
+    check_output_file(out, "-o/--output", make_parents=True, inputs=spec.struts, overwrite=args.overwrite)
+    rep = check_vehicle(params, str(out)).as_dict()
+    if rep["ok"]:
+        write_text(out, text, overwrite=args.overwrite, inputs=spec.struts)
     if args.json:
         print_json(rep)
     else:
         print(format_check(rep))
-        print(f"wrote {path}")
+        print(f"wrote {out}" if rep["ok"] else f"not written: {out} (the vehicle fails its check: see the errors)")
     return 0 if rep["ok"] else 2

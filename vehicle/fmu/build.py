@@ -33,6 +33,9 @@ WRAPPER = Path(__file__).with_name("fmi2_wrapper.c")
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 
 
+DOUBLE_MAX = 1.7976931348623157e308     # the largest finite double (C's DBL_MAX): "no bound"
+
+
 @dataclass
 class Variable:
     """One FMI variable: `index` is its position in p (parameters), u (inputs) or y (outputs)."""
@@ -42,6 +45,8 @@ class Variable:
     description: str
     index: int
     start: float | None = None
+    min: float | None = None        # the allowed range of a parameter (fmi2SetReal refuses a value outside it)
+    max: float | None = None
 
 
 @dataclass
@@ -63,6 +68,17 @@ class FmuSpec:
     run: ca.Function | None = None  # p -> the calculated parameters
     calculated: list[Variable] = field(default_factory=list)   # the entries of p `run` sets
     stop_time_s: float = 10.0
+
+    def parameter_bounds(self) -> tuple[list[float], list[float]]:
+        """Per entry of p, the allowed [min, max] of a value set through FMI: an exposed parameter's range, the
+        start value for an internal entry (it cannot be set), unbounded for a calculated one."""
+        lo, hi = list(self.p_start), list(self.p_start)
+        for v in self.parameters:
+            lo[v.index] = -DOUBLE_MAX if v.min is None else v.min
+            hi[v.index] = DOUBLE_MAX if v.max is None else v.max
+        for v in self.calculated:
+            lo[v.index], hi[v.index] = -DOUBLE_MAX, DOUBLE_MAX
+        return lo, hi
 
     @property
     def sizes(self) -> dict:
@@ -123,6 +139,9 @@ def model_header(spec: FmuSpec, guid: str) -> str:
             f"#define HP_NZ {s['nz']}\n#define HP_NX {s['nx']}\n#define HP_NPW {s['npw']}\n"
             f"#define HP_NRUN {len(spec.calculated)}\n")
     text += _c_array("double", "HP_P_START", spec.p_start)
+    lo, hi = spec.parameter_bounds()
+    text += _c_array("double", "HP_P_MIN", lo)
+    text += _c_array("double", "HP_P_MAX", hi)
     text += _c_array("double", "HP_U_START", [v.start for v in spec.inputs])
     text += _c_array("int", "HP_RATE_OF", spec.rate_of)
     text += _c_array("int", "HP_RUN_INDEX", [v.index for v in spec.calculated])

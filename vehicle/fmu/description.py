@@ -36,13 +36,17 @@ def _fmt(value: float) -> str:
     return repr(float(value))
 
 
-def _scalar(parent, name, vr, description, causality, variability, unit, start=None, initial=None):
+def _scalar(parent, name, vr, description, causality, variability, unit, start=None, initial=None, bounds=(None, None)):
     attrs = {"name": name, "valueReference": str(vr), "description": description, "causality": causality,
              "variability": variability}
     if initial is not None:
         attrs["initial"] = initial
     sv = ET.SubElement(parent, "ScalarVariable", attrs)
     real = {"unit": unit} if unit not in ("1", "") else {}
+    if bounds[0] is not None:
+        real["min"] = _fmt(bounds[0])
+    if bounds[1] is not None:
+        real["max"] = _fmt(bounds[1])
     if start is not None:
         real["start"] = _fmt(start)
     ET.SubElement(sv, "Real", real)
@@ -75,7 +79,8 @@ def model_description(spec, guid: str, source_files: list[str]) -> bytes:
     mv = ET.SubElement(root, "ModelVariables")
     index, outputs, initial_unknowns = 0, [], []
     for v in spec.parameters:
-        _scalar(mv, v.name, v.index, v.description, "parameter", "fixed", v.unit, spec.p_start[v.index], "exact")
+        _scalar(mv, v.name, v.index, v.description, "parameter", "fixed", v.unit, spec.p_start[v.index], "exact",
+                (v.min, v.max))
         index += 1
     for v in spec.calculated:
         _scalar(mv, v.name, v.index, v.description, "calculatedParameter", "fixed", v.unit, None, "calculated")

@@ -16,6 +16,7 @@ import numpy as np
 from pydantic import BaseModel, BeforeValidator
 
 from hpsim.config import load_yaml
+from hpsim.errors import UserInputError
 from struts.params import load_strut, strut_file
 from vehicle.fmu.build import FmuSpec, Variable
 from vehicle.fmu.strut_unit import INPUTS, RATE_OF, RUN_PARAMETERS, StrutUnit
@@ -66,11 +67,35 @@ def source_text(raw, path: list[str]) -> str:
     return str(node.get("source", "")) if isinstance(node, dict) else ""
 
 
+# An FMU parameter re-tunes a validated file: a value set through FMI keeps the sign of the exported one (a zero
+# switches a mechanism off and is structure, not a parameter: hpsim.parameters), so a negative charge pressure or
+# stroke, which the file loaders refuse, is refused too; and it stays within this factor of it, wide enough for a
+# test rig that holds the strut at its temperature by a capacity 1e7-1e8 times the strut's (docs/fmu.md)
+PARAMETER_RANGE_FACTOR = 1e9
+# fractions (the model's `_must_be_fraction` fields) stay within [0, 1]
+FRACTION_FIELDS = ("emissivity", "view_factor", "anti_squat", "anti_dive", "oil_capacity_fraction",
+                   "surface_capacity_fraction")
+# the start temperature of the strut FMU: from the cold case of `hpsim vehicle check` (-30 degC) less 20 K to a
+# strut far beyond its seals' and oil's limits (200 degC), the range where the oil and gas laws are fitted
+T_START_RANGE_K = (223.15, 473.15)
+
+
+def parameter_range(name: str, value: float) -> tuple[float, float]:
+    """The allowed [min, max] of an exposed parameter through FMI (PARAMETER_RANGE_FACTOR, FRACTION_FIELDS)."""
+    a, b = value / PARAMETER_RANGE_FACTOR, value * PARAMETER_RANGE_FACTOR
+    lo, hi = min(a, b), max(a, b)
+    if name.rsplit(".", 1)[-1] in FRACTION_FIELDS:
+        lo, hi = max(lo, 0.0), min(hi, 1.0)
+    return lo, hi
+
+
 def _parameter(name: str, unit: str, raw, path: list[str], changed: bool, index: int, p_start) -> Variable:
-    """An exposed parameter: its unit, and the file's source as description (unless the export changed the value:
-    then the source no longer applies)."""
+    """An exposed parameter: its unit, its allowed range, and the file's source as description (unless the export
+    changed the value: then the source no longer applies)."""
     source = "set at export" if changed else source_text(raw, path)
-    return Variable(name, unit, f"{name} [{unit}]: {source}" if source else f"{name} [{unit}]", index, p_start[index])
+    lo, hi = parameter_range(name, p_start[index])
+    return Variable(name, unit, f"{name} [{unit}]: {source}" if source else f"{name} [{unit}]", index, p_start[index],
+                    lo, hi)
 
 
 def _outputs_as_variables(entries) -> list[Variable]:
@@ -90,12 +115,20 @@ def strut_spec(strut: str, overrides: dict | None = None, *, heat_from: str = "a
     params, base = load_strut(strut, overrides or None), load_strut(strut)
     vehicle = load_vehicle(heat_from)
     unit = StrutUnit(params, vehicle.heat, name=params.name)
-    centre = params.geometry.stroke / 2 if motion_centre_m is None else motion_centre_m
+    stroke = params.geometry.stroke
+    centre = stroke / 2 if motion_centre_m is None else motion_centre_m
     T0 = params.charge.temperature if T_start_K is None else T_start_K
+    if not 0.0 <= centre <= stroke:
+        raise UserInputError(f"--mean: the motion centre must lie in the stroke [0, {stroke * 1e3:.4g}] mm of strut "
+                             f"{params.name}, got {centre * 1e3:.4g} mm")
+    if not T_START_RANGE_K[0] <= T0 <= T_START_RANGE_K[1]:
+        raise UserInputError(f"--start-temperature: must be in [{T_START_RANGE_K[0] - 273.15:g}, "
+                             f"{T_START_RANGE_K[1] - 273.15:g}] degC, got {T0 - 273.15:.4g} degC")
     p_start = unit.default_parameters(centre, T0)
     raw_strut, raw_vehicle = load_yaml(strut_file(strut)), load_yaml(vehicle_file(heat_from))
-    parameters = [Variable(name, u, text, k, p_start[k]) for k, (name, u, text) in enumerate(RUN_PARAMETERS)
-                  if name != "gas_mass"]
+    run_range = {"motion_centre": (0.0, stroke), "T_start": T_START_RANGE_K}
+    parameters = [Variable(name, u, text, k, p_start[k], *run_range[name])
+                  for k, (name, u, text) in enumerate(RUN_PARAMETERS) if name != "gas_mass"]
     for k, name in enumerate(unit.parameters.names):
         head, *path = name.split(".")
         model, raw = (params, raw_strut) if head == "strut" else (vehicle.heat, raw_vehicle.get("heat", {}))
@@ -228,7 +261,7 @@ def vehicle_spec(prepared, *, dt_s: float | None = None, label: str = "") -> Fmu
     initial = ca.Function("init", [p, ca.SX.sym("u", model.nu)], [ca.DM(z0)])
     entries, outputs = _vehicle_outputs(model)
     parameters = [Variable("compensation_enabled", "1", "pressure compensation (levelling) on: 1, off: 0",
-                           2 * model.n, p_start[2 * model.n])]
+                           2 * model.n, p_start[2 * model.n], 0.0, 1.0)]
     V = prepared.vehicle
     raw_vehicle, _ = vehicle_data(S, prepared.source)
     for k, name in enumerate(model.parameters.names):

@@ -311,9 +311,20 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
                        "fmi2SetReal: parameter %u is fixed after initialisation", (unsigned)r);
                 return fmi2Error;
             }
+            if (!(value[k] >= HP_P_MIN[r] && value[k] <= HP_P_MAX[r])) {   /* also NaN */
+                logmsg(c, fmi2Error, "logStatusError",
+                       "fmi2SetReal: parameter %u = %g is outside its allowed range [%g, %g] "
+                       "(modelDescription.xml min/max); not set", (unsigned)r, value[k], HP_P_MIN[r], HP_P_MAX[r]);
+                return fmi2Error;
+            }
             c->s.p[r] = value[k];
             c->s.started = 0;
         } else if (r < HP_NP + HP_NU) {
+            if (!isfinite(value[k])) {
+                logmsg(c, fmi2Error, "logStatusError", "fmi2SetReal: input %u = %g is not a finite number; not set",
+                       (unsigned)r, value[k]);
+                return fmi2Error;
+            }
             c->s.u[r - HP_NP] = value[k];
             c->s.u_time[r - HP_NP] = c->s.t;
             c->s.du[r - HP_NP] = 0.0;
@@ -460,6 +471,11 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c->mode != MODE_STEP) {
         logmsg(c, fmi2Error, "logStatusError", "fmi2DoStep: not initialised");
+        return fmi2Error;
+    }
+    if (!isfinite(t) || !isfinite(h)) {
+        logmsg(c, fmi2Error, "logStatusError", "fmi2DoStep: the step's start %g s and size %g s must be finite",
+               t, h);
         return fmi2Error;
     }
     if (n < 1 || fabs(n_real - (double)n) > 1e-6) {

@@ -262,7 +262,13 @@ def modes(lin: LinearVehicle) -> list[Mode]:
             name = _wheel_mode_name(m, v[wheel_index], wheels)
         w = abs(lam[k])
         out.append(Mode(name, w / (2 * math.pi), -lam[k].real / w, complex(lam[k]), shares))
-    return sorted(out, key=lambda md: md.frequency_hz)
+    out = sorted(out, key=lambda md: md.frequency_hz)
+    seen: dict[str, int] = {}
+    for md in out:           # a name still shared (a near-degenerate pair): numbered from the lowest frequency
+        seen[md.name] = seen.get(md.name, 0) + 1
+        if seen[md.name] > 1:
+            md.name = f"{md.name} #{seen[md.name]}"
+    return out
 
 
 def _wheel_mode_name(model: VehicleModel, wheel_velocities, wheel_energy) -> str:
@@ -272,8 +278,13 @@ def _wheel_mode_name(model: VehicleModel, wheel_velocities, wheel_energy) -> str
     axle = int(np.argmax(per_axle))
     left, right = wheel_velocities[2 * axle], wheel_velocities[2 * axle + 1]
     kind = "hop" if (left * np.conj(right)).real >= 0 else "tramp"
-    axles = [str(k + 1) for k in np.flatnonzero(per_axle >= 0.25 * per_axle.sum())]
-    return f"wheel {kind} (axle{'s' if len(axles) > 1 else ''} {', '.join(axles)})"
+    involved = np.flatnonzero(per_axle >= 0.25 * per_axle.sum())
+    axles = [str(k + 1) for k in involved]
+    # several axles: which move against the strongest one (the same axles make an in-phase and an opposed mode)
+    against = [str(k + 1) for k in involved
+               if (wheel_velocities[2 * k] * np.conj(left)).real < 0]
+    phase = "" if len(axles) == 1 else (", in phase" if not against else f", {', '.join(against)} against {axle + 1}")
+    return f"wheel {kind} (axle{'s' if len(axles) > 1 else ''} {', '.join(axles)}{phase})"
 
 
 def mode_summary(mode_list: list[Mode]) -> dict:

@@ -7,6 +7,7 @@ REFERENCE §3 numbers were derived.
 """
 from __future__ import annotations
 
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Literal
@@ -120,6 +121,25 @@ def strut_reference(value, where: str = "strut") -> str:
                      f"got {value!r}")
 
 
+# Allowed geometry of every vehicle file and of `hpsim vehicle new` (SI, one table for both): a track from a
+# light utility vehicle's to beyond the widest road-legal vehicle (2.55 m overall width, EU 2015/719) with
+# wide off-road tyres; a motion ratio (strut travel / wheel travel) of a real linkage; axles within 30 m of
+# axle 1, the datum of the positions and of hull.cg_x
+VEHICLE_RANGES = {
+    "track": (0.5, 5.0),              # m
+    "motion_ratio": (0.1, 2.0),       # -
+    "axle_position": (0.0, 30.0),     # m behind axle 1
+}
+
+
+def check_range(name: str, value: float, unit: str = "") -> None:
+    """ValueError naming `name`, the allowed range of VEHICLE_RANGES and the value when it lies outside."""
+    lo, hi = VEHICLE_RANGES[name]
+    if not lo <= value <= hi:
+        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}]{' ' + unit if unit else ''}, got {value:g}"
+                         f"{' ' + unit if unit else ''}")
+
+
 class Axle(Model):
     position: m                     # behind axle 1 [m]
     strut: str = "apc"              # built-in strut name or path (strut_reference: also {type: ...}, {file: ...})
@@ -138,8 +158,8 @@ class Axle(Model):
     def _check(self):
         if self.unsprung_mass <= 0:
             raise ValueError(f"unsprung_mass must be > 0 kg, got {self.unsprung_mass}")
-        if not 0.1 <= self.motion_ratio <= 2.0:
-            raise ValueError(f"motion_ratio must be in [0.1, 2.0], got {self.motion_ratio}")
+        check_range("motion_ratio", self.motion_ratio)
+        check_range("axle_position", self.position, "m")
         return self
 
 
@@ -360,14 +380,16 @@ class VehicleParams(Model):
     def _check(self):
         n = len(self.axles)
         pos = [a.position for a in self.axles]
+        if pos[0] != 0.0:
+            raise ValueError(f"axles.0.position: axle 1 is the datum of the positions and of hull.cg_x (0 m), got "
+                             f"{pos[0]:g} m; subtract {pos[0]:g} m from every position (and from hull.cg_x)")
         if any(b <= a for a, b in zip(pos, pos[1:])):
             raise ValueError(f"axles: positions must increase from front to rear, got {pos}")
         if len(self.charging.wheel_loads) != n or len(self.charging.heights or [0] * n) != n:
             raise ValueError(f"charging: wheel_loads and heights need one value per axle ({n})")
         if any(w <= 0 for w in self.charging.wheel_loads):
             raise ValueError("charging.wheel_loads must be > 0 N")
-        if self.track <= 0:
-            raise ValueError(f"track must be > 0 m, got {self.track}")
+        check_range("track", self.track, "m")
         for k in range(n):
             tyre = self.axle_tyre(k)
             if self.axles[k].tyre is not None:
@@ -535,6 +557,7 @@ def with_strut_paths(data: dict, base_dir: Path) -> dict:
             except ValueError:
                 ref = None          # the schema reports it, naming the file
             if ref is not None and ref.endswith((".yaml", ".yml")) and not Path(ref).expanduser().is_absolute():
-                axle = {**axle, "strut": str(base_dir / Path(ref).expanduser())}
+                # normalised: "../" resolves even while the vehicle file's folder is not written yet
+                axle = {**axle, "strut": os.path.normpath(base_dir / Path(ref).expanduser())}
         out.append(axle)
     return {**data, "axles": out}

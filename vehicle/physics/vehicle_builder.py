@@ -16,19 +16,20 @@ With a total mass and CG instead of axle loads the loads are those of a rigid hu
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import yaml
 
-from hpsim.config import load_yaml
+from hpsim.config import load_yaml, parse_yaml, validate
 from hpsim.errors import UserInputError
 from hpsim.outputs import atomic_output, check_output_file
 from hpsim.units import parse_quantity
 from struts.params import load_strut
 
-from vehicle.physics.params import GRAVITY, vehicle_file
+from vehicle.physics.params import GRAVITY, VehicleParams, check_range, vehicle_file, with_strut_paths
 
 MAX_AXLES = 10
 TEMPLATE = "new_vehicle.yaml"
@@ -95,10 +96,14 @@ def _check_spec(s: VehicleSpec) -> int:
     if s.positions_m[0] != 0.0 or any(b <= a for a, b in zip(s.positions_m, s.positions_m[1:])):
         raise UserInputError(f"positions: the first axle at 0 m, the others behind it in increasing order, got "
                              f"{s.positions_m} m")
-    if s.positions_m[-1] > 30.0:
-        raise UserInputError(f"positions: the last axle at {s.positions_m[-1]:g} m; allowed up to 30 m")
-    if not 0.5 <= s.track_m <= 5.0:
-        raise UserInputError(f"track: must be in [0.5, 5] m, got {s.track_m:g} m")
+    try:
+        check_range("axle_position", s.positions_m[-1], "m")
+        check_range("track", s.track_m, "m")
+        for r in s.motion_ratios or []:
+            check_range("motion_ratio", r)
+    except ValueError as exc:
+        name, rest = str(exc).split(" ", 1)
+        raise UserInputError(f"{'positions' if name == 'axle_position' else name}: {rest}") from None
     if (s.axle_loads_N is None) == (s.total_mass_kg is None) or (s.axle_loads_N is not None and s.cg_x_m is not None):
         raise UserInputError("loads: give the axle loads, or the total mass and its CG (mass, cg_x), not both")
     if s.total_mass_kg is not None and (s.cg_x_m is None or not 100.0 <= s.total_mass_kg <= 200e3):
@@ -165,7 +170,17 @@ def _resolved(s: VehicleSpec, n: int, D: dict) -> dict:
             "T": s.charging_temperature_K if s.charging_temperature_K is not None else D["charging_temperature"][0]}
 
 
-def _axle_lines(s: VehicleSpec, V: dict, D: dict) -> list[str]:
+def strut_reference_from(strut: str, folder: Path | None) -> str:
+    """A strut as the vehicle file names it: a built-in name as given; a strut file by its path from `folder`
+    (the vehicle file's folder, which its loader reads strut paths from), the path as given without one."""
+    if not strut.endswith((".yaml", ".yml")):
+        return strut
+    if folder is not None:
+        strut = os.path.relpath(Path(strut).expanduser().resolve(), Path(folder).resolve())
+    return "{file: " + yaml.safe_dump(strut, default_style='"', width=100000).strip() + "}"
+
+
+def _axle_lines(s: VehicleSpec, V: dict, D: dict, folder: Path | None) -> list[str]:
     lines = ["axles:"]
     given_r, given_mu = s.motion_ratios is not None, s.unsprung_masses_kg is not None
     for k in range(V["n"]):
@@ -174,14 +189,14 @@ def _axle_lines(s: VehicleSpec, V: dict, D: dict) -> list[str]:
                 f"({D['unsprung_fraction'][0]:g} of the mean static wheel load)")
         r = f"{{value: {V['r'][k]:.4g}, source: " + yaml.safe_dump(
             "given" if given_r else f"default: {D['motion_ratio'][1]}", default_style='"', width=100000).strip() + "}"
-        strut = V["struts"][k]
-        strut_ref = f"{{file: {strut}}}" if strut.endswith((".yaml", ".yml")) else strut
+        strut_ref = strut_reference_from(V["struts"][k], folder)
         lines += [f"  - {{position: {pos}, strut: {strut_ref},", f"     unsprung_mass: {mu}, motion_ratio: {r}}}"]
     return lines
 
 
-def vehicle_text(s: VehicleSpec) -> str:
-    """The vehicle file's text (YAML with comments) for the spec; see the module doc."""
+def vehicle_text(s: VehicleSpec, folder: str | Path | None = None) -> str:
+    """The vehicle file's text (YAML with comments) for the spec; see the module doc. folder: where the file
+    will be written (strut files are named by their path from there); None: strut paths as given."""
     n = _check_spec(s)
     D = template_defaults()
     V = _resolved(s, n, D)
@@ -205,7 +220,7 @@ def vehicle_text(s: VehicleSpec) -> str:
         f"name: {s.name}",
         "description: " + yaml.safe_dump(description, default_style='"', width=100000).strip(),
         f"track: {_q('%.6g m' % s.track_m, 'given')}",
-    ] + _axle_lines(s, V, D) + [
+    ] + _axle_lines(s, V, D, None if folder is None else Path(folder)) + [
         "hull:",
         f"  # mass and cg_x left out: derived from charging.wheel_loads ({V['sprung']:.6g} kg sprung, CG "
         f"{V['cg_x']:.4g} m behind axle 1)",
@@ -240,17 +255,39 @@ def vehicle_text(s: VehicleSpec) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_vehicle(s: VehicleSpec, path: str | Path, overwrite: bool = False) -> Path:
-    """Write the vehicle file for the spec to `path` (.yaml) through hpsim.outputs: never over one of its strut
-    files, over an existing file only with `overwrite`, whole or not at all."""
+def built_vehicle(s: VehicleSpec, path: str | Path) -> tuple[str, VehicleParams]:
+    """The text of the vehicle file for the spec as it will be written to `path` (.yaml), and the parameters
+    its loader will read from it (strut paths from the file's folder); nothing is written."""
     p = Path(path)
     if p.suffix not in (".yaml", ".yml"):
         raise UserInputError(f"-o/--output: a vehicle file ends in .yaml, got {p}")
-    text = vehicle_text(s)
-    check_output_file(p, "-o/--output", make_parents=True, inputs=s.struts, overwrite=overwrite)
+    text = vehicle_text(s, p.parent)
+    data = parse_yaml(text, str(p))
+    return text, validate(VehicleParams, with_strut_paths(data, p.parent.resolve()), str(p))
+
+
+def write_text(path: str | Path, text: str, overwrite: bool = False, inputs=()) -> Path:
+    """Write a vehicle file's text to `path` through hpsim.outputs: never over one of its `inputs` (its strut
+    files), over an existing file only with `overwrite`, whole or not at all."""
+    p = Path(path)
+    check_output_file(p, "-o/--output", make_parents=True, inputs=inputs, overwrite=overwrite)
     with atomic_output(p) as tmp:
         tmp.write_text(text)
     return p
+
+
+def write_vehicle(s: VehicleSpec, path: str | Path, overwrite: bool = False) -> Path:
+    """Write the vehicle file for the spec to `path` (.yaml) when it passes the statics of `hpsim vehicle
+    check`; a vehicle that does not (it could not be driven) is refused and nothing is written."""
+    from vehicle.physics.vehicle_check import check_vehicle
+
+    text, P = built_vehicle(s, path)
+    check_output_file(Path(path), "-o/--output", make_parents=True, inputs=s.struts, overwrite=overwrite)
+    rep = check_vehicle(P, str(path), modes=False, shipped=None)
+    if rep.errors:
+        raise UserInputError(f"{path}: not written: the vehicle fails its check: "
+                             + "; ".join(str(f) for f in rep.errors))
+    return write_text(path, text, overwrite, inputs=s.struts)
 
 
 def _quantities(value, unit: str, where: str) -> list[float]:

@@ -12,6 +12,9 @@ are the loader's, exit code 2) the way a suspension engineer would before a driv
   static load, the strut deflection and its margins to both end stops, the gas pressure at rest and at
   full bump (compressed from rest to the end of the stroke by the strut's polytropic law, seed 000 eq. 5),
   judged against the strut file's `limits.rated_static_pressure` / `rated_peak_pressure`;
+- the standing vehicle's roll stability at the charging temperature: its roll stiffness against the
+  overturning moment of its sprung weight, the static stability factor and the rollover threshold
+  (`roll_stability`);
 - the linearised modes (vehicle.physics.linear, seal friction equivalent linear at 100 mm/s): bounce,
   pitch, roll and wheel hop with frequency and damping ratio;
 - warnings at the thresholds of `THRESHOLDS`, each naming the key to look at.
@@ -53,6 +56,10 @@ THRESHOLDS = {
     "motion_ratio": (0.4, 1.2),
     # masses against wheel loads: the tolerance of the charged pose's equilibrium (vehicle.physics.equilibrium)
     "mass_tolerance": 5e-3,
+    # quasi-static rollover threshold [g] below which a vehicle tips on a steady turn or a side slope: the
+    # static rollover threshold a heavy vehicle must hold (0.35 g, Australian Performance-Based Standards,
+    # NTC 2008); laden heavy trucks lie at 0.35-0.5 g (Winkler and Ervin 1999, UMTRI-99-19)
+    "min_rollover_threshold_g": 0.35,
 }
 COLD_K = 273.15 - 30.0       # the cold case: -30 degC (the usual low limit of NBR seals, struts/data/*.yaml)
 HOT_RISE_K = 60.0            # the hot case: +60 K (the mileage test's struts rose 54 K: docs/validation.md)
@@ -68,6 +75,7 @@ class Finding:
     level: str          # "error" or "warning"
     key: str            # the vehicle-file key to look at
     message: str
+    drive: bool = True  # repeated before every drive (False: a design remark of `hpsim vehicle check` only)
 
     def as_dict(self) -> dict:
         return {"level": self.level, "key": self.key, "message": self.message}
@@ -87,6 +95,7 @@ class CheckReport:
     modes: list[dict] = field(default_factory=list)
     mode_summary: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    roll: dict = field(default_factory=dict)              # static roll stability (roll_stability)
 
     @property
     def errors(self) -> list[Finding]:
@@ -100,13 +109,14 @@ class CheckReport:
     def ok(self) -> bool:
         return not self.errors
 
-    def add(self, level: str, key: str, message: str) -> None:
-        self.findings.append(Finding(level, key, message))
+    def add(self, level: str, key: str, message: str, drive: bool = True) -> None:
+        self.findings.append(Finding(level, key, message, drive))
 
     def as_dict(self) -> dict:
         return {"vehicle": self.vehicle, "source": self.source, "ok": self.ok,
                 "errors": [f.as_dict() for f in self.errors], "warnings": [f.as_dict() for f in self.warnings],
-                "defaults": self.defaults, "mass": self.mass, "standing": self.cases, "modes": self.modes,
+                "defaults": self.defaults, "mass": self.mass, "standing": self.cases, "roll_stability": self.roll,
+                "modes": self.modes,
                 "mode_summary": self.mode_summary, "notes": self.notes, "thresholds": THRESHOLDS}
 
 
@@ -287,6 +297,64 @@ def _station_rows(model: VehicleModel, eq, T_K: float) -> list[dict]:
     return rows
 
 
+# --- static roll stability ----------------------------------------------------------------------------
+def wheel_rate_N_m(strut_rate_N_m, motion_ratio, tyre_rate_N_m):
+    """Vertical rate of a wheel station on the ground [N/m]: the strut's rate seen at the wheel (k r^2, r strut
+    travel per wheel travel, by virtual work) in series with the tyre (Gillespie 1992 §5, ride rate)."""
+    k_w = strut_rate_N_m * motion_ratio ** 2
+    return k_w * tyre_rate_N_m / (k_w + tyre_rate_N_m)
+
+
+def roll_stiffness_N_m_per_rad(wheel_rates_N_m, lateral_positions_m) -> float:
+    """Roll stiffness of the standing vehicle [N m/rad]: sum_i k_i y_i^2 over the wheel stations (springs at
+    their lateral positions y_i, small roll angles; Gillespie 1992 §7, roll rate)."""
+    k, y = np.asarray(wheel_rates_N_m, float), np.asarray(lateral_positions_m, float)
+    return float(np.sum(k * y ** 2))
+
+
+def rollover_threshold_g(track_m: float, cg_height_m: float, roll_stiffness: float, mass_kg: float) -> float:
+    """Quasi-static rollover threshold [g] of a vehicle rolling on its suspension about an axis at the ground:
+    the static stability factor t / (2 h) times (1 - m g h / K_phi), the CG's lateral shift as the body rolls
+    (moment balance about the outer wheels: a_y h = g (t/2 - h phi), phi = m a_y h / (K_phi - m g h);
+    Gillespie 1992 §9). Zero or less: the vehicle cannot stand upright on its springs."""
+    return track_m / (2.0 * cg_height_m) * (1.0 - mass_kg * GRAVITY * cg_height_m / roll_stiffness)
+
+
+def strut_rate_N_m(strut, x_m: float, T_K: float, gas_mass_kg: float, step_m: float = 1e-4) -> float:
+    """Standing rate of a strut [N/m] at deflection x_m: the slope of its standing gas force (the strut
+    file's static gas law) by a central difference of step_m."""
+    F = lambda x: float(strut.static_gas_force(x, T_K, gas_mass_kg))   # noqa: E731
+    return (F(x_m + step_m) - F(x_m - step_m)) / (2.0 * step_m)
+
+
+def check_roll_stability(P: VehicleParams, model: VehicleModel, eq, masses, rep: CheckReport) -> None:
+    """The standing vehicle at the charging temperature in roll (the functions above): an error when its roll
+    stiffness does not exceed the overturning moment of its sprung weight (m g h per radian of roll, the roll
+    axis at the ground), a warning when the rollover threshold lies below THRESHOLDS' minimum."""
+    T = P.charging.temperature
+    k_wheel = [wheel_rate_N_m(strut_rate_N_m(model.struts[i], float(eq.strut_deflections_m[i]), T, float(masses[i])),
+                              P.axles[i // 2].motion_ratio, P.axle_tyre(i // 2).stiffness) for i in range(model.n)]
+    K = roll_stiffness_N_m_per_rad(k_wheel, [P.station_y(i) for i in range(model.n)])
+    m, h = P.sprung_mass(), P.hull.cg_height
+    overturning = m * GRAVITY * h
+    ssf = P.track / (2.0 * h)
+    threshold = rollover_threshold_g(P.track, h, K, m)
+    rep.roll = {"roll_stiffness_kNm_per_rad": K / 1e3, "overturning_kNm_per_rad": overturning / 1e3,
+                "roll_stiffness_margin": K / overturning, "static_stability_factor": ssf,
+                "tip_over_angle_deg": math.degrees(math.atan(ssf)), "rollover_threshold_g": threshold}
+    if K <= overturning:
+        rep.add("error", "track", f"the standing vehicle falls over on its springs: its roll stiffness "
+                f"{K / 1e3:.4g} kN m/rad (wheel rates at +-track/2 = {P.track / 2:.3g} m) does not exceed the "
+                f"overturning moment of its sprung weight at hull.cg_height, m g h = {overturning / 1e3:.4g} kN m/rad; "
+                "a wider track, stiffer struts or a lower CG")
+        return
+    lowest = THRESHOLDS["min_rollover_threshold_g"]
+    if threshold < lowest:
+        rep.add("warning", "track", f"rollover threshold {threshold:.2f} g (static stability factor t/2h = {ssf:.2f}, "
+                f"less {100 * overturning / K:.0f} % for the body's roll on its springs), below {lowest:g} g: the "
+                "vehicle tips on a steady turn or a side slope a heavy vehicle must hold (track, hull.cg_height)")
+
+
 def check_standing(P: VehicleParams, rep: CheckReport, model: VehicleModel | None = None) -> VehicleModel | None:
     """Charge the struts and stand the vehicle at the three temperature cases (see the module doc)."""
     try:
@@ -306,6 +374,8 @@ def check_standing(P: VehicleParams, rep: CheckReport, model: VehicleModel | Non
             rep.cases.append({"case": name, "temperature_degC": T - 273.15, "stands": False, "stations": []})
             continue
         rows = _station_rows(model, eq, T)
+        if name == "charging":
+            check_roll_stability(P, model, eq, masses, rep)
         rep.cases.append({"case": name, "temperature_degC": T - 273.15, "stands": True,
                           "axle_height_change_mm": (1e3 * eq.axle_height_change_m).tolist(), "stations": rows})
         for k in range(P.n_axles):
@@ -323,37 +393,55 @@ def check_standing(P: VehicleParams, rep: CheckReport, model: VehicleModel | Non
 
 
 def _check_pressures(P: VehicleParams, model: VehicleModel, rep: CheckReport) -> None:
-    """Static and full-bump pressures at the charging temperature against the strut file's ratings."""
-    case = next((c for c in rep.cases if c["case"] == "charging" and c["stands"]), None)
-    if case is None:
-        return
+    """Static and full-bump pressures at the charging temperature, and the full-bump pressures of the cold and
+    hot cases (a hot strut's oil has expanded into its gas volume), against the strut file's ratings."""
     unrated = set()
-    for k in range(P.n_axles):
-        rows = case["stations"][2 * k: 2 * k + 2]
-        limits = model.struts[2 * k].p.limits
-        name = model.struts[2 * k].p.name
-        p_rest = max(r["pressure_rest_MPa"] for r in rows) * 1e6
-        p_bump = max(r["pressure_full_bump_MPa"] for r in rows) * 1e6
-        if limits.rated_static_pressure is None and limits.rated_peak_pressure is None:
-            unrated.add(name)
-            continue
-        peak = limits.rated_peak_pressure
-        if peak is not None and p_rest > peak:
-            rep.add("error", f"axles.{k}.strut", f"strut {name} is too small for axle {k + 1}: it stands at "
-                    f"{p_rest / 1e6:.3g} MPa, above even its rated peak {peak / 1e6:.3g} MPa "
-                    "(limits.rated_peak_pressure); a larger strut or a larger motion ratio")
-            continue
-        static = limits.rated_static_pressure
-        if static is not None and p_rest > static:
-            rep.add("warning", f"axles.{k}.strut", f"strut {name} on axle {k + 1} stands at {p_rest / 1e6:.3g} MPa, "
-                    f"above its rated static pressure {static / 1e6:.3g} MPa (limits.rated_static_pressure)")
-        if peak is not None and p_bump > peak:
-            rep.add("warning", f"axles.{k}.strut", f"strut {name} on axle {k + 1} reaches {p_bump / 1e6:.3g} MPa at "
-                    f"full bump at {P.charging.temperature - 273.15:.1f} degC, above its rated peak "
-                    f"{peak / 1e6:.3g} MPa (limits.rated_peak_pressure)")
+    for case in (c for c in rep.cases if c["stands"]):
+        charging = case["case"] == "charging"
+        over = []                     # (axle, full-bump pressure, rated peak) above the rating in this case
+        for k in range(P.n_axles):
+            rows = case["stations"][2 * k: 2 * k + 2]
+            limits = model.struts[2 * k].p.limits
+            name = model.struts[2 * k].p.name
+            p_rest = max(r["pressure_rest_MPa"] for r in rows) * 1e6
+            p_bump = max(r["pressure_full_bump_MPa"] for r in rows) * 1e6
+            if limits.rated_static_pressure is None and limits.rated_peak_pressure is None:
+                unrated.add(name)
+                continue
+            peak, static = limits.rated_peak_pressure, limits.rated_static_pressure
+            if charging and peak is not None and p_rest > peak:
+                rep.add("error", f"axles.{k}.strut", f"strut {name} is too small for axle {k + 1}: it stands at "
+                        f"{p_rest / 1e6:.3g} MPa, above even its rated peak {peak / 1e6:.3g} MPa "
+                        "(limits.rated_peak_pressure); a larger strut or a larger motion ratio")
+                continue
+            if charging and static is not None and p_rest > static:
+                rep.add("warning", f"axles.{k}.strut", f"strut {name} on axle {k + 1} stands at {p_rest / 1e6:.3g} "
+                        f"MPa, above its rated static pressure {static / 1e6:.3g} MPa (limits.rated_static_pressure)")
+            if peak is not None and p_bump > peak:
+                over.append((k, p_bump, peak))
+        if charging:
+            for k, p_bump, peak in over:
+                rep.add("warning", f"axles.{k}.strut", f"strut {model.struts[2 * k].p.name} on axle {k + 1} reaches "
+                        f"{p_bump / 1e6:.3g} MPa at full bump at {case['temperature_degC']:.1f} degC, above its rated "
+                        f"peak {peak / 1e6:.3g} MPa (limits.rated_peak_pressure)")
+        elif over:
+            worst = max(over, key=lambda o: o[1] / o[2])
+            rep.add("warning", "charging.temperature",
+                    f"at {case['temperature_degC']:.1f} degC ({case['case']}) the struts of axle(s) "
+                    f"{', '.join(str(k + 1) for k, _, _ in over)} reach up to {worst[1] / 1e6:.3g} MPa at full bump, "
+                    f"above their rated peak {worst[2] / 1e6:.3g} MPa (limits.rated_peak_pressure): "
+                    + ("the oil's expansion has taken gas volume, so a full bump compresses the gas further; "
+                       "levelling (compensation) or a lower charge keeps a hot strut off its end stop"
+                       if case["temperature_degC"] > case_temperature(rep, "charging") else
+                       "the cold gas stands lower in the stroke"), drive=False)
     for name in sorted(unrated):
         rep.notes.append(f"strut {name}: no limits.rated_static_pressure / rated_peak_pressure in its file: "
                          "pressures reported, not judged")
+
+
+def case_temperature(rep: CheckReport, name: str) -> float:
+    """The strut temperature [degC] of a standing case of the report."""
+    return next(c["temperature_degC"] for c in rep.cases if c["case"] == name)
 
 
 # --- modes -----------------------------------------------------------------------------------------
@@ -437,5 +525,6 @@ def pre_drive_check(P: VehicleParams, model: VehicleModel | None = None, log=Non
                              "tells more)")
     if log is not None:
         for f in rep.warnings:
-            log(f"vehicle check: {f}")
+            if f.drive:
+                log(f"vehicle check: {f}")
     return rep

@@ -13,8 +13,10 @@ equal axes: sizes at true scale, the road's heights and every motion MOTION_SCAL
 would not show on a 10 m vehicle).
 
 Frames are the stored samples (every k-th, k the largest that gives at least fps frames per second of driving,
-played in real time); written with matplotlib's
-animation writers: ffmpeg for .mp4 where installed, Pillow for .gif."""
+played in real time): an .mp4 through matplotlib's ffmpeg writer where ffmpeg is installed, a .gif by Pillow
+with one duration per frame. A GIF stores durations in whole centiseconds, so each frame shows from its own
+sample's time to the next one's, both rounded to the centisecond (`gif_durations_ms`): the rounding never
+accumulates and the movie lasts the span's driving time (the last frame one frame interval)."""
 from __future__ import annotations
 
 import json
@@ -166,9 +168,46 @@ class SideView:
         return [self.road_line, self.hull, self.cursor, self.label, *self.wheels, *self.struts]
 
 
+def gif_durations_ms(times_s, last_s: float) -> list[int]:
+    """Display time [ms, whole centiseconds] of each frame shown at times_s (the last one for last_s): the
+    differences of the frame times from the first, each rounded to the centisecond, so the durations add up to
+    the driving time to within 5 ms however many frames there are."""
+    t = np.asarray(times_s, float)
+    edges = np.append(t - t[0], t[-1] - t[0] + last_s)
+    centiseconds = np.rint(edges * 100.0).astype(int)
+    return [int(10 * max(1, d)) for d in np.diff(centiseconds)]
+
+
+def _frames(view: "SideView", n: int, progress: bool, name: str):
+    """The frame indices, with a progress bar on stderr when asked (a long span takes minutes to draw)."""
+    if not progress:
+        return range(n)
+    from tqdm import tqdm
+
+    return tqdm(range(n), desc=name, unit="frame", dynamic_ncols=True, mininterval=0.5)
+
+
+def _write_gif(view: "SideView", out: Path, frames, durations_ms: list[int], dpi: int) -> None:
+    """Every frame drawn and kept as an image (as matplotlib's PillowWriter does), then one GIF with a duration
+    per frame."""
+    import io
+
+    from PIL import Image
+
+    images = []
+    for k in frames:
+        view.update(k)
+        buf = io.BytesIO()
+        view.fig.savefig(buf, format="rgba", dpi=dpi)
+        w, h = (int(round(x * dpi)) for x in view.fig.get_size_inches())
+        images.append(Image.frombuffer("RGBA", (w, h), buf.getbuffer(), "raw", "RGBA", 0, 1))
+    images[0].save(out, save_all=True, append_images=images[1:], duration=durations_ms, loop=0)
+
+
 def animate(path, out: str | Path, start_m: float | None = None, end_m: float | None = None, fps: float = FPS,
-            dpi: int = 80) -> dict:
-    """Write the side-view movie (.mp4 with ffmpeg, .gif with Pillow); returns {file, frames, writer}."""
+            dpi: int = 80, progress: bool = False) -> dict:
+    """Write the side-view movie (.mp4 with ffmpeg, .gif with Pillow); returns {file, frames, writer, fps,
+    duration_s}. progress: a progress bar of the frames on stderr."""
     from matplotlib import animation
 
     out = Path(out)
@@ -185,17 +224,26 @@ def animate(path, out: str | Path, start_m: float | None = None, end_m: float | 
     view.fig.canvas.draw()
     view.fig.set_layout_engine("none")          # laid out once: every frame keeps the first frame's layout
     real_fps = 1.0 / d["frame_dt_s"]
-    writer = (animation.FFMpegWriter(fps=real_fps) if suffix == ".mp4" else animation.PillowWriter(fps=real_fps))
-    # frame by frame through the writer (one draw per frame; FuncAnimation.save draws each frame twice), to a
-    # temporary file renamed when complete: an interrupted movie never replaces the old one
+    frames = _frames(view, n, progress, out.name)
+    # to a temporary file renamed when complete: an interrupted movie never replaces the old one
     try:
-        with atomic_output(out) as tmp, writer.saving(view.fig, str(tmp), dpi):
-            for k in range(n):
-                view.update(k)
-                writer.grab_frame()
+        with atomic_output(out) as tmp:
+            if suffix == ".gif":
+                durations = gif_durations_ms(d["time"], d["frame_dt_s"])
+                _write_gif(view, tmp, frames, durations, dpi)
+                duration_s = sum(durations) / 1e3
+            else:
+                writer = animation.FFMpegWriter(fps=real_fps)
+                # frame by frame through the writer (one draw per frame; FuncAnimation.save draws each frame twice)
+                with writer.saving(view.fig, str(tmp), dpi):
+                    for k in frames:
+                        view.update(k)
+                        writer.grab_frame()
+                duration_s = n / real_fps
     finally:
         pyplot().close(view.fig)
-    return {"file": str(out), "frames": n, "writer": "ffmpeg" if suffix == ".mp4" else "pillow", "fps": real_fps}
+    return {"file": str(out), "frames": n, "writer": "ffmpeg" if suffix == ".mp4" else "pillow", "fps": real_fps,
+            "duration_s": duration_s}
 
 
 def save_frame(path, out: str | Path, at_m: float | None = None, dpi: int = 100) -> Path:

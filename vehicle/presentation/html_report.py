@@ -81,7 +81,7 @@ AXLE_COLUMNS = (("axle", "axle", "d"), ("T_start_C", "T start [degC]", ".2f"),
                 ("dh_band_mm", "dh weighing band [mm]", ".2f"), ("N_before_daN", "N before [daN]", ".2f"),
                 ("N_after_daN", "N after [daN]", ".2f"), ("dN_pct", "dN [%]", ".2f"),
                 ("dN_band_pct", "dN weighing band [%]", ".2f"), ("N_charged_daN", "N charged [daN]", ".2f"),
-                ("dN_charged_pct", "dN vs charged [%]", ".2f"), ("energy_dissipated_MJ", "E dissipated [MJ]", ".4f"))
+                ("dN_charged_pct", "dN vs charged [%]", ".2f"), ("energy_dissipated_MJ", "E dissipated, both struts [MJ]", ".4f"))
 
 
 def scenario_words(resolved: dict, rep: dict) -> str:
@@ -310,8 +310,10 @@ def sweep_document(folder: Path) -> Document:
                                                f"{folder / 'summary.csv'} (every column there; here the overrides "
                                                "and the whole-vehicle results)", tuple(range(1, len(shown))))])]
     files = _sweep_files(folder, rows)
+    run_by = ""
     if files:
         cmp = compare(files)
+        run_by = ", ".join(sorted({str(r["hpsim_version"]) for r in cmp["runs"] if r.get("hpsim_version")}))
         labels = [Path(r["file"]).stem for r in cmp["runs"]]
         per_axle = []
         for key, what, spec in (("dN_pct", "dN [%]", ".2f"), ("dN_band_pct", "dN weighing band [%]", ".1f"),
@@ -333,7 +335,7 @@ def sweep_document(folder: Path) -> Document:
         sections.append(sec)
     text = (folder / "summary.csv").read_text()
     return Document(f"hpsim sweep: {folder.name}", [f"The {len(rows)} cases of the sweep in {folder}."], sections,
-                    provenance(text, "", "", str(folder)))
+                    provenance(text, run_by or "no finished case to read it from", "", str(folder)))
 
 
 def document(path: str | Path) -> Document:
@@ -381,6 +383,7 @@ def write_html(doc: Document, out: str | Path) -> Path:
 
 PAGE_IN = (11.69, 8.27)          # A4 landscape [inch]
 LINE = 0.022                     # a text line in figure fractions of the page
+HEADING_WITH_NEXT = 5 * LINE        # room a heading needs below it on its page: itself and a few lines
 
 
 class _Pages:
@@ -456,19 +459,23 @@ def write_pdf(doc: Document, out: str | Path, first_page_png: str | Path | None 
             pages.text(p)
         figures = []
         for sec in doc.sections:
+            figures += [(sec.title, f) for f in sec.figures]
+            if not sec.tables and not sec.paragraphs:
+                continue             # a section of figures only: its title heads its figure pages
+            pages.need(HEADING_WITH_NEXT)        # a heading never ends a page alone
             pages.text(sec.title, size=11, weight="bold")
             for t in sec.tables:
                 pages.table(t)
             for cls, t in sec.paragraphs:
                 pages.text(t, color={"warning": "#8a4b00", "error": "#a00000"}.get(cls, "k"))
-            figures += sec.figures
+        pages.need(HEADING_WITH_NEXT)
         pages.text("Provenance", size=11, weight="bold")
         for k, v in doc.provenance:
             pages.text(f"{k}: {v}")
         pages.flush()
-        for f in figures:
+        for title, f in figures:
             if f.fig is not None:
-                f.fig.suptitle(f.fig._suptitle.get_text() if f.fig._suptitle else f.caption)
+                f.fig.suptitle(f"{title}: " + (f.fig._suptitle.get_text() if f.fig._suptitle else f.caption))
                 pdf.savefig(f.fig)
                 plt.close(f.fig)
                 f.fig = None
@@ -478,7 +485,7 @@ def write_pdf(doc: Document, out: str | Path, first_page_png: str | Path | None 
                 ax = fig.add_axes([0.03, 0.08, 0.94, 0.88])
                 ax.imshow(img)
                 ax.axis("off")
-                fig.text(0.5, 0.03, f.caption, ha="center", fontsize=9)
+                fig.text(0.5, 0.03, f"{title}: {f.caption}", ha="center", fontsize=9)
                 pdf.savefig(fig)
                 plt.close(fig)
         info = pdf.infodict()

@@ -18,7 +18,7 @@ def format_report(rep: dict) -> str:
     cols = ["axle", "T_start_C", "T_end_C", "T_oil_end_C", "T_gas_end_C", "dh_mm", "N_before_daN", "N_after_daN",
             "dN_pct", "energy_dissipated_MJ"]
     headers = ["axle", "T start [degC]", "T surface end [degC]", "T oil end", "T gas end", "dh [mm]",
-               "N before [daN]", "N after [daN]", "dN [%]", "E diss [MJ]"]
+               "N before [daN]", "N after [daN]", "dN [%]", "E diss axle [MJ]"]
     fmts = {"T_start_C": ".1f", "T_end_C": ".1f", "T_oil_end_C": ".1f", "T_gas_end_C": ".1f", "dh_mm": ".2f",
             "N_before_daN": ".0f", "N_after_daN": ".0f", "dN_pct": "+.2f", "energy_dissipated_MJ": ".3f"}
 

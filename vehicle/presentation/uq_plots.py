@@ -61,6 +61,28 @@ def bands_plot(summary: dict, out: str | Path) -> Path:
     return save_figure(fig, Path(out))
 
 
+def _mark_unresolved(summary: dict, output: str, names: list[str], bars) -> str:
+    """Hatch and fade the bars of parameters whose index is not resolved (its interval for all parameters at
+    once includes 0: vehicle.studies.confidence, the ranking the text calls noise); the title's note."""
+    from vehicle.studies.confidence import ranked
+
+    try:
+        _, rows = ranked(summary, output)
+    except (KeyError, TypeError):
+        return ""
+    resolved = {r["parameter"]: r["resolved"] for r in rows}
+    noise = [j for j, name in enumerate(names) if not resolved.get(name, False)]
+    for container in bars:
+        for j in noise:
+            container.patches[j].set_hatch("////")
+            container.patches[j].set_alpha(0.35)
+    if not noise:
+        return ""
+    if len(noise) == len(names):
+        return "\nNOT RESOLVED: every bar is noise at this sample size"
+    return "\nhatched, faded: not resolved (noise at this sample size)"
+
+
 def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
     """Sobol': first-order and total index bars with their 95 % intervals for the headline outputs, and
     a map of the total indices over every output. Latin hypercube: PRCC tornado and map."""
@@ -95,26 +117,29 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
         y = np.arange(len(rows))
         names = [r["parameter"] for r in rows]
         if sobol:
-            panel.barh(y + 0.2, [r["ST"] for r in rows], 0.4, xerr=[r["ST_conf"] for r in rows], color="tab:orange",
-                       label="total ST", capsize=2)
-            panel.barh(y - 0.2, [r["S1"] for r in rows], 0.4, xerr=[r["S1_conf"] for r in rows], color="tab:blue",
-                       label="first order S1", capsize=2)
+            bars = [panel.barh(y + 0.2, [r["ST"] for r in rows], 0.4, xerr=[r["ST_conf"] for r in rows],
+                               color="tab:orange", label="total ST", capsize=2),
+                    panel.barh(y - 0.2, [r["S1"] for r in rows], 0.4, xerr=[r["S1_conf"] for r in rows],
+                               color="tab:blue", label="first order S1", capsize=2)]
             panel.set_xlabel("Sobol' index (whiskers: 95 % bootstrap interval)")
             ends = [r[i] + sgn * r[i + "_conf"] for r in rows for i in ("S1", "ST") for sgn in (-1, 1)
                     if _finite(r[i]) and _finite(r[i + "_conf"])]     # every whisker inside the panel
             panel.set_xlim(min([-0.05] + ends) - 0.05, max([1.05] + ends) + 0.05)
         else:
             v = [r[value] for r in rows]
-            panel.barh(y, v, 0.6, color=["tab:red" if _finite(t) and t > 0 else "tab:blue" for t in v])
+            bars = [panel.barh(y, v, 0.6, color=["tab:red" if _finite(t) and t > 0 else "tab:blue" for t in v])]
             panel.set_xlabel(("PRCC" if value == "prcc" else "Spearman") + " (red: the output rises with it)")
             panel.set_xlim(-1, 1)
         panel.axvline(0, color="k", lw=0.6)
         panel.set_yticks(y, names, fontsize=7)
-        panel.set_title(f"{k} [{summary['units'].get(k, '')}]".replace(" []", ""), fontsize=10)
+        noise = _mark_unresolved(summary, k, names, bars)
+        panel.set_title(f"{k} [{summary['units'].get(k, '')}]".replace(" []", "") + noise, fontsize=10)
         panel.grid(alpha=0.3, axis="x")
-    if sobol:
-        h, lab = ax[0][0].get_legend_handles_labels()
-        sub[0].legend(h, lab, fontsize=8, loc="outside lower center", ncol=2, frameon=False)
+    if sobol:           # plain patches: a bar container's legend entry would copy a hatched (unresolved) bar
+        from matplotlib.patches import Patch
+
+        h = [Patch(color="tab:orange"), Patch(color="tab:blue")]
+        sub[0].legend(h, ["total ST", "first order S1"], fontsize=8, loc="outside lower center", ncol=2, frameon=False)
     hm = sub[1].subplots()
     im = hm.imshow(M[order], aspect="auto", cmap="viridis" if sobol else "RdBu_r", vmin=0 if sobol else -1, vmax=1,
                    interpolation="nearest")

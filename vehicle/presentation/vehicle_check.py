@@ -45,6 +45,13 @@ def format_check(rep: dict) -> str:
                      f"{m['unsprung_total_kg']:.6g} kg unsprung")
     lines += _defaults_text(rep["defaults"])
     lines += _standing_text(rep["standing"])
+    roll = rep.get("roll_stability")
+    if roll:
+        lines.append(f"roll stability (standing, charging temperature): roll stiffness {roll['roll_stiffness_kNm_per_rad']:.4g} "
+                     f"kN m/rad against m g h = {roll['overturning_kNm_per_rad']:.4g} kN m/rad "
+                     f"({roll['roll_stiffness_margin']:.2f} x), static stability factor {roll['static_stability_factor']:.2f} "
+                     f"(tip-over angle {roll['tip_over_angle_deg']:.1f} deg), rollover threshold "
+                     f"{roll['rollover_threshold_g']:.2f} g")
     if rep["modes"]:
         s = rep["mode_summary"]
         rows = [[name, f"{s[name]['frequency_hz']:.3f}", f"{s[name]['damping_ratio']:.3f}"]

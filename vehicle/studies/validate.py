@@ -11,9 +11,9 @@ of a measurement file (vehicle.analysis.measurements):
   measured    the measured value with its standard uncertainty; difference = measured - predicted (nominal)
   inside      band[0] <= measured <= band[1] (the edges count as inside)
 
-Coverage: how many points lie inside their 90 % band, and the band widths (relative to the measured value and
-its uncertainty, so that a band wide enough to hold anything shows as such). Series (logs over time or
-distance): the nominal prediction (and the study's 5-95 % band) at the measured x, and the RMS error.
+Coverage: how many points lie inside their 90 % band, and the band widths (relative to the measured value, for
+a temperature reading its excess over the ambient, and its uncertainty, so that a band wide enough to hold
+anything shows as such). Series (logs over time or distance): the nominal prediction (and the study's 5-95 % band) at the measured x, and the RMS error.
 """
 from __future__ import annotations
 
@@ -166,13 +166,16 @@ def _reading(d: DriveState, p: Point, rng, n, T_oil_r, T_surf_r, grow) -> np.nda
     before_T = float(np.mean(d.T_start[stations]))
     if p.quantity in ("surface_temperature", "oil_temperature"):
         if p.quantity == "surface_temperature" and p.instrument.type == "pyrometer":
-            after = np.mean([inst.pyrometer_after_K(np.broadcast_to(T_oil_r[i], n), np.broadcast_to(T_surf_r[i], n),
-                                                    d.ambient_K, rng, n, p.instrument.emissivity_setting)
-                             for i in stations], axis=0)
+            spots = [inst.PyrometerSpot.draw(rng, n) for _ in stations]
+            read = lambda T_oil, T_surf: np.mean([   # noqa: E731
+                inst.pyrometer_reading_K(T_oil[i], T_surf[i], d.ambient_K, spot, p.instrument.emissivity_setting)
+                for i, spot in zip(stations, spots)], axis=0)
+            after, before = read(T_oil_r, T_surf_r), read(d.T_start, d.T_start)
         else:
             T = T_surf_r if p.quantity == "surface_temperature" else T_oil_r
             after = np.broadcast_to(np.mean(T[stations], axis=0), n).astype(float)
-        return {"change": after - before_T, "after": after, "before": np.full(n, before_T)}[p.compared]
+            before = np.full(n, before_T)
+        return {"change": after - before, "after": after, "before": before}[p.compared]
     if p.quantity == "height":
         dh = d.h_after[k] - d.h_before[k]
         band = d.dh_band_m[k]
@@ -295,15 +298,23 @@ def predict_points(points: list[Point], drives: list[DriveState], nominal: Drive
 def compare_points(points: list[Point], drives: list[DriveState], nominal: DriveState | None, seed: int = 0) -> list[dict]:
     """`predict_points` with the measured value, its uncertainty, the difference and whether it lies inside."""
     out = predict_points(points, drives, nominal, seed)
+    ambient_K = (nominal or drives[0]).ambient_K
     for p, row in zip(points, out):
         lo, hi, ref = row.pop("_si")
         conv, unit = _shown(p.quantity, p.unit, p.compared)
         measured = p.measured
         row.update({"measured": conv(measured), "uncertainty": _delta(p, p.measured_uncertainty, unit),
                     "difference": _delta(p, measured - ref, unit), "inside": bool(lo <= measured <= hi),
-                    "relative_width": float((hi - lo) / max(abs(measured), p.measured_uncertainty)),
+                    "relative_width": float((hi - lo) / max(abs(measured - _width_origin(p, ambient_K)),
+                                                            p.measured_uncertainty)),
                     "source": p.source, "where": p.where})
     return out
+
+
+def _width_origin(p: Point, ambient_K: float) -> float:
+    """What a band width is measured against [SI]: a temperature reading's excess over the ambient (a fraction
+    of the absolute temperature in kelvin says nothing), any other reading or change from zero."""
+    return ambient_K if QUANTITIES[p.quantity].si == "K" and p.compared != "change" else 0.0
 
 
 def _delta(p: Point, v_si: float, unit: str) -> float:
@@ -385,7 +396,10 @@ def coverage(points: list[dict]) -> dict:
     for q, ps in by_q.items():
         out["by_quantity"][q] = {"inside": sum(p["inside"] for p in ps), "points": len(ps), "unit": ps[0]["unit"],
                                  "median_band_width": float(np.median([p["band_width"] for p in ps])),
-                                 "median_relative_width": float(np.median([p["relative_width"] for p in ps]))}
+                                 "median_relative_width": float(np.median([p["relative_width"] for p in ps])),
+                                 "relative_to": "|measured - ambient| (readings), |measured| (changes)"
+                                 if QUANTITIES[q].si == "K" and any(p["compared"] != "change" for p in ps)
+                                 else "|measured|"}
     return out
 
 
@@ -496,7 +510,7 @@ def format_validation(v: dict) -> str:
                      f"(expected about {c['expected_share']:.0%} if the bands are right)")
         for q, b in c["by_quantity"].items():
             lines.append(f"  {q}: {b['inside']}/{b['points']} inside; median band width {b['median_band_width']:.3g} "
-                         f"{b['unit']} = {b['median_relative_width']:.2g} x |measured|"
+                         f"{b['unit']} = {b['median_relative_width']:.2g} x {b['relative_to']}"
                          + ("  (wide: the band would hold almost any reading)" if b["median_relative_width"] > 2 else ""))
     for s in v["series"]:
         share = "" if s["inside_share"] is None else f", {s['inside_share']:.0%} of samples inside the 5-95 % band"

@@ -55,9 +55,13 @@ def test_every_shipped_vehicle_passes(shipped):
     for name in builtin_vehicles():
         rep = shipped.get(name) or check_vehicle(load_vehicle(name), modes=False)
         assert rep.ok, (name, [str(f) for f in rep.errors])
-    assert not shipped["apc_8x8"].warnings, [str(f) for f in shipped["apc_8x8"].warnings]
+    # the apc's one warning: hot (+60 K) its oil's expansion leaves so little gas volume that a full bump
+    # compresses the gas far beyond the strut's rated peak (a design remark, not repeated before a drive)
+    hot = shipped["apc_8x8"].warnings
+    assert [(f.key, f.drive) for f in hot] == [("charging.temperature", False)], [str(f) for f in hot]
+    assert "(hot)" in hot[0].message and "full bump" in hot[0].message
     # the truck's one warning: its assumed pitch inertia puts pitch within 10 % of bounce (docs/vehicles.md)
-    assert _keys(shipped["truck_6x6"]) <= {"hull.pitch_inertia"}
+    assert _keys(shipped["truck_6x6"]) <= {"hull.pitch_inertia", "charging.temperature"}
     for rep in shipped.values():
         s = rep.mode_summary
         assert {"bounce", "pitch", "roll", "wheel_hop_range_hz"} <= set(s)
@@ -103,7 +107,7 @@ def test_static_warnings_fire_on_crafted_files(overrides, key, text):
     found = [f for f in rep.warnings if f.key == key]
     assert found and text in found[0].message, [str(f) for f in rep.warnings]
     if key != "charging.strut_deflection":
-        assert _keys(rep) == {key}
+        assert _keys(rep) - {"charging.temperature"} == {key}      # beside the hot full bump of the shipped apc
 
 
 @pytest.mark.parametrize("overrides,key,text", [
@@ -220,8 +224,10 @@ def test_the_docs_worked_example_stands_checks_and_drives(tmp_path):
         (tmp_path / name).write_text(text)
     P = load_vehicle(tmp_path / "patrol_4x4.yaml")
     rep = check_vehicle(P)
-    # as the doc says: it stands inside the strut's ratings, one warning (bounce and pitch close)
-    assert rep.ok and _keys(rep) == {"hull.pitch_inertia"}, [str(f) for f in rep.findings]
+    # as the doc says: it stands inside the strut's ratings at the charging temperature; two warnings (the hot
+    # full bump, a design remark; bounce and pitch close)
+    assert rep.ok and _keys(rep) == {"hull.pitch_inertia", "charging.temperature"}, [str(f) for f in rep.findings]
+    assert [f.drive for f in rep.warnings if f.key == "charging.temperature"] == [False]
     charged = next(c for c in rep.cases if c["case"] == "charging")
     axle_t = [(charged["stations"][2 * k]["wheel_load_N"] * 2) / GRAVITY / 1e3 for k in range(2)]
     assert axle_t == pytest.approx([7.0, 7.5], rel=5e-3)
@@ -264,3 +270,89 @@ def test_python_api_vehicle_objects(tmp_path):
     assert sim.prepared.vehicle.name == "car"
     with pytest.raises(UserInputError, match="track"):
         vehicle.Vehicle.new(tmp_path / "bad.yaml", positions="0m,3m", axle_loads="5t", track="9 m", ride_height="1 m")
+
+
+# --- one range for vehicle files and `vehicle new`; static roll stability; the hot full bump ---------------
+@pytest.mark.parametrize("overrides,message", [
+    ({"track": "0.2 m"}, r"track must be in \[0.5, 5\] m, got 0.2 m"),
+    ({"track": "1e9 m"}, r"track must be in \[0.5, 5\] m"),
+    ({"axles.0.motion_ratio": True}, "expected a number, got True"),
+    ({"axles.1.position": "31 m", "axles.2.position": "32 m", "axles.3.position": "33 m"}, r"axle_position must be in"),
+    # axle 1 is the datum of the positions and of hull.cg_x: a file that moves it is refused, not misread
+    ({"axles.0.position": "1 m"}, r"axles.0.position: axle 1 is the datum .* got 1 m"),
+])
+def test_vehicle_files_outside_the_shared_ranges_are_refused_naming_the_key(overrides, message):
+    with pytest.raises(UserInputError, match=message):
+        load_vehicle("apc_8x8", overrides)
+
+
+@pytest.mark.parametrize("track,message", [("0.2m", r"--track: must be in \[0.5, 5\] m, got 0.2 m"),
+                                           ("1e9m", r"--track: must be in \[0.5, 5\] m")])
+def test_vehicle_new_refuses_the_same_track_range(tmp_path, capsys, track, message):
+    out = tmp_path / "v.yaml"
+    assert main(["vehicle", "new", "-o", str(out), "--positions", "0m,3m", "--axle-loads", "6t", "--track", track,
+                 "--ride-height", "1m"]) == 2
+    assert re.search(message, capsys.readouterr().err) and not out.exists()
+
+
+def test_rollover_threshold_limits():
+    """Rigid suspension (K -> inf): the static stability factor t/2h; K = m g h: zero (neutral in roll); the
+    roll stiffness of springs at +-t/2 grows with t^2; a wheel rate is the strut's r^2 in series with the tyre."""
+    from vehicle.physics.vehicle_check import roll_stiffness_N_m_per_rad, rollover_threshold_g, wheel_rate_N_m
+
+    assert rollover_threshold_g(2.0, 1.25, 1e30, 2e4) == pytest.approx(0.8, rel=1e-12)
+    assert rollover_threshold_g(2.0, 1.25, 2e4 * GRAVITY * 1.25, 2e4) == pytest.approx(0.0, abs=1e-12)
+    K1, K2 = (roll_stiffness_N_m_per_rad([1e5] * 4, [t / 2, -t / 2] * 2) for t in (1.0, 2.0))
+    assert K1 == pytest.approx(4 * 1e5 * 0.25) and K2 == pytest.approx(4 * K1)
+    assert wheel_rate_N_m(4e5, 0.5, 1e30) == pytest.approx(1e5) and wheel_rate_N_m(4e5, 0.5, 1e5) == pytest.approx(5e4)
+
+
+def test_static_roll_stability_refuses_a_narrow_vehicle_and_warns_a_tippy_one():
+    """The apc_8x8's roll stiffness scales with the track squared: at 0.6 m it cannot carry its own overturning
+    moment m g h (error); at 1.2 m it stands but tips at a few hundredths of g (warning); as shipped it holds."""
+    base = check_vehicle(APC, modes=False).roll
+    assert base["roll_stiffness_margin"] > 2 and base["rollover_threshold_g"] > THRESHOLDS["min_rollover_threshold_g"]
+    assert base["static_stability_factor"] == pytest.approx(APC.track / (2 * APC.hull.cg_height))
+    narrow = check_vehicle(load_vehicle("apc_8x8", {"track": "0.6 m"}), modes=False)
+    assert not narrow.ok and "falls over on its springs" in str(narrow.errors[0])
+    assert narrow.roll["roll_stiffness_kNm_per_rad"] == pytest.approx(base["roll_stiffness_kNm_per_rad"]
+                                                                      * (0.6 / APC.track) ** 2, rel=0.02)
+    tippy = check_vehicle(load_vehicle("apc_8x8", {"track": "1.2 m"}), modes=False)
+    assert tippy.ok and any(f.key == "track" and "rollover threshold" in f.message for f in tippy.warnings)
+
+
+def test_the_hot_full_bump_is_a_design_remark_not_repeated_before_a_drive():
+    from vehicle.physics.vehicle_check import pre_drive_check
+
+    logged = []
+    pre_drive_check(APC, log=logged.append)
+    assert logged == []
+    rep = check_vehicle(APC, modes=False)
+    hot = next(c for c in rep.cases if c["case"] == "hot")
+    worst = max(r["pressure_full_bump_MPa"] for r in hot["stations"])
+    assert f"{worst:.3g} MPa" in rep.warnings[0].message
+
+
+def test_vehicle_new_names_an_own_strut_from_its_own_folder_and_writes_nothing_that_fails(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "st").mkdir()
+    (tmp_path / "st" / "my.yaml").write_text(strut_file("apc").read_text())
+    args = ["vehicle", "new", "-o", "sub/v.yaml", "--positions", "0m,3m", "--axle-loads", "6t", "--ride-height", "1m",
+            "--strut", "st/my.yaml"]
+    assert main(args + ["--track", "2m", "--json"]) == 0
+    capsys.readouterr()
+    assert "file: \"../st/my.yaml\"" in (tmp_path / "sub" / "v.yaml").read_text()
+    assert load_vehicle(tmp_path / "sub" / "v.yaml").axles[0].strut == str(tmp_path / "st" / "my.yaml")
+    # 0.6 m track: in range, but the vehicle falls over on its springs: its own check fails, nothing is written
+    assert main(args[:3] + ["sub/w.yaml"] + args[4:] + ["--track", "0.6m"]) == 2
+    out = capsys.readouterr().out
+    assert "falls over on its springs" in out and "not written" in out and not (tmp_path / "sub" / "w.yaml").exists()
+
+
+def test_every_mode_has_its_own_name(shipped):
+    """Wheel modes of several axles say which axles move against which (the same axles make an in-phase and an
+    opposed mode: both were 'wheel tramp (axles 1, 2)'); no two modes of a vehicle share a name."""
+    for rep in shipped.values():
+        names = [md["name"] for md in rep.modes]
+        assert len(set(names)) == len(names), names
+    assert any("against" in n for n in (md["name"] for md in shipped["apc_8x8"].modes))

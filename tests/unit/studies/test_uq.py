@@ -291,3 +291,30 @@ def test_tiny_drive_study_end_to_end(tmp_path, capsys):
     # a re-run finds every case done and runs nothing
     assert cli.main(args) == 0
     assert json.loads(capsys.readouterr().out)["ran_now"] == 0
+
+
+def test_the_ranking_plot_marks_the_bars_its_text_calls_noise(tmp_path):
+    """A toy study whose output follows a and not c: c's bar is hatched and faded and the panel says why (its
+    interval for all parameters at once includes 0, the line of `uq` says 'not resolved'); a's bar is not."""
+    import json as _json
+
+    import yaml as _yaml
+
+    from hpsim.priors import collect_priors as _collect
+    from vehicle.presentation.plots import pyplot
+    from vehicle.presentation.uq_plots import _mark_unresolved, sensitivity_plot
+    from vehicle.studies.confidence import ranked
+
+    priors = _yaml.safe_load("a: {value: 1, prior: {uniform: [0, 2]}}\nc: {value: 1, prior: {uniform: [0, 2]}}")
+    params = uq.parameters_from(_collect(priors, "toy.yaml"))
+    uq.run_study(tmp_path / "study", params, lambda case, v: {"axle1.rise_K": 3 * v["a"] + 0.0 * v["c"]},
+                 method="sobol", samples=32, seed=1, workers=1)
+    summary = _json.loads((tmp_path / "study" / "summary.json").read_text())
+    resolved = {r["parameter"]: r["resolved"] for r in ranked(summary, "axle1.rise_K")[1]}
+    assert resolved["a"] and not resolved["c"]
+    fig, ax = pyplot().subplots()
+    bars = [ax.barh([0, 1], [0.0, 1.0])]
+    note = _mark_unresolved(summary, "axle1.rise_K", ["c", "a"], bars)
+    assert "not resolved" in note and bars[0].patches[0].get_hatch() and not bars[0].patches[1].get_hatch()
+    pyplot().close(fig)
+    assert sensitivity_plot(summary, tmp_path / "rank.png").stat().st_size > 10_000

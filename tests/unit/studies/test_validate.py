@@ -280,6 +280,47 @@ def test_a_thermocouple_read_at_once_reads_the_oil_and_later_less(work, tmp_path
             assert hi < p["predicted"] - 1.0
 
 
+@pytest.mark.parametrize("warming_K", [0.0, 2.0])
+def test_a_strut_that_did_not_warm_reads_no_pyrometer_change(work, tmp_path, warming_K):
+    """The pyrometer's offsets (the visible spot below the hidden hottest part, the emissivity) scale with the
+    skin's excess over the ambient and the same spot is read before and after: a strut standing at the ambient
+    that did not warm reads a change band holding 0 with a median within the noise (0.1 K per reading: the
+    5-95 % band of a change is +-1.645 x 0.14 K); one warmed by 2 K reads a warming of less than 2 K (the
+    spot up to 18.5 % below, minutes of cooling of the fixture's light 2 kJ/K struts), never a cooling."""
+    import dataclasses
+
+    from vehicle.studies.validate import compare_points, read_drive
+
+    d = read_drive(work / "drive.h5")
+    T0 = np.full_like(d.T_start, d.ambient_K)
+    d = dataclasses.replace(d, T_start=T0, T_oil=T0 + warming_K, T_wall=T0 + warming_K, T_surface=T0 + warming_K)
+    f = tmp_path / "pyro.yaml"
+    f.write_text("instruments: {pyro: {type: pyrometer, uncertainty: 0.1 K}}\npoints:\n"
+                 "  - {quantity: surface_temperature, axle: 1, before: 25 degC, after: 25 degC, instrument: pyro}\n")
+    p = compare_points(read_measurements(f).points, [d], d, seed=1)[0]
+    lo, hi = p["band"]
+    if warming_K == 0.0:
+        assert lo < 0.0 < hi and hi - lo < 0.5
+        assert abs(p["reading_median"]) < 0.03
+    else:
+        assert 0.2 < p["reading_median"] < warming_K and lo > -0.3
+
+
+def test_a_temperature_reading_band_width_is_relative_to_its_excess_over_the_ambient(work, tmp_path):
+    """A strut read at 80 degC with the ambient at 25 degC: the band width is a fraction of the 55 K excess, not
+    of 353 K (which makes any band look narrow)."""
+    from vehicle.studies.validate import compare_points, read_drive
+
+    d = read_drive(work / "drive.h5")
+    f = tmp_path / "after.yaml"
+    f.write_text("instruments: {pyro: {type: pyrometer, uncertainty: 1 K}}\npoints:\n"
+                 "  - {quantity: surface_temperature, axle: 1, after: 80 degC, instrument: pyro}\n")
+    p = compare_points(read_measurements(f).points, [d], d, seed=1)[0]
+    width = p["band"][1] - p["band"][0]
+    assert p["relative_width"] == pytest.approx(width / (353.15 - d.ambient_K), rel=1e-9)
+    assert d.ambient_K == pytest.approx(298.15)
+
+
 def test_standing_struts_cool_toward_the_ambient(work):
     from vehicle.studies.validate import read_drive
 
