@@ -28,6 +28,7 @@ from hpsim import symbolic as sym
 __all__ = [
     "GAS_CONSTANT_J_PER_MOL_K",
     "STANDARD_GRAVITY_M_S2",
+    "solubility_ratio",
     "ostwald_coefficient",
     "release_rate",
     "interface_entrainment_rate",
@@ -40,13 +41,18 @@ GAS_CONSTANT_J_PER_MOL_K = 8.314462618   # CODATA 2018
 STANDARD_GRAVITY_M_S2 = 9.80665          # ISO 80000-3
 
 
-def ostwald_coefficient(T_K, L_ref, T_ref_K, solution_enthalpy_J_per_mol):
-    """Ostwald coefficient L [-] (dissolved gas volume at its partial pressure per liquid volume) at T [K].
+def solubility_ratio(T_K, T_ref_K, solution_enthalpy_J_per_mol):
+    """L(T)/L(T_ref) [-]: van 't Hoff's temperature dependence of Henry's law, exp(dH/R (1/T_ref - 1/T)).
 
-    Henry's law with van 't Hoff's temperature dependence: L = L_ref exp(dH/R (1/T_ref - 1/T)) (Sander 2015,
-    Atmos. Chem. Phys. 15, 4399, eq. 19); dH > 0 [J/mol]: more soluble when warmer (nitrogen in oils).
+    (Sander 2015, Atmos. Chem. Phys. 15, 4399, eq. 19); dH > 0 [J/mol]: more soluble when warmer (nitrogen in oils).
     """
-    return L_ref * sym.exp(solution_enthalpy_J_per_mol / GAS_CONSTANT_J_PER_MOL_K * (1.0 / T_ref_K - 1.0 / T_K))
+    return sym.exp(solution_enthalpy_J_per_mol / GAS_CONSTANT_J_PER_MOL_K * (1.0 / T_ref_K - 1.0 / T_K))
+
+
+def ostwald_coefficient(T_K, L_ref, T_ref_K, solution_enthalpy_J_per_mol):
+    """Ostwald coefficient L [-] (dissolved gas volume at its partial pressure per liquid volume) at T [K]:
+    L_ref `solubility_ratio`."""
+    return L_ref * solubility_ratio(T_K, T_ref_K, solution_enthalpy_J_per_mol)
 
 
 def release_rate(q_m3_s, dp_Pa, L, efficiency, p_ref_Pa, emulsion_volume_m3, dp_smoothing_Pa):
@@ -70,13 +76,10 @@ def interface_entrainment_rate(a_m_s2, nu_m2_s, nu_ref_m2_s, coefficient_per_s, 
     return coefficient_per_s * viscous * sym.smooth_abs(a_m_s2, a_smoothing) / STANDARD_GRAVITY_M_S2
 
 
-def dissolution_rate(gamma0, L, L_ref, tau_s):
-    """d gamma_0/dt [1/s] of free gas leaving the emulsion: -gamma_0 (L/L_ref)/tau_d (module docstring).
-
-    With L_ref = 0 (no solubility data) the solubility factor is 1.
-    """
-    factor = L / L_ref if L_ref else 1.0
-    return -gamma0 * factor / tau_s
+def dissolution_rate(gamma0, solubility_ratio_, tau_s):
+    """d gamma_0/dt [1/s] of free gas leaving the emulsion: -gamma_0 (L/L_ref)/tau_d (module docstring); the
+    solubility ratio L/L_ref from `solubility_ratio`, tau_d [s] at the reference temperature."""
+    return -gamma0 * solubility_ratio_ / tau_s
 
 
 def interface_lag_rate(v_lag_m_s, v_m_s, tau_s):

@@ -6,11 +6,12 @@ does the same to one loop of `struts.rig.cycle_test`, in three steps that each u
 relations on the loop's signals (deflection x, deflection rate v, pressures p_c and p_r, seal friction f =
 F - p_c A_c + p_r (A_c - A_r), seed 001 eq. 1, which is how the paper obtained its friction):
 
-1. gas fraction gamma_0 (eq. 4, 8-10): the emulsion's mass is conserved, so with the polytropic gas volume
-   V_g(p_c) (eq. 4) and the chamber volumes of eq. 5-7 the residual
-   (V_c(x) - V_g(p_c)) / nu(p_c) + V_r(x) / nu(p_r) - N is zero at every sample; gamma_0 minimises its squares;
-2. discharge coefficients C_b, C_v (eq. 12): the flow into the rod chamber q = (rho_r/rho_m)(A_a v + V_r kappa_r
-   dp_r/dt) (eq. 6) against eq. 12 at the loop's dp, least squares over the loop;
+1.-2. gas fraction gamma_0 and discharge coefficients C_b, C_v together (eq. 6, 8-12): the flow into the rod
+   chamber, q = (rho_r/rho_m)(A_a v + V_r kappa_r dp_r/dt) by its continuity (eq. 6), against eq. 12 at the
+   loop's dp, least squares over the loop. gamma_0 acts through the compressibility kappa_r (eq. 11), i.e. through
+   the pressure-difference hysteresis, as the paper identified it from the hysteresis at higher frequency. The gas
+   law is not used, so a strut whose gas does not follow eq. 4 is identified all the same; the loops must come from
+   chambers with their pressures as states (eq. 5-7 as written: `--chambers compressible`);
 3. friction (eq. 2-3): Coulomb and peak levels, Stribeck coefficients and transition velocities per stroke, least
    squares of `struts.friction.seal_friction` against f.
 
@@ -22,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import least_squares
 
 from . import friction as fr
 from . import valves
@@ -30,7 +31,7 @@ from .model import make_strut
 from .params import StrutParams
 
 # the overrides that make a strut file seed 001's identified model (eq. 1-12 with constant internal parameters)
-PAPER_MODEL = {"internals": "identified", "gas": {"process": "polytropic"}, "friction": {"model": "stribeck"}}
+PAPER_MODEL = {"internals": "identified", "gas.process": "polytropic", "friction.model": "stribeck"}
 
 FRICTION_NAMES = ("coulomb_compression", "coulomb_rebound", "peak_compression", "peak_rebound",
                   "stribeck_coefficient_compression", "stribeck_coefficient_rebound",
@@ -66,31 +67,23 @@ def paper_model(params: StrutParams) -> StrutParams:
     return params.with_overrides(PAPER_MODEL)
 
 
-def _mass_residual(strut, loop: Loop, gamma0: float) -> np.ndarray:
-    """Emulsion-mass residual [m^3 at p0] of step 1 (module docstring) at each sample."""
-    P, T = strut.p, loop.T_K
-    m_gas = strut.charge_gas_mass
-    p_ext, V_ext = strut._polytropic_reference(T, m_gas, 0.0)
-    n = P.gas.polytropic_exponent
-    V_g = V_ext * (p_ext / loop.p_c_Pa) ** (1.0 / n)
-    g = P.geometry
-    V_c = g.piston_chamber_oil_volume + g.gas_volume_extended - strut.piston_area * loop.x_m \
-        - strut._thermal_gas_volume_loss(T, 0.0)
-    V_r = g.rod_chamber_volume + strut.annulus_area * loop.x_m
-    nu_c = strut.emulsion(loop.p_c_Pa, T, gamma0)["nu"]
-    nu_r = strut.emulsion(loop.p_r_Pa, T, gamma0)["nu"]
-    return (V_c - V_g) / nu_c + V_r / nu_r - strut.emulsion_volume_charged
+def paper_model_at(params: StrutParams, T_K: float, f_Hz: float, values: dict | None = None) -> StrutParams:
+    """Seed 001's model of one test: the internal parameters held constant (a one-point map) at `values`
+    (`IDENTIFIED_NAMES` -> SI; default: the file's maps or constants at T_K [K] and f_Hz [Hz]), as the paper
+    simulated each test with the parameters it identified for it."""
+    base = paper_model(params)
+    if values is None:
+        values = make_strut(base).internal_parameters(T_K, f_Hz)
+    one_point = {n: {"values": [[float(values[n])]], "sources": [["identified"]],
+                     "legend": {"identified": "one test's identified value"}} for n in IDENTIFIED_NAMES}
+    return base.with_overrides({"internal_maps": None}).with_overrides(
+        {"internal_maps": {"temperatures": [float(T_K)], "frequencies": [float(f_Hz)], **one_point}})
 
 
-def identify_gas_fraction(strut, loop: Loop) -> float:
-    """gamma_0 [-] minimising the emulsion-mass residual over the loop (step 1)."""
-    res = minimize_scalar(lambda g: float(np.sum(_mass_residual(strut, loop, g) ** 2)),
-                          bounds=(0.0, 0.2), method="bounded", options={"xatol": 1e-9})
-    return float(res.x)
-
-
-def _rod_chamber_flow(strut, loop: Loop, gamma0: float):
-    """(q [m^3/s] c -> r, rho_m [kg/m^3]) from the rod chamber's continuity (seed 001 eq. 6) over the loop."""
+def _rod_chamber_balance(strut, loop: Loop, values) -> np.ndarray:
+    """Relative misfit of the rod chamber's continuity (seed 001 eq. 6, 12) over the loop at (gamma_0, C_b, C_v):
+    eq. 12's flow at the loop's dp against (rho_r/rho_m)(A_a v + V_r kappa_r dp_r/dt)."""
+    gamma0, cb, cv = values
     T = loop.T_K
     em_c = strut.emulsion(loop.p_c_Pa, T, gamma0)
     em_r = strut.emulsion(loop.p_r_Pa, T, gamma0)
@@ -98,27 +91,27 @@ def _rod_chamber_flow(strut, loop: Loop, gamma0: float):
     dt = period / (len(loop.t_s) - 1)
     # periodic central difference (the samples span one period, the end point repeating the start)
     p = loop.p_r_Pa[:-1]
-    dp_r = np.append((np.roll(p, -1) - np.roll(p, 1)) / (2.0 * dt), 0.0)
-    dp_r[-1] = dp_r[0]
+    dp_r = (np.roll(p, -1) - np.roll(p, 1)) / (2.0 * dt)
+    dp_r = np.append(dp_r, dp_r[0])
     V_r = strut.p.geometry.rod_chamber_volume + strut.annulus_area * loop.x_m
     rho_m = 0.5 * (em_c["rho"] + em_r["rho"])
     q = em_r["rho"] / rho_m * (strut.annulus_area * loop.v_m_per_s + V_r * em_r["kappa"] * dp_r)
-    return q, rho_m
+    kw = strut._valve_kwargs(rho_m, T, {"bleed_discharge_coefficient": cb, "check_discharge_coefficient": cv})
+    return (valves.valve_flow(loop.p_c_Pa - loop.p_r_Pa, **kw) - q) / float(np.max(np.abs(q)))
 
 
-def identify_discharge_coefficients(strut, loop: Loop, gamma0: float) -> tuple[float, float]:
-    """(C_b, C_v) [-]: eq. 12 against the rod chamber's flow over the loop (step 2)."""
-    q, rho_m = _rod_chamber_flow(strut, loop, gamma0)
-    dp = loop.p_c_Pa - loop.p_r_Pa
-    scale = float(np.max(np.abs(q)))
+def identify_emulsion_and_valves(strut, loop: Loop) -> tuple[float, float, float]:
+    """(gamma_0, C_b, C_v) [-] fitted together to the rod chamber's continuity over the loop (steps 1-2 of the
+    module docstring). gamma_0 acts through the emulsion's compressibility, C_b and C_v through eq. 12."""
+    sol = least_squares(lambda c: _rod_chamber_balance(strut, loop, c), x0=[0.006, 0.65, 0.6],
+                        bounds=([0.0, 0.05, 0.05], [0.5, 1.0, 1.0]), x_scale=[0.006, 0.65, 0.6],
+                        xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    return float(sol.x[0]), float(sol.x[1]), float(sol.x[2])
 
-    def residual(c):
-        kw = strut._valve_kwargs(rho_m, loop.T_K, {"bleed_discharge_coefficient": c[0],
-                                                   "check_discharge_coefficient": c[1]})
-        return (valves.valve_flow(dp, **kw) - q) / scale
 
-    sol = least_squares(residual, x0=[0.65, 0.6], bounds=([0.05, 0.05], [1.0, 1.0]), xtol=1e-12, ftol=1e-12)
-    return float(sol.x[0]), float(sol.x[1])
+# width of sgn(x - mean) in the fitted band: the loop is sampled, not integrated, so the reversal test can be sharp
+# (the rig's band reads its reversal memory, which is +-1 wherever the band acts)
+_REVERSAL_SHARPNESS_M = 1e-7
 
 
 def _friction_model(strut, loop: Loop, values) -> np.ndarray:
@@ -131,36 +124,44 @@ def _friction_model(strut, loop: Loop, values) -> np.ndarray:
         v_s=1.0 / i["stribeck_coefficient_compression"], v_s_reb=1.0 / i["stribeck_coefficient_rebound"],
         f_v=strut.friction_viscous(loop.T_K), eps=f.smoothing_velocity,
         v_h_comp=i["transition_velocity_compression"], v_h_reb=i["transition_velocity_rebound"],
-        eps_x=f.hysteresis_smoothing_displacement)
+        eps_x=_REVERSAL_SHARPNESS_M)
 
 
 def identify_friction(strut, loop: Loop) -> dict:
-    """Seed 001 eq. 2-3 per stroke fitted to the loop's friction (step 3): `FRICTION_NAMES` -> value (SI)."""
+    """Seed 001 eq. 2-3 per stroke fitted to the loop's friction (step 3): `FRICTION_NAMES` -> value (SI).
+
+    Least squares from several starts (Stribeck coefficients and transition velocities spanning the paper's
+    ranges: the cost has local minima where a weak Stribeck term trades against the band), the best one kept.
+    The peaks are parametrised by their excess over the Coulomb levels, so they stay above them."""
     fN = loop.friction_N
     v = loop.v_m_per_s
-    comp, reb = v > 0, v < 0
-    F_c0 = float(np.median(np.abs(fN[comp]))) if comp.any() else 100.0
-    F_r0 = float(np.median(np.abs(fN[reb]))) if reb.any() else 100.0
-    x0 = np.array([F_c0, F_r0, 1.3 * F_c0, 1.3 * F_r0, 40.0, 40.0, 0.012, 0.012])
-    lower = np.array([1.0, 1.0, 1.0, 1.0, 0.1, 0.1, 1e-4, 1e-4])
-    upper = np.array([1e5, 1e5, 1e5, 1e5, 1e4, 1e4, 0.5, 0.5])
+    F_c0 = float(np.median(np.abs(fN[v > 0]))) if np.any(v > 0) else 100.0
+    F_r0 = float(np.median(np.abs(fN[v < 0]))) if np.any(v < 0) else 100.0
     scale = max(float(np.max(np.abs(fN))), 1.0)
 
-    def residual(p):
-        # peaks are kept above the Coulomb levels by parametrising their excess
+    def values_of(p):
         values = p.copy()
         values[2] = p[0] + p[2]
         values[3] = p[1] + p[3]
-        return (_friction_model(strut, loop, values) - fN) / scale
+        return values
 
-    start = x0.copy()
-    start[2], start[3] = 0.3 * F_c0, 0.3 * F_r0
-    sol = least_squares(residual, x0=start, bounds=(lower * 0.0 + [1, 1, 0, 0, 0.1, 0.1, 1e-4, 1e-4], upper),
-                        x_scale=np.abs(start) + 1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=4000)
-    values = sol.x.copy()
-    values[2] = sol.x[0] + sol.x[2]
-    values[3] = sol.x[1] + sol.x[3]
-    return dict(zip(FRICTION_NAMES, (float(v) for v in values)))
+    def residual(p):
+        return (_friction_model(strut, loop, values_of(p)) - fN) / scale
+
+    lower = [1.0, 1.0, 0.0, 0.0, 0.1, 0.1, 1e-4, 1e-4]
+    upper = [1e5, 1e5, 1e5, 1e5, 1e4, 1e4, 0.5, 0.5]
+    best = None
+    for k0, vh0 in _FRICTION_STARTS:
+        start = np.array([F_c0, F_r0, 0.3 * F_c0, 0.3 * F_r0, k0, k0, vh0, vh0])
+        sol = least_squares(residual, x0=start, bounds=(lower, upper), x_scale=np.abs(start),
+                            xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=4000)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    return dict(zip(FRICTION_NAMES, (float(x) for x in values_of(best.x))))
+
+
+# starts of the friction fit: Stribeck coefficient [s/m] and transition velocity [m/s] (seed 001 Fig. 11c-d ranges)
+_FRICTION_STARTS = tuple((k, vh) for k in (2.0, 20.0, 80.0) for vh in (0.008, 0.03))
 
 
 def identify_loop(params: StrutParams, loop: Loop) -> dict:
@@ -169,8 +170,27 @@ def identify_loop(params: StrutParams, loop: Loop) -> dict:
     params: the strut file (its geometry, charge, oil and Table 1 values); the identification uses it as the
     paper's model (`paper_model`)."""
     strut = make_strut(paper_model(params))
-    gamma0 = identify_gas_fraction(strut, loop)
-    cb, cv = identify_discharge_coefficients(strut, loop, gamma0)
+    gamma0, cb, cv = identify_emulsion_and_valves(strut, loop)
     out = {"gas_fraction": gamma0, "bleed_discharge_coefficient": cb, "check_discharge_coefficient": cv}
     out.update(identify_friction(strut, loop))
     return out
+
+
+def identify_rig(params: StrutParams, temperatures_K, frequencies_Hz, peak_velocity_m_s: float, mean_m: float, *,
+                 cycles: int = 3, p0_Pa: float | None = None) -> list[dict]:
+    """Seed 001's tests and identification: at each body temperature and frequency a sinusoid of the given peak
+    velocity about mean_m on the rig (`struts.rig.cycle_test`, the strut as the file says), its last loop identified
+    (`identify_loop`). Rows: temperature_K, frequency_Hz, amplitude_m, identified (`IDENTIFIED_NAMES` -> SI) and the
+    strut's own mean free-gas fraction over the loop (state_gas_fraction; None without the emulsion state)."""
+    from .rig import cycle_test
+
+    rows = []
+    for T in temperatures_K:
+        for f in frequencies_Hz:
+            A = peak_velocity_m_s / (2.0 * np.pi * f)
+            r = cycle_test(params, A, f, mean_m, cycles=cycles, T_K=T, p0_Pa=p0_Pa)
+            g = r.states.get("gas_fraction")
+            rows.append({"temperature_K": float(T), "frequency_Hz": float(f), "amplitude_m": float(A),
+                         "identified": identify_loop(params, Loop.from_cycle(r, T)),
+                         "state_gas_fraction": None if g is None else float(np.mean(g))})
+    return rows

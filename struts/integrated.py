@@ -307,15 +307,15 @@ class IntegratedStrut(StrutBase):
         """gamma_0 at this instant: the emulsion state (internals: physical), the map's value, or None (the file's)."""
         if self.physical:
             return states["gas_fraction"]
-        return self._gas_fraction(internal, states)
+        return internal and internal["gas_fraction"]
 
     def emulsion_rates(self, u: StrutInputs, states: dict, q, dp) -> dict:
         """Rates of the emulsion's free-gas fraction and the interface lag (internals: physical; `struts.emulsion`).
 
         q [m^3/s] the valve flow c -> r and dp = p_c - p_r [Pa] at this instant."""
         e, P = self.p.emulsion, self.p
-        L = emulsion.ostwald_coefficient(u.T_wall, e.ostwald_coefficient, e.ostwald_reference_temperature,
-                                         e.solution_enthalpy)
+        ratio = emulsion.solubility_ratio(u.T_wall, e.ostwald_reference_temperature, e.solution_enthalpy)
+        L = e.ostwald_coefficient * ratio
         a = emulsion.interface_acceleration(states["v_lag"], u.v, e.interface_time)
         nu, nu_ref = self.oil_viscosity(u.T_wall), self.oil_viscosity(P.oil.reference_temperature)
         gamma0 = states["gas_fraction"]
@@ -323,7 +323,7 @@ class IntegratedStrut(StrutBase):
                                       self.emulsion_volume_charged, P.valve.check_dp_crack)
                 + emulsion.interface_entrainment_rate(a, nu, nu_ref, e.interface_entrainment,
                                                       e.entrainment_viscosity_exponent, _ACCELERATION_SMOOTHING_M_S2)
-                + emulsion.dissolution_rate(gamma0, L, e.ostwald_coefficient, e.dissolution_time))
+                + emulsion.dissolution_rate(gamma0, ratio, e.dissolution_time))
         return {"gas_fraction": rate, "v_lag": emulsion.interface_lag_rate(states["v_lag"], u.v, e.interface_time)}
 
     def _valve_kwargs(self, rho, T_wall, internal: dict | None = None) -> dict:

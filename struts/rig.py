@@ -287,6 +287,5 @@ def steady_gas_fraction(params: StrutParams, amplitude_m: float, frequency_Hz: f
     g = r.states["gas_fraction"]
     sources = (g[-1] - g[0]) * frequency_Hz
     T = params.charge.temperature if T_K is None else T_K
-    L = emulsion.ostwald_coefficient(T, e.ostwald_coefficient, e.ostwald_reference_temperature, e.solution_enthalpy)
-    factor = L / e.ostwald_coefficient if e.ostwald_coefficient else 1.0
-    return float(e.dissolution_time * sources / factor)
+    ratio = emulsion.solubility_ratio(T, e.ostwald_reference_temperature, e.solution_enthalpy)
+    return float(e.dissolution_time * sources / ratio)

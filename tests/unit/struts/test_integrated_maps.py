@@ -17,6 +17,7 @@ from hpsim.errors import UserInputError
 from struts import excitation
 from struts import friction as fr
 from struts.maps import INTERNAL_NAMES, map_value, validity_warnings
+from struts.identify import PAPER_MODEL
 from struts.model import make_strut
 from struts.params import load_strut
 from struts.rig import cycle_test
@@ -26,7 +27,8 @@ C = 273.15
 
 @pytest.fixture(scope="module")
 def params():
-    return load_strut("yin2023")
+    """seed 001's identified model (the file's default is the physical strut: test_physical_strut.py)."""
+    return load_strut("yin2023", PAPER_MODEL)
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +119,7 @@ def test_validity_warnings_outside_the_maps(params):
 
 def test_constants_keep_working(params):
     """Without maps the internal parameters are the file's constants and no excitation state exists."""
-    s = make_strut(load_strut("yin2023", {"internal_maps": None}))
+    s = make_strut(load_strut("yin2023", {**PAPER_MODEL, "internal_maps": None}))
     i = s.internal_parameters(313.15, 8.0)
     f = s.p.friction
     assert i["coulomb_compression"] == f.F0_compression and i["peak_rebound"] == pytest.approx(f.breakaway_ratio * f.F0_rebound)
