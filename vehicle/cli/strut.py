@@ -511,6 +511,8 @@ def cmd_identify(args):
         raise UserInputError(f"--temperatures: each must be in [{_T_RANGE_K[0] - 273.15:.4g}, "
                              f"{_T_RANGE_K[1] - 273.15:.4g}] degC")
     freqs = _quantity_list(args.frequencies, "Hz", "--frequencies", f"(0, {_max_frequency():g}] Hz")
+    if any(not 0 < f <= _max_frequency() for f in freqs):
+        raise UserInputError(f"--frequencies: each must be in (0, {_max_frequency():g}] Hz")
     v_peak = _quantity(args.peak_velocity, "m/s", "--peak-velocity", "(0, 2] m/s")
     if not 0 < v_peak <= 2.0:
         raise UserInputError(f"--peak-velocity: must be in (0, 2] m/s, got {v_peak:g} m/s")
