@@ -501,11 +501,14 @@ def cmd_identify(args):
     from struts.identify import IDENTIFIED_NAMES, identify_rig
     from struts.rig import check_cycle_arguments, check_cycle_work
 
+    from struts.params import load_strut
+
     _check_outputs(args)
-    params, p0, _ = _params(args)
-    if params.layout != "integrated":
+    layout = load_strut(args.strut).layout
+    if layout != "integrated":
         raise UserInputError(f"--strut: identify needs an integrated strut (seed 001's model); {args.strut} has "
-                             f"layout {params.layout}")
+                             f"layout {layout}")
+    params, p0, _ = _params(args)
     temps = _quantity_list(args.temperatures, "K", "--temperatures", "[-73, 177] degC")
     if any(not _T_RANGE_K[0] <= T <= _T_RANGE_K[1] for T in temps):
         raise UserInputError(f"--temperatures: each must be in [{_T_RANGE_K[0] - 273.15:.4g}, "
