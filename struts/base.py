@@ -240,7 +240,7 @@ class StrutBase:
         if f.model == "lugre":
             # per-stroke levels (seed 001 Fig. 11a) at the seal's contact pressure over temperature
             F0 = seal.stroke_level(v, f.F0_compression, f.F0_rebound, f.smoothing_velocity)
-            if f.contact_temperature_coefficient:
+            if not fr._is_zero(f.contact_temperature_coefficient):
                 F0 = seal.contact_coulomb_level(F0, T_wall, self.p.oil.reference_temperature,
                                                 f.contact_temperature_coefficient)
             F_c = fr.coulomb_level(p_gas, F0, f.pressure_coefficient)
