@@ -141,6 +141,15 @@ class IntegratedStrut(StrutBase):
                 f"{src}: valve.oil_model: incompressible is for layout: separated; an integrated strut takes "
                 "compressible (chamber pressures as states, seed 001 eq. 5-7) or quasi_steady (their relaxation "
                 "through the valves taken as instantaneous, the emulsion compressibility kept)")
+        if params.internals == "physical":
+            e = params.emulsion
+            missing = [f"emulsion.{k}" for k in ("ostwald_reference_temperature", "release_efficiency",
+                                                 "dissolution_time", "interface_time") if getattr(e, k) is None]
+            if params.valve.check_critical_reynolds is not None and params.valve.check_hydraulic_diameter is None:
+                missing.append("valve.check_hydraulic_diameter")
+            if missing:
+                raise UserInputError(f"{src}: internals: physical needs {', '.join(missing)} (the emulsion's free-gas "
+                                     "dynamics, struts/emulsion.py; docs/physics.md)")
         if g.piston_chamber_oil_volume <= annulus * g.stroke:
             raise UserInputError(
                 f"{src}: geometry.piston_chamber_oil_volume ({g.piston_chamber_oil_volume} m^3) must exceed the volume "

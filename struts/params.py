@@ -220,19 +220,21 @@ class Emulsion(Model):
     initial_gas_fraction: Number = 0.006
     # Henry's law: Ostwald coefficient of the charge gas in the oil at a reference temperature and its van 't Hoff
     # dependence on temperature (enthalpy of solution, > 0: more soluble when warmer)
+    # (the free-gas dynamics' keys are optional so that a strut without them carries no parameter for them;
+    # internals: physical requires those without a default, IntegratedStrut.check_parameters)
     ostwald_coefficient: Number = 0.0
-    ostwald_reference_temperature: K = 298.15
+    ostwald_reference_temperature: K | None = None
     solution_enthalpy: Quantity("J/mol") = 0.0
     # share of the gas set free by the valve pressure drop that forms bubbles before the flow leaves the jet
-    release_efficiency: Number = 1.0
+    release_efficiency: Number | None = None
     # entrainment at the agitated gas-oil interface per unit interface acceleration over g [1/s]
     interface_entrainment: Quantity("1/s") = 0.0
     # exponent of the oil viscosity in the interface entrainment: (nu_ref / nu)^m
     entrainment_viscosity_exponent: Number = 0.0
     # time constant of the free gas's return to the gas pocket or into solution at the reference temperature
-    dissolution_time: s = 100.0
+    dissolution_time: s | None = None
     # the interface's lag behind the strut's motion (its acceleration is read through this first-order lag)
-    interface_time: s = 0.002
+    interface_time: s | None = None
 
 
 class StrutParams(Model):
