@@ -279,7 +279,7 @@ def judge(rows, extra) -> str:
     pk = _rel(_at(rows, 40.0, 8.0, "friction_near_reversal_N"), _at(rows, 40.0, 0.5, "friction_near_reversal_N"))
     mn = _rel(_at(rows, 40.0, 8.0, "friction_mean_N"), _at(rows, 40.0, 0.5, "friction_mean_N"))
     add(15, "higher frequency: smaller seal friction magnitude (conclusions)", "check",
-        "peak and cycle-mean |friction| -5 % or more, 0.5 -> 8 Hz (40 degC)", f"peak {100 * pk:+.1f} %, mean "
+        "peak and cycle-mean friction magnitude -5 % or more, 0.5 -> 8 Hz (40 degC)", f"peak {100 * pk:+.1f} %, mean "
         f"{100 * mn:+.1f} %", rd(pk < -0.05 and mn < -0.05, pk < 0 and mn < 0))
     add(16, "seal friction magnitude grows with temperature (conclusions)", "consequence",
         "the seal's contact pressure over temperature is the model's own law (its coefficient assumed)", "-", "-")
@@ -294,7 +294,7 @@ def judge(rows, extra) -> str:
     t05 = 0.5 * _rel(g[50.0][0], g[30.0][0])
     ok = 0.005 <= t2 <= 0.02 and 0.01 <= t48 <= 0.04 and abs(t05) < t48
     add(18, "gas fraction: +1 % per 10 K near 2 Hz, +2 % from 4 to 8 Hz, less at low frequency (§5.2)", "check",
-        "0.5-2 %/10 K at 2 Hz, 1-4 %/10 K at 4-8 Hz, |0.5 Hz| below it", f"{100 * t2:+.2f} / {100 * t48:+.2f} / "
+        "0.5-2 %/10 K at 2 Hz, 1-4 %/10 K at 4-8 Hz, the 0.5 Hz value smaller in size", f"{100 * t2:+.2f} / {100 * t48:+.2f} / "
         f"{100 * t05:+.2f} %/10 K", rd(ok, t2 > 0 and t48 > 0 and abs(t05) < t48))
     cb = [r["bleed_discharge_coefficient"] for r in rows]
     cv = [r["check_discharge_coefficient"] for r in rows]

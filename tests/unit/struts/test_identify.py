@@ -70,3 +70,24 @@ def test_identify_command_table_and_refusals(tmp_path, capsys):
         assert code == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and where in err[0]
+
+
+def test_cycle_selects_chambers_and_model(capsys):
+    """`hpsim strut cycle --chambers compressible` runs seed 001's eq. 5-7 as written (the pressure-difference loop
+    the quasi-steady file has none of); `--model`/`--chambers` on a separated strut: one line, exit code 2."""
+    import json
+
+    from vehicle.cli import main
+
+    widths = {}
+    for chambers in ("quasi_steady", "compressible"):
+        assert main(["strut", "cycle", "--strut", "yin2023", "--chambers", chambers, "--amplitude", "2mm",
+                     "--frequency", "8Hz", "--mean", "60mm", "--temperature", "40degC", "--cycles", "2",
+                     "--json"]) in (0, None)
+        widths[chambers] = json.loads(capsys.readouterr().out)[0]["energy_by_mechanism_J"]["valve"]
+    assert widths["compressible"] != pytest.approx(widths["quasi_steady"], rel=1e-6)
+    for flag in (["--model", "identified"], ["--chambers", "compressible"]):
+        code = main(["strut", "cycle", "--strut", "apc", *flag, "--amplitude", "10mm", "--frequency", "1Hz",
+                     "--mean", "115mm"])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and flag[0] in err[0]
