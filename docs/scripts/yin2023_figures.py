@@ -303,7 +303,7 @@ def judge(rows, extra) -> str:
         rd(all(b > c for b, c in zip(cb, cv))))
     fb = _rel(_at(rows, 40.0, 8.0, "bleed_discharge_coefficient"), _at(rows, 40.0, 0.5, "bleed_discharge_coefficient"))
     add(20, "C_d fall with frequency, saturating near 3 Hz; bleed -7 % (§5.2)", "check",
-        "bleed -3.5 to -14 %, 0.5 -> 8 Hz (40 degC)", f"{100 * fb:+.2f} %", rd(-0.14 <= fb <= -0.035, fb < 0))
+        "bleed -3.5 to -14 %, 0.5 -> 8 Hz (40 degC)", f"{100 * fb:+.3f} %", rd(-0.14 <= fb <= -0.035, fb < -0.005))
     tc = _rel(_at(rows, 50.0, 1.0, "check_discharge_coefficient"), _at(rows, 30.0, 1.0, "check_discharge_coefficient"))
     tb = _rel(_at(rows, 50.0, 1.0, "bleed_discharge_coefficient"), _at(rows, 30.0, 1.0, "bleed_discharge_coefficient"))
     add(21, "check C_d +11 % from 30 to 50 degC (1 Hz), bleed about unchanged (§5.2)", "check",
