@@ -96,7 +96,7 @@ def _rod_chamber_balance(strut, loop: Loop, values) -> np.ndarray:
     V_r = strut.p.geometry.rod_chamber_volume + strut.annulus_area * loop.x_m
     rho_m = 0.5 * (em_c["rho"] + em_r["rho"])
     q = em_r["rho"] / rho_m * (strut.annulus_area * loop.v_m_per_s + V_r * em_r["kappa"] * dp_r)
-    kw = strut._valve_kwargs(rho_m, T, {"bleed_discharge_coefficient": cb, "check_discharge_coefficient": cv})
+    kw = strut.valve_arguments_for(rho_m, T, {"bleed_discharge_coefficient": cb, "check_discharge_coefficient": cv})
     return (valves.valve_flow(loop.p_c_Pa - loop.p_r_Pa, **kw) - q) / float(np.max(np.abs(q)))
 
 

@@ -368,6 +368,12 @@ class IntegratedStrut(StrutBase):
             **own_check,
         )
 
+    def valve_arguments_for(self, rho, T_wall, internal: dict | None = None) -> dict:
+        """Keyword arguments of struts.valves.valve_flow at emulsion density rho [kg/m^3] and body temperature T_wall
+        [K], with the discharge coefficients of `internal` (bleed_discharge_coefficient, check_discharge_coefficient;
+        default: the file's): seed 001 eq. 12 as the identification (`struts.identify`) evaluates it."""
+        return self._valve_kwargs(rho, T_wall, internal)
+
     def valve_arguments(self, T_wall) -> dict:
         rho_oil, _ = self._oil_state(T_wall)
         return self._valve_kwargs(rho_oil, T_wall)

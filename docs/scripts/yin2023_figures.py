@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from struts.identify import IDENTIFIED_NAMES, PAPER_MODEL, Loop, identify_loop
+from struts.identify import PAPER_MODEL, Loop, identify_loop
 from struts.params import load_strut
 from struts.rig import cycle_test
 
