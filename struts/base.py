@@ -16,6 +16,7 @@ from . import friction as fr
 from . import gas as gaslaw
 from . import maps as mapslaw
 from . import oil as oillaw
+from . import seal_friction as seal
 from . import valves
 from .params import REVERSAL_MEMORY_TIME_S, StrutParams
 
@@ -54,7 +55,7 @@ class StrutBase:
     def hysteresis_band(self) -> bool:
         """Seed 001 eq. 3 band on: a non-zero transition velocity (constant or mapped). The band then carries the
         reversal memory `stroke_dir` (struts.friction.stroke_direction_rate)."""
-        f, m = self.p.friction, self.p.internal_maps
+        f, m = self.p.friction, self.internal_maps
         mapped = m is not None and any(getattr(m, n) is not None for n in
                                        ("transition_velocity_compression", "transition_velocity_rebound"))
         return mapped or not (fr._is_zero(f.hysteresis_velocity_compression)
@@ -64,14 +65,25 @@ class StrutBase:
     def uses_excitation(self) -> bool:
         """True when an internal map varies with frequency: the strut then carries the excitation states of
         `struts.excitation` (no other strut does, so their cost falls only on struts that use them)."""
-        m = self.p.internal_maps
+        m = self.internal_maps
         return m is not None and m.uses_frequency
+
+    @property
+    def physical(self) -> bool:
+        """internals: physical: the internal parameters emerge from the strut's physics (struts.integrated), the
+        file's internal_maps are not read."""
+        return self.p.internals == "physical"
+
+    @property
+    def internal_maps(self):
+        """The internal-parameter maps in use (None with internals: physical or without maps)."""
+        return None if self.physical else self.p.internal_maps
 
     # --- internal parameters over temperature and excitation (seed 001 §5.2, struts.maps) -------
     def excitation_frequency(self, states: dict):
         """Equivalent excitation frequency [Hz] from the excitation states (`struts.excitation`); the maps'
         lowest frequency when the strut carries none."""
-        m = self.p.internal_maps
+        m = self.internal_maps
         if m is None:
             return None
         if not self.uses_excitation:
@@ -81,7 +93,7 @@ class StrutBase:
     def internal_parameters(self, T_wall, f_Hz=None) -> dict:
         """The seed 001 §5.2 internal parameters (`struts.maps.INTERNAL_NAMES`, SI) at body temperature T_wall [K]
         and excitation frequency f_Hz [Hz]: the map where the file gives one, else the file's constant."""
-        f, v, m = self.p.friction, self.p.valve, self.p.internal_maps
+        f, v, m = self.p.friction, self.p.valve, self.internal_maps
         cd_check = v.discharge_coefficient if v.check_discharge_coefficient is None else v.check_discharge_coefficient
         out = {
             "gas_fraction": self.p.emulsion.initial_gas_fraction,
@@ -113,7 +125,7 @@ class StrutBase:
                 f.smoothing_velocity,
                 REVERSAL_MEMORY_TIME_S if f.reversal_memory_time is None else f.reversal_memory_time)
         if self.uses_excitation:
-            rates.update(excitation.rates(u.x, u.v, states, self.p.internal_maps.excitation_time_constant))
+            rates.update(excitation.rates(u.x, u.v, states, self.internal_maps.excitation_time_constant))
         return rates
 
     # --- charge -------------------------------------------------------------------------------
@@ -226,7 +238,12 @@ class StrutBase:
                 v_h_reb=i["transition_velocity_rebound"], eps_x=f.hysteresis_smoothing_displacement,
                 stroke_dir=stroke_dir), None
         if f.model == "lugre":
-            F_c = fr.coulomb_level(p_gas, 0.5 * (f.F0_compression + f.F0_rebound), f.pressure_coefficient)
+            # per-stroke levels (seed 001 Fig. 11a) at the seal's contact pressure over temperature
+            F0 = seal.stroke_level(v, f.F0_compression, f.F0_rebound, f.smoothing_velocity)
+            if not fr._is_zero(f.contact_temperature_coefficient):
+                F0 = seal.contact_coulomb_level(F0, T_wall, self.p.oil.reference_temperature,
+                                                f.contact_temperature_coefficient)
+            F_c = fr.coulomb_level(p_gas, F0, f.pressure_coefficient)
             F_s = F_c * f.breakaway_ratio
             dz = fr.lugre_bristle_rate(z_bristle, v, F_c, F_s, f.stribeck_velocity, f.bristle_stiffness,
                                        f.smoothing_velocity)

@@ -93,9 +93,11 @@ from __future__ import annotations
 from hpsim import symbolic as sym
 from hpsim.errors import UserInputError
 
+from . import emulsion
 from . import excitation
 from . import gas as gaslaw
 from . import oil as oillaw
+from . import orifice
 from . import valves
 from .base import StrutBase
 from .protocol import StrutInputs
@@ -103,6 +105,10 @@ from .params import StrutParams
 
 _STATIC_NEWTON_ITERATIONS = 8   # quadratic convergence from the incompressible-liquid start
 _PI = 3.141592653589793
+# the emulsion's own states with internals: physical (struts.emulsion): free-gas fraction gamma_0, interface lag
+EMULSION_STATE_NAMES = ("gas_fraction", "v_lag")
+# width of the smoothed |a| of the interface entrainment: far below the rig's 0.3-5 m/s^2, zero at rest
+_ACCELERATION_SMOOTHING_M_S2 = 0.01
 
 
 class IntegratedStrut(StrutBase):
@@ -135,6 +141,15 @@ class IntegratedStrut(StrutBase):
                 f"{src}: valve.oil_model: incompressible is for layout: separated; an integrated strut takes "
                 "compressible (chamber pressures as states, seed 001 eq. 5-7) or quasi_steady (their relaxation "
                 "through the valves taken as instantaneous, the emulsion compressibility kept)")
+        if params.internals == "physical":
+            e = params.emulsion
+            missing = [f"emulsion.{k}" for k in ("ostwald_reference_temperature", "release_efficiency",
+                                                 "dissolution_time", "interface_time") if getattr(e, k) is None]
+            if params.valve.check_critical_reynolds is not None and params.valve.check_hydraulic_diameter is None:
+                missing.append("valve.check_hydraulic_diameter")
+            if missing:
+                raise UserInputError(f"{src}: internals: physical needs {', '.join(missing)} (the emulsion's free-gas "
+                                     "dynamics, struts/emulsion.py; docs/physics.md)")
         if g.piston_chamber_oil_volume <= annulus * g.stroke:
             raise UserInputError(
                 f"{src}: geometry.piston_chamber_oil_volume ({g.piston_chamber_oil_volume} m^3) must exceed the volume "
@@ -150,6 +165,8 @@ class IntegratedStrut(StrutBase):
     @property
     def state_names(self) -> tuple[str, ...]:
         own = ("V_gas",) if self.quasi_steady else ("V_gas", "p_r")
+        if self.physical:
+            own += EMULSION_STATE_NAMES
         return own + self.shared_state_names()
 
     @property
@@ -157,7 +174,7 @@ class IntegratedStrut(StrutBase):
         """Compressible chambers: V_gas and p_r (the relaxation through the valves, 0.01-1 ms). Quasi-steady:
         V_gas, which then carries the gas spring (coupled to the stiff wheel station, as the separated strut's
         gas spring is through its stiffness), and z_bristle for the LuGre seal."""
-        return tuple(n for n in self.state_names if n in ("V_gas", "p_r", "z_bristle", "stroke_dir"))
+        return tuple(n for n in self.state_names if n in ("V_gas", "p_r", "z_bristle", "stroke_dir", "v_lag"))
 
     @property
     def algebraic_names(self) -> tuple[str, ...]:
@@ -277,7 +294,8 @@ class IntegratedStrut(StrutBase):
         f_Hz, amp = excitation_Hz_m if excitation_Hz_m is not None else (None, 0.0)
         gamma0 = self.internal_parameters(T_wall, f_Hz)["gas_fraction"]
         p, V_g = self.static_state(x, T_wall, m, dV_oil, gamma0=gamma0)
-        out = {"V_gas": V_g + self._thermal_gas_volume_loss(T_wall, dV_oil), "p_r": p, "stroke_dir": 0.0}
+        out = {"V_gas": V_g + self._thermal_gas_volume_loss(T_wall, dV_oil), "p_r": p, "stroke_dir": 0.0,
+               "gas_fraction": gamma0, "v_lag": 0.0}
         if self.uses_excitation:
             out.update(excitation.steady_states(x, amp, f_Hz if f_Hz is not None else 0.0))
         if "T_gas" in self.state_names:
@@ -290,9 +308,32 @@ class IntegratedStrut(StrutBase):
     def _internal(self, u: StrutInputs, states: dict) -> dict | None:
         """Internal parameters at this instant (maps at T_wall and the excitation states' frequency), or None
         when the file has no maps (the constants are then read where they are used)."""
-        if self.p.internal_maps is None:
+        if self.internal_maps is None:
             return None
         return self.internal_parameters(u.T_wall, self.excitation_frequency(states))
+
+    def _gas_fraction(self, internal: dict | None, states: dict):
+        """gamma_0 at this instant: the emulsion state (internals: physical), the map's value, or None (the file's)."""
+        if self.physical:
+            return states["gas_fraction"]
+        return internal and internal["gas_fraction"]
+
+    def emulsion_rates(self, u: StrutInputs, states: dict, q, dp) -> dict:
+        """Rates of the emulsion's free-gas fraction and the interface lag (internals: physical; `struts.emulsion`).
+
+        q [m^3/s] the valve flow c -> r and dp = p_c - p_r [Pa] at this instant."""
+        e, P = self.p.emulsion, self.p
+        ratio = emulsion.solubility_ratio(u.T_wall, e.ostwald_reference_temperature, e.solution_enthalpy)
+        L = e.ostwald_coefficient * ratio
+        a = emulsion.interface_acceleration(states["v_lag"], u.v, e.interface_time)
+        nu, nu_ref = self.oil_viscosity(u.T_wall), self.oil_viscosity(P.oil.reference_temperature)
+        gamma0 = states["gas_fraction"]
+        rate = (emulsion.release_rate(q, dp, L, e.release_efficiency, P.charge.pressure,
+                                      self.emulsion_volume_charged, P.valve.check_dp_crack)
+                + emulsion.interface_entrainment_rate(a, nu, nu_ref, e.interface_entrainment,
+                                                      e.entrainment_viscosity_exponent, _ACCELERATION_SMOOTHING_M_S2)
+                + emulsion.dissolution_rate(gamma0, ratio, e.dissolution_time))
+        return {"gas_fraction": rate, "v_lag": emulsion.interface_lag_rate(states["v_lag"], u.v, e.interface_time)}
 
     def _valve_kwargs(self, rho, T_wall, internal: dict | None = None) -> dict:
         """Keyword arguments of struts.valves.valve_flow for the bleed orifices + check valves + leakage.
@@ -308,7 +349,12 @@ class IntegratedStrut(StrutBase):
         rho_oil, _ = self._oil_state(T_wall)
         nu = self.oil_viscosity(T_wall)
         d_h = sym.sqrt(4.0 * v.bleed_area / _PI)
-        p_crit = 0.5 * rho_oil * (v.critical_reynolds * nu / (cd * d_h)) ** 2
+        p_crit = orifice.critical_pressure(rho_oil, nu, v.critical_reynolds, cd, d_h)
+        own_check = {}
+        if self.physical and v.check_critical_reynolds is not None:
+            # the check valves' small opening has its own Reynolds number (struts.orifice), at their own C_d
+            own_check = {"check_p_crit": orifice.critical_pressure(rho_oil, nu, v.check_critical_reynolds, cd_check,
+                                                                   v.check_hydraulic_diameter)}
         return dict(
             cd=cd, rho=rho, p_crit=p_crit,
             bleed_area=v.bleed_area * v.number_of_orifices,
@@ -319,7 +365,14 @@ class IntegratedStrut(StrutBase):
             relief_reb_area=v.relief_reb_area, relief_reb_crack=v.relief_reb_crack,
             relief_reb_full=v.relief_reb_full,
             k_leak=v.leakage,
+            **own_check,
         )
+
+    def valve_arguments_for(self, rho, T_wall, internal: dict | None = None) -> dict:
+        """Keyword arguments of struts.valves.valve_flow at emulsion density rho [kg/m^3] and body temperature T_wall
+        [K], with the discharge coefficients of `internal` (bleed_discharge_coefficient, check_discharge_coefficient;
+        default: the file's): seed 001 eq. 12 as the identification (`struts.identify`) evaluates it."""
+        return self._valve_kwargs(rho, T_wall, internal)
 
     def valve_arguments(self, T_wall) -> dict:
         rho_oil, _ = self._oil_state(T_wall)
@@ -373,7 +426,7 @@ class IntegratedStrut(StrutBase):
         both chambers at p_c, the valve flow q [m^3/s] (c -> r) it implies and the emulsion at p_c."""
         gs = self._gas_side(u, states)
         internal = self._internal(u, states)
-        em = self.emulsion(gs["p_c"], u.T_wall, internal and internal["gas_fraction"])
+        em = self.emulsion(gs["p_c"], u.T_wall, self._gas_fraction(internal, states))
         V_e, V_r = self._chamber_volumes(u, states["V_gas"])
         C_c, C_r = V_e * em["kappa"], V_r * em["kappa"]
         C = C_c + C_r
@@ -400,7 +453,7 @@ class IntegratedStrut(StrutBase):
 
         gs = self._gas_side(u, states)
         internal = self._internal(u, states)
-        em = self.emulsion(gs["p_c"], u.T_wall, internal and internal["gas_fraction"])
+        em = self.emulsion(gs["p_c"], u.T_wall, self._gas_fraction(internal, states))
         V_e, V_r = self._chamber_volumes(u, states["V_gas"])
         C_r, C_c = V_r * em["kappa"], V_e * em["kappa"] - 1.0 / gs["b"]
         if dp is None:
@@ -439,7 +492,7 @@ class IntegratedStrut(StrutBase):
                                                                        "r_ext"))
         rates = {}
         internal = self._internal(u, states)
-        g0 = internal and internal["gas_fraction"]
+        g0 = self._gas_fraction(internal, states)
         em_c = self.emulsion(p_c, u.T_wall, g0)
         em_r = self.emulsion(p_r, u.T_wall, g0)
         rho_mean = 0.5 * (em_c["rho"] + em_r["rho"])
@@ -454,7 +507,7 @@ class IntegratedStrut(StrutBase):
         # chamber r (seed 001 eq. 6-7)
         rates["p_r"] = (m_dot / em_r["rho"] - A_a * u.v) / (V_r * em_r["kappa"])
         return self._outputs(u, states, rates, p_c, p_r, T_gas, V_g, dV_gas - r_ext, heat_gas, r_ext, q, dp * q,
-                             residual=None, internal=internal)
+                             residual=None, internal=internal, dp=dp)
 
     def _equations_quasi_steady(self, u: StrutInputs, states: dict, dp_valve) -> dict:
         """Quasi-steady chambers (module docstring): V_gas from the reduced volume balance, p_r = p_c - dp_valve with
@@ -467,12 +520,14 @@ class IntegratedStrut(StrutBase):
         power_valve = dp_valve * self.annulus_area * u.v
         return self._outputs(u, states, rates, p_c, p_c - dp_valve, bal["T_gas"], bal["V_g"],
                              bal["dV_gas"] - bal["r_ext"], bal["heat_gas"], bal["r_ext"], bal["q"], power_valve,
-                             residual=q - bal["q"], internal=bal["internal"])
+                             residual=q - bal["q"], internal=bal["internal"], dp=dp_valve)
 
     def _outputs(self, u, states, rates, p_c, p_r, T_gas, V_g, dV_g, heat_gas, r_ext, q, power_valve, residual,
-                 internal=None):
-        """Gas temperature and friction rates, forces and powers shared by both chamber treatments."""
+                 internal=None, dp=None):
+        """Gas temperature, emulsion and friction rates, forces and powers shared by both chamber treatments."""
         P = self.p
+        if self.physical:
+            rates.update(self.emulsion_rates(u, states, q, dp))
         if P.gas.process == "energy":
             rates["T_gas"] = gaslaw.gas_temperature_rate(T_gas, u.T_wall, P.gas.thermal_time_constant,
                                                          V_g / u.m_gas, dV_g / u.m_gas, self.gas, P.gas.eos)

@@ -130,6 +130,10 @@ class Valve(Model):
     check_number: Number = 1.0
     # discharge coefficient of the check valves (seed 001 eq. 12: C_v); None: discharge_coefficient
     check_discharge_coefficient: Number | None = None
+    # the check valves' own laminar-turbulent transition (struts.orifice): critical Reynolds number at their
+    # hydraulic diameter at full opening; None: the bleed's transition (one law for the whole assembly)
+    check_critical_reynolds: Number | None = None
+    check_hydraulic_diameter: m | None = None
 
 
 REVERSAL_MEMORY_TIME_S = 0.005     # default of friction.reversal_memory_time: 5 ms, inside the 31 ms half period at 8 Hz
@@ -160,6 +164,9 @@ class Friction(Model):
     reversal_memory_time: s | None = None
     bristle_stiffness: N_per_m = 1e7                 # LuGre sigma0
     bristle_damping: N_s_per_m = 0.0                 # LuGre sigma1
+    # relative rise of the seal's contact pressure, hence its Coulomb level, per kelvin above the oil's reference
+    # temperature (struts.seal_friction.contact_coulomb_level); used by internals: physical only
+    contact_temperature_coefficient: per_K = 0.0
 
 
 class EndStops(Model):
@@ -203,17 +210,42 @@ class Limits(Model):
 
 
 class Emulsion(Model):
-    """Gas-oil emulsion of the integrated strut (seed 001 eq. 8-11)."""
+    """Gas-oil emulsion of the integrated strut (seed 001 eq. 8-11) and, with internals: physical, the dynamics of its
+    free-gas fraction (struts.emulsion)."""
 
     _must_be_fraction = ("initial_gas_fraction",)
+    _must_be_positive = ("dissolution_time", "interface_time", "ostwald_reference_temperature")
+    _must_be_non_negative = ("ostwald_coefficient", "interface_entrainment", "release_efficiency")
 
     initial_gas_fraction: Number = 0.006
+    # Henry's law: Ostwald coefficient of the charge gas in the oil at a reference temperature and its van 't Hoff
+    # dependence on temperature (enthalpy of solution, > 0: more soluble when warmer)
+    # (the free-gas dynamics' keys are optional so that a strut without them carries no parameter for them;
+    # internals: physical requires those without a default, IntegratedStrut.check_parameters)
+    ostwald_coefficient: Number = 0.0
+    ostwald_reference_temperature: K | None = None
+    solution_enthalpy: Quantity("J/mol") = 0.0
+    # share of the gas set free by the valve pressure drop that forms bubbles before the flow leaves the jet
+    release_efficiency: Number | None = None
+    # entrainment at the agitated gas-oil interface per unit interface acceleration over g [1/s]
+    interface_entrainment: Quantity("1/s") = 0.0
+    # exponent of the oil viscosity in the interface entrainment: (nu_ref / nu)^m
+    entrainment_viscosity_exponent: Number = 0.0
+    # time constant of the free gas's return to the gas pocket or into solution at the reference temperature
+    dissolution_time: s | None = None
+    # the interface's lag behind the strut's motion (its acceleration is read through this first-order lag)
+    interface_time: s | None = None
 
 
 class StrutParams(Model):
     name: str
     description: str = ""
     layout: Literal["separated", "integrated"]
+    # integrated strut: "identified" reads the internal parameters (gas fraction, discharge coefficients, friction)
+    # from internal_maps or the file's constants, as seed 001 identified them per test; "physical" lets them emerge
+    # (struts.integrated: the emulsion's free gas as a state, the check valves' Reynolds law, the seal's contact
+    # pressure over temperature) and ignores internal_maps
+    internals: Literal["identified", "physical"] = "identified"
     geometry: Geometry
     charge: Charge
     gas: Gas

@@ -20,6 +20,7 @@ from scipy.optimize import brentq
 
 from hpsim.errors import UserInputError
 
+from . import emulsion
 from .maps import validity_warnings
 from .model import MECHANISMS, StrutInputs, make_strut
 from .params import StrutParams
@@ -118,6 +119,10 @@ class CycleResult:
     internal: dict = field(default_factory=dict)
     excitation_frequency_Hz: float | None = None
     warnings: list = field(default_factory=list)
+    # the strut's internal states over the last cycle (name -> samples), e.g. the emulsion's gas_fraction
+    states: dict = field(default_factory=dict, repr=False)
+    # the rod-side chamber pressure over the last cycle (integrated struts; the gas pressure for the others)
+    rod_chamber_pressure_Pa: np.ndarray | None = field(default=None, repr=False)
 
     def summary(self) -> dict:
         return {
@@ -162,12 +167,15 @@ def check_cycle_arguments(params: StrutParams, amplitude, frequency, mean, cycle
 
 def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mean_m: float, *,
                cycles: int = 3, T_K: float | None = None, p0_Pa: float | None = None,
-               samples_per_cycle: int = 400, rtol: float = 1e-9) -> CycleResult:
+               samples_per_cycle: int = 400, rtol: float = 1e-9,
+               gas_fraction_start: float | None = None) -> CycleResult:
     """Displacement-driven sinusoid x(t) = mean + A sin(2 pi f t), starting from rest.
 
     The gas starts at the rig temperature at the mean position. The DAE (gas temperature
     state, valve pressure drop as algebraic variable) and the energy quadratures are
     integrated with IDAS; the last cycle gives the loop and the energy per cycle.
+    An emulsion with a free-gas state (internals: physical) starts at gas_fraction_start, by default at its
+    steady state under this excitation (`steady_gas_fraction`: a rig test on a running strut, as in seed 001).
     """
     check_cycle_arguments(params, amplitude_m, frequency_Hz, mean_m, cycles)
     strut = make_strut(params)
@@ -203,8 +211,11 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     if algebraic:
         opts["calc_ic"] = True
     integ = ca.integrator("rig", "idas" if algebraic else "cvodes", dae, 0.0, grid[1:], opts)
-    x0 = [float(v) for v in strut.initial_states(T, x=mean_m, m_gas=m_gas,
-                                                 excitation_Hz_m=(frequency_Hz, amplitude_m)).values()] + [0.0] * (len(MECHANISMS) + 2)
+    start = strut.initial_states(T, x=mean_m, m_gas=m_gas, excitation_Hz_m=(frequency_Hz, amplitude_m))
+    if "gas_fraction" in start:
+        start["gas_fraction"] = (steady_gas_fraction(params, amplitude_m, frequency_Hz, mean_m, T_K=T, p0_Pa=p0_Pa)
+                                 if gas_fraction_start is None else gas_fraction_start)
+    x0 = [float(v) for v in start.values()] + [0.0] * (len(MECHANISMS) + 2)
     args = {"x0": x0}
     z0 = np.zeros((0, 1))
     if algebraic:
@@ -218,10 +229,11 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
     Z = np.hstack([z0, np.asarray(sol["zf"]).reshape(z0.shape[0], -1)]) if algebraic else np.zeros((0, n_out))
     outs = ca.Function("outs", [t, xs, z], [eq["force"], eq["gas_force"], eq["valve_force"],
                                             eq["friction_force"], eq["end_stop_force"],
-                                            eq["gas_pressure"], eq["gas_temperature"]])
+                                            eq["gas_pressure"], eq["gas_temperature"],
+                                            eq.get("rod_chamber_pressure", eq["gas_pressure"])])
     nx = len(names)
     vals = outs.map(n_out)(grid, X[:nx, :] if nx else np.zeros((0, n_out)), Z)
-    F, Fg, Fv, Ff, Fs, pg, Tg = (np.asarray(v, float).ravel() for v in vals)
+    F, Fg, Fv, Ff, Fs, pg, Tg, pr = (np.asarray(v, float).ravel() for v in vals)
     E = X[nx:, :]
     last = slice(n_out - samples_per_cycle - 1, n_out)
     dE = E[:, -1] - E[:, n_out - samples_per_cycle - 1]
@@ -234,6 +246,8 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
         f_eq = float(np.mean(np.asarray(strut.excitation_frequency(
             {n: X[i, last] for i, n in enumerate(names)}), float)))
     internal = {k: float(v) for k, v in strut.internal_parameters(T, frequency_Hz).items()}
+    if "gas_fraction" in names:
+        internal["gas_fraction"] = float(np.mean(X[names.index("gas_fraction"), last]))
     res = CycleResult(
         amplitude_m=amplitude_m, frequency_Hz=frequency_Hz, mean_m=mean_m, cycles=int(cycles),
         t_s=grid[last], x_m=x_arr[last], v_m_per_s=v_arr[last], force_N=F[last],
@@ -250,6 +264,28 @@ def cycle_test(params: StrutParams, amplitude_m: float, frequency_Hz: float, mea
         peak_force_rebound_N=float(np.min(F[last][v_arr[last] < 0])),
         equivalent_stiffness_N_per_m=k_eq, equivalent_damping_N_s_per_m=c_eq,
         internal=internal, excitation_frequency_Hz=f_eq,
-        warnings=validity_warnings(params.internal_maps, T, frequency_Hz, f"strut {params.name}"),
+        warnings=validity_warnings(getattr(strut, "internal_maps", params.internal_maps), T, frequency_Hz,
+                                   f"strut {params.name}"),
+        states={n: X[i, last].copy() for i, n in enumerate(names)},
+        rod_chamber_pressure_Pa=pr[last],
     )
     return res
+
+
+def steady_gas_fraction(params: StrutParams, amplitude_m: float, frequency_Hz: float, mean_m: float, *,
+                        T_K: float | None = None, p0_Pa: float | None = None) -> float:
+    """The emulsion's free-gas fraction [-] at its periodic steady state under a rig sinusoid (internals: physical).
+
+    Its rate is the sources (release, interface entrainment) minus gamma_0 L / (L_ref tau_d) (`struts.emulsion`), and
+    the sources barely depend on gamma_0, so the steady state is tau_d (L_ref/L) times their mean over a cycle: one
+    cycle with the dissolution off measures that mean (after one cycle to settle the chambers and the seal).
+    """
+    e = params.emulsion
+    held = params.with_overrides({"emulsion": {"dissolution_time": 1e12}})
+    r = cycle_test(held, amplitude_m, frequency_Hz, mean_m, cycles=2, T_K=T_K, p0_Pa=p0_Pa,
+                   gas_fraction_start=e.initial_gas_fraction)
+    g = r.states["gas_fraction"]
+    sources = (g[-1] - g[0]) * frequency_Hz
+    T = params.charge.temperature if T_K is None else T_K
+    ratio = emulsion.solubility_ratio(T, e.ostwald_reference_temperature, e.solution_enthalpy)
+    return float(e.dissolution_time * sources / ratio)

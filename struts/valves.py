@@ -135,20 +135,54 @@ _AREA_KEYS = ("bleed_area", "check_area_max", "check_dp_crack", "check_dp_full",
 
 def valve_flow(dp_Pa, *, cd, rho, p_crit, bleed_area, check_area_max, check_dp_crack, check_dp_full,
                relief_comp_area, relief_comp_crack, relief_comp_full,
-               relief_reb_area, relief_reb_crack, relief_reb_full, k_leak):
+               relief_reb_area, relief_reb_crack, relief_reb_full, k_leak, check_p_crit=None):
     """Total flow [m^3/s] through a damping valve assembly at pressure difference dp [Pa].
 
     Bleed orifice (always open) + check valve (opens for dp > 0, compression) + one relief
     (blow-off) valve per direction: the areas add and the sum passes through `orifice_flow`
     (cd, rho [kg/m^3], p_crit [Pa]); plus laminar leakage k_leak [m^3/(Pa s)] (seed 001 eq. 12,
-    REFERENCE §7). Odd-like and strictly increasing in dp (for bleed_area > 0).
+    REFERENCE §7). check_p_crit [Pa]: the check valve's own laminar-turbulent transition
+    (`struts.orifice`), its area then passing through its own orifice law. Odd-like and strictly
+    increasing in dp (for bleed_area > 0).
     """
     area = valve_opening_area(
-        dp_Pa, bleed_area=bleed_area, check_area_max=check_area_max, check_dp_crack=check_dp_crack,
+        dp_Pa, bleed_area=bleed_area, check_area_max=0.0 if check_p_crit is not None else check_area_max,
+        check_dp_crack=check_dp_crack,
         check_dp_full=check_dp_full, relief_comp_area=relief_comp_area, relief_comp_crack=relief_comp_crack,
         relief_comp_full=relief_comp_full, relief_reb_area=relief_reb_area, relief_reb_crack=relief_reb_crack,
         relief_reb_full=relief_reb_full)
-    return orifice_flow(dp_Pa, cd, area, rho, p_crit) + leakage_flow(dp_Pa, k_leak)
+    q = orifice_flow(dp_Pa, cd, area, rho, p_crit) + leakage_flow(dp_Pa, k_leak)
+    if check_p_crit is not None:
+        q = q + orifice_flow(dp_Pa, cd, check_valve_area(dp_Pa, check_area_max, check_dp_crack, check_dp_full),
+                             rho, check_p_crit)
+    return q
+
+
+def _flow_function_derivative(dp_Pa, p_crit_Pa):
+    """d phi/d dp of `_flow_function` [1/sqrt(Pa)]: (dp^2/2 + p_cr^2) / (dp^2 + p_cr^2)^(5/4) > 0."""
+    s = dp_Pa * dp_Pa + p_crit_Pa * p_crit_Pa
+    return (0.5 * dp_Pa * dp_Pa + p_crit_Pa * p_crit_Pa) / (s * sym.sqrt(sym.sqrt(s)))
+
+
+def _separate_check(kw: dict):
+    """(area keywords without the check valve, its (area_max, crack, full, p_crit)) when the check valve has its own
+    transition (check_p_crit given), else (kw, None)."""
+    kw = dict(kw)
+    p_crit_check = kw.pop("check_p_crit", None)
+    if p_crit_check is None:
+        return kw, None
+    check = (kw["check_area_max"], kw["check_dp_crack"], kw["check_dp_full"], p_crit_check)
+    kw["check_area_max"] = 0.0
+    return kw, check
+
+
+def _check_flow_and_slope(dp, c, check):
+    """(flow per c [m^2 sqrt(Pa)], its derivative in dp) of a check valve with its own transition."""
+    area_max, crack, full, p_crit = check
+    area = check_valve_area(dp, area_max, crack, full)
+    phi = _flow_function(dp, p_crit)
+    return c * area * phi, c * (area_max * _smooth_step_derivative(dp, crack, full) * phi
+                                 + area * _flow_function_derivative(dp, p_crit))
 
 
 def valve_pressure_drop(q_m3_s, newton_iterations: int = 40, dp_guess=None, **valve_kwargs):
@@ -165,7 +199,7 @@ def valve_pressure_drop(q_m3_s, newton_iterations: int = 40, dp_guess=None, **va
     unrolls into an SX/MX graph. dp_guess [Pa] (e.g. the previous time step) replaces the
     starting point (clamped into the bracket).
     """
-    kw = dict(valve_kwargs)
+    kw, check = _separate_check(valve_kwargs)
     cd, rho, p_crit, k_leak = kw.pop("cd"), kw.pop("rho"), kw.pop("p_crit"), kw.pop("k_leak")
     unknown = set(kw) - set(_AREA_KEYS)
     missing = set(_AREA_KEYS) - set(kw)
@@ -180,6 +214,10 @@ def valve_pressure_drop(q_m3_s, newton_iterations: int = 40, dp_guess=None, **va
         darea = _valve_opening_area_derivative(dp, **kw)
         r = c * area * w + k_leak * dp - q_m3_s
         dr = c * area + (c * w * darea + k_leak) * ddp_dw
+        if check is not None:
+            q_check, dq_check = _check_flow_and_slope(dp, c, check)
+            r = r + q_check
+            dr = dr + dq_check * ddp_dw
         return r, dr
 
     w_bound = q_m3_s / (c * kw["bleed_area"])        # bleed only: |w*| <= |w_bound|
@@ -229,7 +267,7 @@ def valve_pressure_drop_warm(q_m3_s, dp_guess_Pa, iterations: int = 2, **valve_k
     always contains the root. Much cheaper than `valve_pressure_drop`, which must work from a
     cold start. Symbolic-friendly.
     """
-    kw = dict(valve_kwargs)
+    kw, check = _separate_check(valve_kwargs)
     cd, rho, p_crit, k_leak = kw.pop("cd"), kw.pop("rho"), kw.pop("p_crit"), kw.pop("k_leak")
     c = sym.sqrt(2.0 / rho) * cd
     w_bound = q_m3_s / (c * kw["bleed_area"])
@@ -241,5 +279,9 @@ def valve_pressure_drop_warm(q_m3_s, dp_guess_Pa, iterations: int = 2, **valve_k
         r = c * area * w + k_leak * dp - q_m3_s
         dr = c * area + (c * w * _valve_opening_area_derivative(dp, **kw) + k_leak) \
             * _flow_function_inverse_derivative(w, p_crit)
+        if check is not None:
+            q_check, dq_check = _check_flow_and_slope(dp, c, check)
+            r = r + q_check
+            dr = dr + dq_check * _flow_function_inverse_derivative(w, p_crit)
         w = sym.fmin(sym.fmax(w - r / dr, lo), hi)
     return _flow_function_inverse(w, p_crit)

@@ -5,9 +5,11 @@ Per axle (mean of left and right), for the first and the last statistics interva
   c_valve_kNs_m       equivalent valve damping P_valve / v_rms^2 [kN s/m at the strut]: the linear damper that
                       dissipates the interval's valve power at its RMS strut velocity
   c_friction_kNs_m    the same for the seal friction (P_friction / v_rms^2)
-  coulomb_*_N         the strut's mapped Coulomb friction per stroke at that oil temperature (struts.maps; the
-                      maps hold it constant over frequency, seed 001 §5.2); None without a map
-For struts with internal maps only (`None` otherwise): the table answers what the maps do on the vehicle.
+  coulomb_*_N         the strut's Coulomb friction per stroke at that oil temperature: mapped (struts.maps; the
+                      maps hold it constant over frequency, seed 001 §5.2) or, for a physical strut
+                      (internals: physical), its seal's contact law (struts.seal_friction); None without either
+For struts with internal maps or physical internals only (`None` otherwise): the table answers how the struts'
+damping and friction move with temperature on the vehicle.
 """
 from __future__ import annotations
 
@@ -15,22 +17,32 @@ import json
 
 import numpy as np
 
+from struts import seal_friction as seal
 from struts.maps import map_value
 from struts.params import StrutParams
 
 __all__ = ["damping_over_drive"]
 
 
-def _maps_of(resolved: dict, n_axles: int) -> list:
-    """The internal maps of each axle's strut from the results file's resolved scenario (None without)."""
+def _coulomb_laws(resolved: dict, n_axles: int) -> list:
+    """Per axle: (maps range [degC] or None, coulomb(direction, T_K) -> N) of its strut from the results file's
+    resolved scenario, or None when its Coulomb level moves with neither a map nor a physical seal law."""
     struts = resolved.get("struts") or {}      # {"axle1": strut parameters, ...}
     out = []
     for k in range(n_axles):
         data = struts.get(f"axle{k + 1}") if isinstance(struts, dict) else None
-        maps = None
-        if isinstance(data, dict) and data.get("internal_maps"):
-            maps = StrutParams.model_validate(data).internal_maps
-        out.append(maps)
+        law = None
+        if isinstance(data, dict) and data.get("internals") == "physical":
+            sp = StrutParams.model_validate(data)
+            f, T_ref = sp.friction, sp.oil.reference_temperature
+            law = (None, lambda d, T, f=f, T_ref=T_ref: float(seal.contact_coulomb_level(
+                getattr(f, f"F0_{d}"), T, T_ref, f.contact_temperature_coefficient)))
+        elif isinstance(data, dict) and data.get("internal_maps"):
+            m = StrutParams.model_validate(data).internal_maps
+            law = ([m.temperatures[0] - 273.15, m.temperatures[-1] - 273.15],
+                   lambda d, T, m=m: float(map_value(m, f"coulomb_{d}", T, m.frequencies[0]))
+                   if getattr(m, f"coulomb_{d}") is not None else None)
+        out.append(law)
     return out
 
 
@@ -42,8 +54,8 @@ def damping_over_drive(r) -> list[dict] | None:
     except (KeyError, ValueError, TypeError):
         return None
     n_axles = len(r.axles)
-    maps = _maps_of(resolved, n_axles)
-    if not any(m is not None for m in maps):
+    laws = _coulomb_laws(resolved, n_axles)
+    if not any(law is not None for law in laws):
         return None
     P_v, P_f = r.stats_series("power_valve"), r.stats_series("power_friction")
     v_rms, T_oil = r.stats_series("rms_strut_velocity"), r.stats_series("oil_temperature")
@@ -57,8 +69,8 @@ def damping_over_drive(r) -> list[dict] | None:
     rows = []
     for k in range(n_axles):
         row = {"axle": k + 1}
-        if maps[k] is not None:     # outside it the maps hold their edge values (struts.maps)
-            row["maps_range_C"] = [maps[k].temperatures[0] - 273.15, maps[k].temperatures[-1] - 273.15]
+        if laws[k] is not None and laws[k][0] is not None:     # outside it the maps hold their edge values
+            row["maps_range_C"] = laws[k][0]
         for tag, i in (("first", 0), ("last", -1)):
             v2 = axle(v_rms, i)[k] ** 2
             T = axle(T_oil, i)[k]
@@ -66,8 +78,6 @@ def damping_over_drive(r) -> list[dict] | None:
             row[f"c_valve_{tag}_kNs_m"] = float(axle(P_v, i)[k] / v2 / 1e3) if v2 > 0 else None
             row[f"c_friction_{tag}_kNs_m"] = float(axle(P_f, i)[k] / v2 / 1e3) if v2 > 0 else None
             for d in ("compression", "rebound"):
-                m = maps[k]
-                has = m is not None and getattr(m, f"coulomb_{d}") is not None
-                row[f"coulomb_{d}_{tag}_N"] = float(map_value(m, f"coulomb_{d}", T, m.frequencies[0])) if has else None
+                row[f"coulomb_{d}_{tag}_N"] = laws[k][1](d, T) if laws[k] is not None else None
         rows.append(row)
     return rows

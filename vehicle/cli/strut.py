@@ -5,6 +5,9 @@
                       [--json] [--plot loops.png] [--csv loops.csv]
     hpsim strut characteristic --strut apc [--p0 ...] [--temperature ...] [--plot f.png] [--csv f.csv]
     hpsim strut fit --strut apc --data rig.csv --fit name1,name2 [--json]
+    hpsim strut identify --strut yin2023 [--temperatures 30degC,40degC,50degC] [--frequencies 0.5Hz,...,8Hz]
+                         [--peak-velocity 0.1m/s] [--mean 60mm] [--chambers compressible] [--json] [--csv t.csv]
+                         [--plot internal.png]
 """
 from __future__ import annotations
 
@@ -21,6 +24,8 @@ from hpsim.outputs import check_figure_file, check_output_file
 from hpsim.units import MAX_LIST_ITEMS, parse_quantity
 
 PROCESSES = ("polytropic", "isothermal")
+MODELS = ("file", "physical", "identified")
+CHAMBERS = ("file", "quasi_steady", "compressible")
 
 # allowed ranges, quoted in the error messages
 _P0_RANGE_PA = (0.1e6, 30e6)
@@ -61,6 +66,15 @@ def register(sub):
         sp.add_argument("--p0", help="fill pressure at full extension, e.g. 4.8MPa (default: the file's)")
         sp.add_argument("--temperature", help="strut and gas temperature, e.g. 20degC (default: charge temperature)")
         sp.add_argument("--json", action="store_true", help="print only JSON on stdout")
+        sp.add_argument("--model", choices=MODELS, default="file",
+                        help="integrated struts: the file's internals (default), physical (the internal parameters "
+                             "emerge) or identified (seed 001's model: polytropic gas, eq. 2-3 friction, the maps)")
+
+    def chambers(sp, default="file"):
+        sp.add_argument("--chambers", choices=CHAMBERS, default=default,
+                        help=f"integrated struts (default {default}): the file's chambers, quasi_steady (the pressure "
+                             "difference relaxes at once) or compressible (seed 001 eq. 5-7 as written, needed for the "
+                             "emulsion's pressure-difference hysteresis)")
 
     s = ssub.add_parser("static", help="static deflection and stiffness at a load")
     common(s)
@@ -91,6 +105,7 @@ def register(sub):
     y.add_argument("--csv", help="write the last-cycle loops as CSV")
     y.add_argument("--data", help="measured loops to overlay (CSV: amplitude_m, frequency_Hz, mean_m, t_s, force_N "
                                   "over one cycle of x = mean + A sin(2 pi f t)); their energies join the table")
+    chambers(y)
     y.set_defaults(func=cmd_cycle)
 
     g = ssub.add_parser("gas", help="nitrogen models (ideal, BWR) against CoolProp's reference equation")
@@ -106,7 +121,19 @@ def register(sub):
     f.add_argument("--cycles", type=int, default=3)
     f.add_argument("--write", help="write the strut file with the fitted values to this path")
     f.set_defaults(func=cmd_fit)
-    for sp in (s, c, y, f):
+
+    i = ssub.add_parser("identify", help="seed 001's internal parameters identified from the strut's rig loops")
+    common(i)
+    chambers(i, default="compressible")
+    i.add_argument("--temperatures", default="30degC,40degC,50degC", help="body temperatures (default: seed 001's)")
+    i.add_argument("--frequencies", default="0.5Hz,1Hz,2Hz,4Hz,8Hz", help="sinusoid frequencies (default: seed 001's)")
+    i.add_argument("--peak-velocity", default="0.1m/s", help="peak deflection rate of every test (default: seed 001's)")
+    i.add_argument("--mean", default="60mm", help="mean deflection (default 60 mm)")
+    i.add_argument("--cycles", type=int, default=3)
+    i.add_argument("--csv", help="write the identified parameters as CSV (one row per test)")
+    i.add_argument("--plot", help="write the identified parameters against frequency per temperature as PNG")
+    i.set_defaults(func=cmd_identify)
+    for sp in (s, c, y, f, i):
         _accept_negative_values(sp)
 
 
@@ -122,6 +149,21 @@ def _params(args, process=None, n=None):
         if not _N_RANGE[0] <= n_val <= _N_RANGE[1]:
             raise UserInputError(f"--n: polytropic exponent must be in {n_allowed}, got {n_val}")
         overrides["gas.polytropic_exponent"] = n_val
+    model = getattr(args, "model", "file")
+    chambers = getattr(args, "chambers", "file")
+    if model != "file" or chambers != "file":
+        layout = load_strut(args.strut).layout
+        if layout != "integrated":
+            flag = "--model" if model != "file" else "--chambers"
+            raise UserInputError(f"{flag}: only for integrated struts; strut {args.strut} has layout {layout} "
+                                 f"(allowed: file)")
+    if model == "identified":
+        from struts.identify import PAPER_MODEL
+        overrides.update(PAPER_MODEL)
+    elif model == "physical":
+        overrides.update({"internals": "physical"})
+    if chambers != "file":
+        overrides["valve.oil_model"] = chambers
     params = load_strut(args.strut, overrides)
     p0 = None
     if args.p0 is not None:
@@ -270,13 +312,15 @@ def cmd_cycle(args):
         print(f"warning: {w}", file=sys.stderr)
     if args.csv:
         header = ["amplitude_m", "frequency_Hz", "mean_m", "t_s", "x_m", "v_m_per_s", "force_N",
-                  "gas_force_N", "valve_force_N", "friction_force_N", "end_stop_force_N", "gas_temperature_K"]
+                  "gas_force_N", "valve_force_N", "friction_force_N", "end_stop_force_N", "gas_temperature_K",
+                  "gas_pressure_Pa", "rod_chamber_pressure_Pa"]
         rows = []
         for r in results:
             for i in range(len(r.t_s)):
                 rows.append([r.amplitude_m, r.frequency_Hz, r.mean_m, r.t_s[i] - r.t_s[0], r.x_m[i], r.v_m_per_s[i],
                              r.force_N[i], r.components_N["gas"][i], r.components_N["valve"][i],
-                             r.components_N["friction"][i], r.components_N["end_stop"][i], r.gas_temperature_K[i]])
+                             r.components_N["friction"][i], r.components_N["end_stop"][i], r.gas_temperature_K[i],
+                             r.gas_pressure_Pa[i], r.rod_chamber_pressure_Pa[i]])
         _write_csv(args.csv, header, rows)
     if args.plot:
         plot_loops(results, args.plot, params.name, measured)
@@ -481,6 +525,98 @@ def _orders(lo: float, hi: float) -> str:
     if not math.isfinite(lo) or lo <= 0:
         return "reaches zero"
     return f"{math.log10(hi / lo):.1f} orders of magnitude"
+
+
+def cmd_identify(args):
+    from struts.identify import IDENTIFIED_NAMES, identify_rig
+    from struts.rig import check_cycle_arguments, check_cycle_work
+
+    from struts.params import load_strut
+
+    _check_outputs(args)
+    layout = load_strut(args.strut).layout
+    if layout != "integrated":
+        raise UserInputError(f"--strut: identify needs an integrated strut (seed 001's model); {args.strut} has "
+                             f"layout {layout}")
+    params, p0, _ = _params(args)
+    temps = _quantity_list(args.temperatures, "K", "--temperatures", "[-73, 177] degC")
+    if any(not _T_RANGE_K[0] <= T <= _T_RANGE_K[1] for T in temps):
+        raise UserInputError(f"--temperatures: each must be in [{_T_RANGE_K[0] - 273.15:.4g}, "
+                             f"{_T_RANGE_K[1] - 273.15:.4g}] degC")
+    freqs = _quantity_list(args.frequencies, "Hz", "--frequencies", f"(0, {_max_frequency():g}] Hz")
+    if any(not 0 < f <= _max_frequency() for f in freqs):
+        raise UserInputError(f"--frequencies: each must be in (0, {_max_frequency():g}] Hz")
+    v_peak = _quantity(args.peak_velocity, "m/s", "--peak-velocity", "(0, 2] m/s")
+    if not 0 < v_peak <= 2.0:
+        raise UserInputError(f"--peak-velocity: must be in (0, 2] m/s, got {v_peak:g} m/s")
+    stroke_mm = params.geometry.stroke * 1e3
+    mean = _quantity(args.mean, "m", "--mean", f"inside the stroke [0, {stroke_mm:.4g}] mm")
+    check_cycle_work(len(temps) * len(freqs), args.cycles)
+    for f in freqs:
+        check_cycle_arguments(params, v_peak / (2.0 * 3.141592653589793 * f), f, mean, args.cycles)
+    rows = identify_rig(params, temps, freqs, v_peak, mean, cycles=args.cycles, p0_Pa=p0)
+    if args.csv:
+        header = ["temperature_K", "frequency_Hz", "amplitude_m"] + list(IDENTIFIED_NAMES) + ["state_gas_fraction"]
+        _write_csv(args.csv, header, [[r["temperature_K"], r["frequency_Hz"], r["amplitude_m"]]
+                                      + [r["identified"][n] for n in IDENTIFIED_NAMES]
+                                      + [r["state_gas_fraction"] if r["state_gas_fraction"] is not None else float("nan")]
+                                      for r in rows])
+    if args.plot:
+        plot_identified(rows, args.plot, params.name)
+    if args.json:
+        print_json(rows)
+    else:
+        print(format_table(["T [degC]", "f [Hz]", "gamma_0 [%]", "C_b", "C_v", "F_c comp [N]", "F_c reb [N]",
+                            "peak comp [N]", "peak reb [N]", "k comp [s/m]", "k reb [s/m]", "v_h comp [mm/s]",
+                            "v_h reb [mm/s]"],
+                           [(r["temperature_K"] - 273.15, r["frequency_Hz"], 100 * r["identified"]["gas_fraction"],
+                             r["identified"]["bleed_discharge_coefficient"],
+                             r["identified"]["check_discharge_coefficient"],
+                             r["identified"]["coulomb_compression"], r["identified"]["coulomb_rebound"],
+                             r["identified"]["peak_compression"], r["identified"]["peak_rebound"],
+                             r["identified"]["stribeck_coefficient_compression"],
+                             r["identified"]["stribeck_coefficient_rebound"],
+                             1e3 * r["identified"]["transition_velocity_compression"],
+                             1e3 * r["identified"]["transition_velocity_rebound"]) for r in rows]))
+
+
+# panels of the identified-parameter figure: (title, [(name, label)], scale, unit)
+_IDENTIFIED_PANELS = (
+    ("gas fraction (Fig. 10a)", [("gas_fraction", "")], 100.0, "%"),
+    ("discharge coefficients (Fig. 10b)", [("bleed_discharge_coefficient", "bleed"),
+                                           ("check_discharge_coefficient", "check")], 1.0, "-"),
+    ("Coulomb friction (Fig. 11a)", [("coulomb_compression", "comp"), ("coulomb_rebound", "reb")], 1.0, "N"),
+    ("peak friction (Fig. 11b)", [("peak_compression", "comp"), ("peak_rebound", "reb")], 1.0, "N"),
+    ("Stribeck coefficient (Fig. 11c)", [("stribeck_coefficient_compression", "comp"),
+                                         ("stribeck_coefficient_rebound", "reb")], 1.0, "s/m"),
+    ("transition velocity (Fig. 11d)", [("transition_velocity_compression", "comp"),
+                                        ("transition_velocity_rebound", "reb")], 1e3, "mm/s"),
+)
+
+
+def plot_identified(rows, path, name):
+    """The identified internal parameters against frequency, one line per temperature and stroke (seed 001 Figs.
+    10-11 layout)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    temps = sorted({r["temperature_K"] for r in rows})
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
+    styles = ("-", "--")
+    for ax, (title, names, scale, unit) in zip(axes.ravel(), _IDENTIFIED_PANELS):
+        for k, T in enumerate(temps):
+            sel = sorted((r for r in rows if r["temperature_K"] == T), key=lambda r: r["frequency_Hz"])
+            f = [r["frequency_Hz"] for r in sel]
+            for j, (n, lab) in enumerate(names):
+                ax.plot(f, [scale * r["identified"][n] for r in sel], styles[j], marker="o", ms=3, color=f"C{k}",
+                        label=f"{T - 273.15:.0f} degC" + (f" {lab}" if lab else ""))
+        ax.set_xscale("log"); ax.set_xlabel("frequency [Hz]"); ax.set_ylabel(f"[{unit}]")
+        ax.set_title(title, fontsize=9); ax.grid(True, which="both", alpha=0.4)
+        ax.legend(fontsize=6, ncol=2 if len(names) > 1 else 1, loc="best")
+    fig.suptitle(f"{name}: seed 001's internal parameters identified from the rig loops (eq. 1-12 fitted per test)")
+    fig.tight_layout()
+    _save_figure(fig, path, "--plot"); plt.close(fig)
 
 
 def cmd_gas(args):

@@ -17,6 +17,7 @@ from hpsim.errors import UserInputError
 from struts import excitation
 from struts import friction as fr
 from struts.maps import INTERNAL_NAMES, map_value, validity_warnings
+from struts.identify import PAPER_MODEL
 from struts.model import make_strut
 from struts.params import load_strut
 from struts.rig import cycle_test
@@ -26,7 +27,8 @@ C = 273.15
 
 @pytest.fixture(scope="module")
 def params():
-    return load_strut("yin2023")
+    """seed 001's identified model (the file's default is the physical strut: test_physical_strut.py)."""
+    return load_strut("yin2023", PAPER_MODEL)
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +119,7 @@ def test_validity_warnings_outside_the_maps(params):
 
 def test_constants_keep_working(params):
     """Without maps the internal parameters are the file's constants and no excitation state exists."""
-    s = make_strut(load_strut("yin2023", {"internal_maps": None}))
+    s = make_strut(load_strut("yin2023", {**PAPER_MODEL, "internal_maps": None}))
     i = s.internal_parameters(313.15, 8.0)
     f = s.p.friction
     assert i["coulomb_compression"] == f.F0_compression and i["peak_rebound"] == pytest.approx(f.breakaway_ratio * f.F0_rebound)
@@ -272,8 +274,8 @@ def test_cycle_json_reports_internal_parameters_and_equivalent_stiffness_damping
 
     from vehicle.cli import main
 
-    code = main(["strut", "cycle", "--strut", "yin2023", "--amplitude", "8mm", "--frequency", "2Hz,8Hz",
-                 "--mean", "60mm", "--temperature", "50degC", "--cycles", "2", "--json"])
+    code = main(["strut", "cycle", "--strut", "yin2023", "--model", "identified", "--amplitude", "8mm",
+                 "--frequency", "2Hz,8Hz", "--mean", "60mm", "--temperature", "50degC", "--cycles", "2", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code in (0, None) and len(out) == 2
     for r in out:
@@ -288,54 +290,14 @@ def test_cycle_json_reports_internal_parameters_and_equivalent_stiffness_damping
     assert out[1]["internal"]["transition_velocity_compression"] > out[0]["internal"]["transition_velocity_compression"]
 
 
-# --- on a vehicle ------------------------------------------------------------------------------
-
-def test_light_4x4_on_integrated_struts_stands_and_runs_at_the_default_step():
-    """vehicle/data/light_4x4_integrated.yaml: the charged vehicle stands inside the stroke; on 300 m of an ISO
-    class D road at 30 km/h from 30 degC the default 4 ms step gives each strut's heat (valve + friction + end
-    stops) within 1 % of a 2 ms run (measured: 0.48-0.59 %; against 1 ms: 4 ms 0.60-0.73 %, 2 ms 0.13-0.15 %,
-    second order). Every strut carries the maps, the reversal memory and the excitation states, and the
-    measure follows the motion (0.5 Hz at rest, well above it after the drive)."""
-    from terrain import RoadSpec, build_road
-    from vehicle.numerics import solvers
-    from vehicle.physics.model import VehicleModel
-    from vehicle.physics.params import load_vehicle
-    from vehicle.engines.full import Drive
-    from vehicle.scenario.settings import DriveSettings
-    from vehicle.scenario.speed import SpeedProfile
-
-    m = VehicleModel(load_vehicle("light_4x4_integrated"))
-    assert all(st.uses_excitation and "stroke_dir" in st.state_names for st in m.struts)
-    road = build_road(RoadSpec(iso_class="D", length=360.0, seed=1))
-    heat, f_eq = {}, {}
-    for dt in (0.004, 0.002):
-        settings = DriveSettings(distance_m=300.0, speed=SpeedProfile.constant(30 / 3.6), ambient_K=303.15,
-                                 initial_temperatures_K=303.15, dt_s=dt, output_interval_s=0.2, samples_per_block=5,
-                                 stats_interval_m=300.0, error_check_every=0)
-        d = Drive(m, road, settings, solver=solvers.Ros2(dt))
-        x0 = d.initial_state().x
-        eq = d.initial_equilibrium()
-        assert np.all((eq.strut_deflections_m > 0.2 * 0.12) & (eq.strut_deflections_m < 0.8 * 0.12))
-        res = d.run(None)
-        x = res.state.x
-        assert np.all(np.isfinite(x))
-        heat[dt] = sum(x[m.energy_index[e]] for e in ("valve", "friction", "end_stop"))
-        f_eq[dt] = [float(m.struts[i].excitation_frequency({n: x[m.idx(f"{n}[{i}]")] for n in excitation.STATE_NAMES}))
-                    for i in range(m.n)]
-        f_rest = [float(m.struts[i].excitation_frequency({n: x0[m.idx(f"{n}[{i}]")] for n in excitation.STATE_NAMES}))
-                  for i in range(m.n)]
-    assert np.all(heat[0.004] > 100.0)
-    assert np.max(np.abs(heat[0.004] / heat[0.002] - 1.0)) < 0.01
-    assert f_rest == pytest.approx([0.5] * m.n, rel=1e-6) and min(f_eq[0.004]) > 1.0
-
-
 def test_report_shows_damping_and_friction_moving_with_temperature(tmp_path, capsys):
-    """`hpsim report` of a drive of the light 4x4: per axle the oil temperature, the equivalent valve and friction
-    damping (interval power / v_rms^2) and the mapped Coulomb friction in the first and last statistics interval;
-    the oil warms and the Coulomb levels follow their maps at those temperatures. The APC's report has no such
-    table (its struts have no maps)."""
+    """`hpsim report` of a drive of the light 4x4 (physical struts): per axle the oil temperature, the equivalent
+    valve and friction damping (interval power / v_rms^2) and the seal's Coulomb friction in the first and last
+    statistics interval; the oil warms and the Coulomb levels follow the seal's contact law at those temperatures.
+    The APC's report has no such table (its struts' friction does not move with temperature)."""
     import json
 
+    from struts import seal_friction as seal
     from vehicle.cli import main
 
     sc = tmp_path / "l4.yaml"
@@ -347,12 +309,13 @@ def test_report_shows_damping_and_friction_moving_with_temperature(tmp_path, cap
     assert main(["report", str(tmp_path / "l4.h5"), "--json"]) in (0, None)
     rep = json.loads(capsys.readouterr().out)
     rows = rep["damping_over_drive"]
-    maps = load_strut("yin2023").internal_maps
+    p = load_strut("yin2023")
     assert [r["axle"] for r in rows] == [1, 2]
     for r in rows:
         assert r["T_oil_last_C"] > r["T_oil_first_C"] > 30.0
         assert r["c_valve_first_kNs_m"] > 0 and r["c_friction_last_kNs_m"] > 0
-        assert r["coulomb_compression_last_N"] == pytest.approx(float(map_value(
-            maps, "coulomb_compression", r["T_oil_last_C"] + C, 0.5)), rel=1e-9)
+        assert r["coulomb_compression_last_N"] == pytest.approx(float(seal.contact_coulomb_level(
+            p.friction.F0_compression, r["T_oil_last_C"] + C, p.oil.reference_temperature,
+            p.friction.contact_temperature_coefficient)), rel=1e-9)
     assert main(["report", str(tmp_path / "l4.h5")]) in (0, None)
     assert "damping and friction over the drive" in capsys.readouterr().out

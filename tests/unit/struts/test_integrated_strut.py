@@ -12,15 +12,17 @@ import numpy as np
 import pytest
 
 from struts import oil as oillaw
+from struts.identify import PAPER_MODEL
 from struts.model import StrutInputs, make_strut
 from struts.params import load_strut
 from struts.rig import cycle_test, static_point
 
 MID = 0.06          # mid stroke of yin2023 [m]
 AMP = 0.01          # 10 mm
-# the chamber physics with the internal parameters held at the file's constants (the maps of seed 001 §5.2 and
-# their excitation states: tests/test_integrated_maps.py)
-CONSTANTS = {"internal_maps": None}
+# the chamber physics of seed 001's model (struts.identify.PAPER_MODEL) with the internal parameters held at the
+# file's constants (the maps of seed 001 §5.2 and their excitation states: test_integrated_maps.py; the physical
+# strut: test_physical_strut.py)
+CONSTANTS = {**PAPER_MODEL, "internal_maps": None}
 
 
 @pytest.fixture(scope="module")
