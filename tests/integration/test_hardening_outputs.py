@@ -237,25 +237,24 @@ def test_animate_and_report_stopped_midway_keep_the_old_output(tmp_path, monkeyp
     as they were, no temporary file is left (they used to be left truncated, 0 B to 760 kB)."""
     import shutil
 
-    from matplotlib.animation import PillowWriter
-
     from vehicle.cli import main
+    from vehicle.presentation.animation import SideView
 
     r = tmp_path / "r.h5"
     shutil.copy(Path(__file__).resolve().parents[1] / "data" / "results_v1.h5", r)
     gif, html = tmp_path / "a.gif", tmp_path / "r.html"
     for f in (gif, html):
         f.write_bytes(OLD)
-    grab = PillowWriter.grab_frame
-    grabbed = []
+    update = SideView.update
+    drawn = []
 
-    def grab_then_stop(self, **kwargs):
-        grab(self, **kwargs)
-        grabbed.append(1)
-        if len(grabbed) == 2:
+    def draw_then_stop(self, k):
+        update(self, k)
+        drawn.append(k)
+        if len(drawn) == 2:
             raise stop()
 
-    monkeypatch.setattr(PillowWriter, "grab_frame", grab_then_stop)
+    monkeypatch.setattr(SideView, "update", draw_then_stop)
     assert main(["animate", str(r), "-o", str(gif), "--from", "0.1km", "--to", "0.12km", "--overwrite"]) == code
     write_text = Path.write_text
 
