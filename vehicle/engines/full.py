@@ -18,6 +18,7 @@ from typing import Callable
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import SimulationError
 
 from vehicle.physics import thermal
@@ -30,6 +31,7 @@ from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
 from vehicle.scenario.settings import DriveSettings
 from vehicle.scenario.work_limits import samples_per_call
 from vehicle.engines.contract import BlockObserver, DriveResult, DriveSink, DriveState
+from vehicle.engines.drive_end import DriveEnd
 from vehicle.engines.state_index import StateIndex
 
 
@@ -78,6 +80,7 @@ class Drive:
         outputs_compiled = caps.compiled_outputs
         self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
         self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
+        self.end = DriveEnd.of(settings.distance_m, self.total_time_s, settings.dt_s, self.K)
         estimate = settings.error_check_every > 0 and caps.step_doubling
         # the step-doubling window: ERROR_WINDOW_S of drive whatever the output interval (an estimate of the step's
         # error must not depend on how often results are stored)
@@ -89,7 +92,7 @@ class Drive:
                 graphs.append(solver.refined_solver(2).block_graph(model, 2 * self.error_steps, 1))
                 if self._coarse_sample() is None:
                     graphs.append(solver.refined_solver(1).block_graph(model, self.error_steps, 1))
-            if self._tail_steps():
+            if self.partial_last_sample and self.end.tail_steps:
                 graphs.append(solver.refined_solver(1).block_graph(model, 1, 1))
             if outputs_compiled:
                 graphs.append(outputs_graph(model, self.M))
@@ -233,7 +236,11 @@ class Drive:
     # --- run --------------------------------------------------------------------------------------
     def run(self, sink: DriveSink | None = None, state: DriveState | None = None,
             progress: Callable[[float, float, float], None] | None = None,
-            checkpoint_every_blocks: int = 6, observer: "BlockObserver | None" = None) -> "DriveResult":
+            checkpoint_every_blocks: int = 6, observer: "BlockObserver | None" = None,
+            cancel: CancelToken = NEVER) -> "DriveResult":
+        """Drive from `state` (None: the start) to `self.end`, block by block, then the partial last interval
+        (`_tail`). Stops early, returning normally with what it has, once `cancel` is requested (checked after
+        each checkpointed block)."""
         m, S = self.model, self.settings
         st = self.initial_state() if state is None else state
         self.solver.set_state(st.solver_memory)
@@ -241,12 +248,12 @@ class Drive:
         wall0 = time.perf_counter()
         integ_s = 0.0
         blocks = 0
-        sample_dt = self.K * dt
         # error windows every error_check_every blocks of at least check_spacing_s (the first block is left out)
         spacing = check_spacing_s(self.K * self.M * dt)
         next_check = st.t_s + spacing
-        # whole output samples within the distance, then the partial last one (_tail)
-        while st.t_s + sample_dt <= self.total_time_s + 1e-9:
+        left, tail = self.end.steps_left(st.t_s)          # whole samples, then the partial last interval's steps
+        tail = tail if self._tail_steps() else 0
+        while left > 0:
             t_cols = st.t_s + dt * np.arange(self.K * self.M + 1)
             U = self.inputs(t_cols)
             ti = time.perf_counter()
@@ -260,36 +267,21 @@ class Drive:
             t_samples = st.t_s + dt * self.K * np.arange(1, self.M + 1)
             s_samples = self.distance_at(t_samples)
             self._check(X, t_samples, s_samples, st.x)
-            # keep only samples within the drive
-            keep = t_samples <= self.total_time_s + 1e-9
-            if not np.all(keep):
-                X, t_samples, s_samples, memory = X[:, keep], t_samples[keep], s_samples[keep], memory[:, keep]
-            U_samples = U[:, self.K * np.arange(1, X.shape[1] + 1)]
-            block = self._block_outputs(X, U_samples, t_samples, s_samples, memory)
-            intervals = self._stats_intervals(st, X, t_samples, s_samples)
-            rows = [self._stats_row(*interval) for interval in intervals]
-            if observer is not None:
-                observer.block(X, U_samples, memory, block)
-                observer.intervals(intervals)
-            st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=X[:, -1].copy(),
-                            next_stats_m=st.next_stats_m, last_stats=st.last_stats,
-                            sample_index=st.sample_index + X.shape[1], solver_memory=memory[:, -1].copy())
-            if sink is not None:
-                sink.samples(block)
-                if rows:
-                    sink.stats(rows)
+            take = min(self.M, left)                       # only samples within the drive
+            X, t_samples, s_samples, memory = X[:, :take], t_samples[:take], s_samples[:take], memory[:, :take]
+            left -= take
+            U_samples = U[:, self.K * np.arange(1, take + 1)]
             blocks += 1
-            last = st.t_s + sample_dt > self.total_time_s + 1e-9
-            if sink is not None and (blocks % checkpoint_every_blocks == 0 or last):
-                sink.checkpoint(st.as_dict())
-            if progress is not None:
-                progress(st.s_m, float(S.speed.speed(st.s_m)), st.t_s)
-            if not np.all(keep):
+            checkpoint = blocks % checkpoint_every_blocks == 0 or left == 0
+            st = self._record(st, X, U_samples, t_samples, s_samples, memory, sink, observer, progress,
+                              ends=left == 0 and not tail, checkpoint=checkpoint)
+            if checkpoint and cancel.requested:
                 break
-        if self._tail_steps(st.t_s):
-            ti = time.perf_counter()
-            st = self._tail(st, sink, observer, progress)
-            integ_s += time.perf_counter() - ti
+        else:
+            if tail:
+                ti = time.perf_counter()
+                st = self._tail(st, tail, sink, observer, progress)
+                integ_s += time.perf_counter() - ti
         wall = time.perf_counter() - wall0
         final_T = st.x[self.T_oil_index]
         V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
@@ -297,27 +289,40 @@ class Drive:
         error = None if self.error_estimate is None else self.error_estimate.summary(integ_s)
         return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s, solver_error=error)
 
-    def _tail_steps(self, t_s: float | None = None) -> int:
-        """Steps of the partial last output interval from t_s (default: the last whole sample) to the drive's end
-        (0: the drive ends on a whole sample, or the engine keeps whole intervals)."""
+    def _record(self, st: DriveState, X, U, t, s, memory, sink, observer, progress, *, ends: bool,
+                checkpoint: bool) -> DriveState:
+        """One block's samples checked elsewhere, recorded here: its outputs and the statistics intervals it ends
+        (the last closed at the drive's distance when the block `ends` the drive) to the observer and the sink,
+        a checkpoint (every few blocks and at the end), progress. Returns the drive state after the block."""
+        block = self._block_outputs(X, U, t, s, memory)
+        intervals = self._stats_intervals(st, X, t, s, ends=ends)
+        if observer is not None:
+            observer.block(X, U, memory, block)
+            observer.intervals(intervals)
+        st = DriveState(t_s=float(t[-1]), s_m=float(s[-1]), x=X[:, -1].copy(), next_stats_m=st.next_stats_m,
+                        last_stats=st.last_stats, sample_index=st.sample_index + X.shape[1],
+                        solver_memory=memory[:, -1].copy())
+        if sink is not None:
+            sink.samples(block)
+            rows = [self._stats_row(*interval) for interval in intervals]
+            if rows:
+                sink.stats(rows)
+            if checkpoint or ends:
+                sink.checkpoint(st.as_dict())
+        if progress is not None:
+            progress(st.s_m, float(self.settings.speed.speed(st.s_m)), st.t_s)
+        return st
+
+    def _tail_steps(self) -> int:
+        """Steps of the partial last output interval after the last whole sample (`DriveEnd.tail_steps`; 0 when
+        the engine keeps whole intervals)."""
         if not self.partial_last_sample or not self._caps.step_doubling:    # the one-step solver is a refined one
             return 0
-        dt = self.settings.dt_s
-        sample_dt = self.K * dt
-        if t_s is None:
-            t_s = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
-        rest = self.total_time_s - t_s
-        # the distance -> time map is integrated in floating point (106 km at 20 km/h: 19080.0000000226 s): what the
-        # last whole sample leaves of the distance below DISTANCE_ROUNDING of it is that rounding, not an interval
-        left_m = float(self.distance_at(self.total_time_s) - self.distance_at(t_s))
-        if left_m <= self.DISTANCE_ROUNDING * self.settings.distance_m:
-            return 0
-        return int(np.ceil(rest / dt - 1e-6)) if rest > 1e-6 * dt else 0
+        return self.end.tail_steps
 
-    def _tail(self, st: "DriveState", sink, observer, progress) -> "DriveState":
-        """The partial last output interval: its steps one by one (a one-step compiled function), one sample at the
-        drive's end (within a step of it), its statistics row closed, a checkpoint."""
-        n = self._tail_steps(st.t_s)
+    def _tail(self, st: "DriveState", n: int, sink, observer, progress) -> "DriveState":
+        """The partial last output interval: its n steps one by one (a one-step compiled function), one sample at
+        the drive's end, recorded as a block that ends the drive."""
         dt = self.settings.dt_s
         if "tail" not in self._probes:
             self._probes["tail"] = self.solver.refined_solver(1).bind(self.model, 1, 1)
@@ -332,25 +337,8 @@ class Drive:
         t_samples = t_cols[-1:]
         s_samples = self.distance_at(t_samples)
         self._check(X, t_samples, s_samples, st.x)
-        block = self._block_outputs(X, U[:, -1:], t_samples, s_samples, memory)
-        intervals = self._stats_intervals(st, X, t_samples, s_samples, final=True)
-        if observer is not None:
-            observer.block(X, U[:, -1:], memory, block)
-            observer.intervals(intervals)
-        st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=x.copy(), next_stats_m=st.next_stats_m,
-                        last_stats=st.last_stats, sample_index=st.sample_index + 1,
-                        solver_memory=memory[:, -1].copy())
-        if sink is not None:
-            sink.samples(block)
-            rows = [self._stats_row(*interval) for interval in intervals]
-            if rows:
-                sink.stats(rows)
-            sink.checkpoint(st.as_dict())
-        if progress is not None:
-            progress(st.s_m, float(self.settings.speed.speed(st.s_m)), st.t_s)
-        return st
-
-    DISTANCE_ROUNDING = 1e-9     # relative: the float error of the distance -> time map is ~1e-12 of the drive
+        return self._record(st, X, U[:, -1:], t_samples, s_samples, memory, sink, observer, progress, ends=True,
+                            checkpoint=True)
 
     # a state this far outside physics means the integration has failed, whatever the solver says
     PHYSICAL_TEMPERATURE_K = (150.0, 273.15 + 400.0)
@@ -446,34 +434,38 @@ class Drive:
                 raise ValueError(f"output table: {key!r} has an unknown series kind {f.kind!r}")
         return block
 
-    def _stats_intervals(self, st: DriveState, X, t, s, final: bool = False) -> list[tuple]:
+    def _stats_intervals(self, st: DriveState, X, t, s, ends: bool = False) -> list[tuple]:
         """Every statistics interval ended in this block, as the arguments of `_stats_row` (distance at the end,
-        duration, quadrature differences, state at the end, interval mean gas temperature); the last partial
-        one at the drive's end if `close_last_interval`. Advances st.next_stats_m and st.last_stats."""
+        duration, quadrature differences, state at the end, interval mean gas temperature). A block that `ends`
+        the drive closes its last interval at the drive's distance (if `close_last_interval`): interpolated to it
+        when the end sample passes a boundary there, else at the end sample (within half a step of it). No
+        boundary beyond the drive's distance is cut. Advances st.next_stats_m and st.last_stats."""
         rows = []
         q = X[self.quad_index]
         T = X
+        end_m = self.end.distance_m
         t_last, q_last = st.last_stats["t_s"], st.last_stats["q"]
         s0, t0, q0, T0 = st.s_m, st.t_s, st.x[self.quad_index], st.x
         # the gas temperature swings by kelvins with every bump: its interval mean over the output samples
         Tg = X[self.T_gas_index]
         g_sum = np.broadcast_to(np.asarray(st.last_stats.get("gas_sum", 0.0), float), (self.model.n,)).copy()
         g_n = int(st.last_stats.get("gas_n", 0))
+        closed_at_end = False
         for j in range(len(t)):
             g_sum += Tg[:, j]
             g_n += 1
-            while s[j] >= st.next_stats_m - 1e-9:
+            while s[j] >= st.next_stats_m - 1e-9 and st.next_stats_m <= end_m:
                 # the quadratures are smooth and monotone: interpolate them to the boundary
                 a = (st.next_stats_m - s0) / (s[j] - s0) if s[j] > s0 else 1.0
                 tb, qb, Tb = t0 + a * (t[j] - t0), q0 + a * (q[:, j] - q0), T0 + a * (T[:, j] - T0)
                 rows.append((st.next_stats_m, tb - t_last, qb - q_last, Tb, g_sum / g_n if g_n else Tg[:, j]))
+                closed_at_end = st.next_stats_m == end_m
                 t_last, q_last = tb, qb
                 g_sum, g_n = np.zeros(self.model.n), 0
                 st.next_stats_m += self.settings.stats_interval_m
             s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
-        last = final or (t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 and not self._tail_steps())
-        if self.close_last_interval and last and t[-1] > t_last + 1e-9:
-            rows.append((s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1], g_sum / g_n if g_n else Tg[:, -1]))
+        if ends and self.close_last_interval and not closed_at_end and t[-1] > t_last:
+            rows.append((end_m, t[-1] - t_last, q[:, -1] - q_last, T[:, -1], g_sum / g_n if g_n else Tg[:, -1]))
             t_last, q_last = t[-1], q[:, -1]
             g_sum, g_n = np.zeros(self.model.n), 0
         st.last_stats = {"t_s": t_last, "q": q_last, "gas_sum": g_sum, "gas_n": g_n}

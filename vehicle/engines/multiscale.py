@@ -414,7 +414,7 @@ class MultiscaleDrive(Drive):
                                                                   w["t_end"] - w["t_avg0"])
                 w["x_end"][self.ext_index] += (x_start[self.ext_index] + w["q_rate"] * tw) - w["x_avg0"][self.ext_index]
             # the gap: to the next window's start, or to the end of the drive
-            t_next = self._time_at(windows[k + 1][0]) if k + 1 < len(windows) else t_total
+            t_next = self._time_at(windows[k + 1][0]) if k + 1 < len(windows) else self.end.time_s
             tau = max(t_next - w["t_end"], 0.0)
             x = w["x_end"].copy()
             Phi, forced = w["flow"].phi(tau), w["flow"].gamma(tau) @ w["b"]
@@ -457,9 +457,9 @@ class MultiscaleDrive(Drive):
                                  "run it again with --overwrite")
         S = self.settings
         D = S.distance_m
-        # the drive ends at the last output sample within the distance, as a full drive does
-        sample_dt = self.K * S.dt_s
-        t_total = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
+        # the windows end on whole output samples; the slow states are carried across the last gap to the drive's
+        # end (`DriveEnd.time_s`, where its distance is reached)
+        t_total, t_end = self.end.whole_time_s, self.end.time_s
         wall0 = time.perf_counter()
         integ = [0.0]
         pair = WindowPair(self)
@@ -475,13 +475,13 @@ class MultiscaleDrive(Drive):
                      p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
         cv = None
         if self.ms.control_variate and len(records) >= self.MIN_CV_WINDOWS:
-            cv = self._control_variate(records, t_total)
+            cv = self._control_variate(records, t_end)
             x = x.copy()
             x[self.slow_index] += cv["dx_slow"]
             x[self.cv_quad] += cv["dq"]
-        self.estimate = {} if self.state_only else self.road_sampling_error(records, t_total, cv)
-        final = DriveState(t_s=float(t_total), s_m=float(self.distance_at(t_total)), x=x, next_stats_m=D + 1.0,
-                           last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy(),
+        self.estimate = {} if self.state_only else self.road_sampling_error(records, t_end, cv)
+        final = DriveState(t_s=float(t_end), s_m=float(self.distance_at(t_end)), x=x, next_stats_m=D + 1.0,
+                           last_stats={"t_s": float(t_end), "q": x[self.quad_index].copy(),
                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
                            solver_memory=np.zeros_like(self.solver.get_state()))
         if sink is not None:

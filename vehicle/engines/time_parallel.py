@@ -187,7 +187,8 @@ class TimeParallelDrive(SegmentJoin):
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (processes) or auto, got {workers}")
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
-        self.fine = Drive(model, road, settings, partial_last_sample=False)   # segments end on whole intervals
+        # the segments end on whole output intervals, the last at the drive's end (`_fine_segment`)
+        self.fine = Drive(model, road, settings)
         self.coarse = MultiscaleDrive(model, road, settings,
                                       coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M),
                                       gas_masses=self.fine.gas_masses)
@@ -234,7 +235,7 @@ class TimeParallelDrive(SegmentJoin):
     def layout(self) -> tuple[np.ndarray, np.ndarray]:
         """(segment boundary times (P+1), warm-up start times (P)) on the output-sample grid."""
         sample_dt = self.fine.K * self.settings.dt_s
-        n = int(np.floor(self.total_time_s / sample_dt + 1e-9))
+        n = self.fine.end.whole_samples
         P = self.segments
         # segment 0 starts at once, the others after the coarse run: segment 0 is longer by the coarse run's
         # estimated cost, in simulated seconds of the full model (it drives ceil(D_c / spacing) windows of
@@ -261,7 +262,7 @@ class TimeParallelDrive(SegmentJoin):
         c = copy.copy(self.coarse)
         t_end = float(max(times))
         c.settings = dataclasses.replace(self.settings, distance_m=float(self.fine.distance_at(t_end)))
-        c.total_time_s = t_end
+        c.end = c.end.at_sample(round(t_end / (c.K * self.settings.dt_s)))
         c.state_only = True                 # only the states are wanted: no error estimate of its own
         x0 = c.initial_state().x
         res = c.run(None)
@@ -361,8 +362,9 @@ class TimeParallelDrive(SegmentJoin):
             seg.solver = solver.bind(self.model, seg.K, seg.M)
         sample_dt = self.fine.K * S.dt_s
         n_seg = int(round((t1 - t0) / sample_dt))
-        last = t1 >= self._t_total() - 1e-9
+        last = k == self.segments - 1
         seg.close_last_interval = last      # an interval cut by the segment's end is closed by the next segment
+        seg.partial_last_sample = False     # whole intervals up to the last segment's main run
         rec = _SegmentRecorder(max(1, n_seg // JACOBIAN_SAMPLES), t_mark, self.coarse.slow_index)
         n = self.model.n
         if k == 0:
@@ -370,7 +372,7 @@ class TimeParallelDrive(SegmentJoin):
         else:
             x0 = self.coarse._rest_state(np.asarray(x_pred, float))
             x0[self.coarse.ext_index] = 0.0
-            seg.total_time_s = t0
+            seg.end = self.fine.end.at_sample(round(t0 / sample_dt))
             stw = DriveState(t_s=float(t_warm), s_m=float(self.fine.distance_at(t_warm)), x=x0, next_stats_m=np.inf,
                              last_stats={"t_s": float(t_warm), "q": x0[self.fine.quad_index].copy(), "gas_sum": np.zeros(n),
                                          "gas_n": 0},
@@ -387,14 +389,15 @@ class TimeParallelDrive(SegmentJoin):
                                            else np.zeros_like(self.fine.solver.get_state())))
         x_start = st.x.copy()
 
-        seg.total_time_s = self.total_time_s if last else t1
+        seg.end = self.fine.end if last else self.fine.end.at_sample(round(t1 / sample_dt))
+        seg.partial_last_sample = last      # the last segment ends where the drive does (its partial interval)
         if self.fine.error_estimate is not None:
             e = self.fine.error_estimate
             seg.error_estimate = StepDoublingEstimate(e.dt_s, e.tolerance, e.interval_s, e.n_struts, names=e.names)
         res = seg.run(None, st, observer=rec)
         tail = None
         if t_tail is not None and t_tail > t1:
-            seg.total_time_s = t_tail
+            seg.end = self.fine.end.at_sample(round(t_tail / sample_dt))
             seg.error_estimate, est = None, seg.error_estimate
             tail = seg.run(None, copy.deepcopy(res.state)).state.x[self.coarse.slow_index].copy()
             seg.error_estimate = est
@@ -409,8 +412,7 @@ class TimeParallelDrive(SegmentJoin):
                 "estimate": seg.error_estimate}
 
     def _t_total(self) -> float:
-        sample_dt = self.fine.K * self.settings.dt_s
-        return float(np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt)
+        return self.fine.end.whole_time_s
 
     # --- the drive -------------------------------------------------------------------------------
     def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):

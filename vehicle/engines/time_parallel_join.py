@@ -180,7 +180,8 @@ class SegmentJoin:
         d = flow.phi(ts[0] - p["t0"]) @ delta
         for i in range(len(ts)):
             D[:, i] = d
-            d = E1 @ d
+            if i + 1 < len(ts):       # the drive's partial last interval: a shorter step to its end sample
+                d = (E1 if ts[i + 1] - ts[i] > sample_dt - 0.5 * self.settings.dt_s else flow.phi(ts[i + 1] - ts[i])) @ d
         dX = Sl @ D                                         # (nx, samples)
         X, M, U = p["X_sub"], p["M_sub"], p["U_sub"]
         if np.any(delta):
