@@ -9,6 +9,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.stages import timed
 
@@ -346,7 +347,8 @@ class MultiscaleDrive(Drive):
             return timed("drive: the proxy's set-up", proxy.finish)
         return beside.submit(after_match)
 
-    def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
+    def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list,
+                       cancel: CancelToken = NEVER) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
         state at the drive's end); the linear-model proxy is set up beside them (`_start_proxy`). With
         `paired_windows` the window after each odd one integrates beside it from a predicted start
@@ -427,18 +429,23 @@ class MultiscaleDrive(Drive):
             unwritten.append(w)
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
+            if cancel.requested:
+                if pending is not None:
+                    pending.cancel()
+                return records, None
         if proxy_job is not None:        # the proxy was matched after the last window (a drive of one window)
             finished = self._finish_proxy(*proxy_start, proxy_job)
         if finished is not None:
             self._use_linear_proxy(proxy_start[1], finished.result())
         return records, x
 
-    def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair) -> tuple:
+    def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair,
+                          cancel: CancelToken = NEVER) -> tuple:
         """`_drive_windows`, every processed window written to the sink at the end, or when the drive fails, before
         the failure is raised (nothing computed is lost)."""
         unwritten: list = []
         try:
-            return self._drive_windows(sink, progress, t_total, integ, pair, unwritten)
+            return self._drive_windows(sink, progress, t_total, integ, pair, unwritten, cancel)
         finally:
             if sink is not None:
                 self._to_sink(sink, unwritten)
@@ -451,7 +458,11 @@ class MultiscaleDrive(Drive):
         return bool(np.max(np.abs(x_predicted[nodes] - x_true[nodes])) <= self.ms.PAIRED_START_TOLERANCE_K)
 
     # --- the drive -------------------------------------------------------------------------------
-    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
+            cancel: CancelToken = NEVER):
+        """Every window, the slow states carried across the gaps to the drive's end, the control variate and the
+        sampling error. Once `cancel` is requested it returns after the window being integrated, its state at
+        that window's end and no estimate (a multiscale run is not resumed: it is run again)."""
         if state is not None and state.s_m > 0:
             raise UserInputError("solver.mode multiscale: a multiscale run cannot be resumed (it takes seconds): "
                                  "run it again with --overwrite")
@@ -464,12 +475,14 @@ class MultiscaleDrive(Drive):
         integ = [0.0]
         pair = WindowPair(self)
         try:
-            records, x = self._drive_windows_to(sink, progress, t_total, integ, pair)
+            records, x = self._drive_windows_to(sink, progress, t_total, integ, pair, cancel)
         finally:
             pair.close()
             if self._proxy_start is not None:          # its jobs end (or, the drive failed, are dropped) by themselves
                 self._proxy_start[0].shutdown(wait=False, cancel_futures=True)
                 self._proxy_start = None               # set up once: a second run reuses the proxy
+        if x is None:                                  # cancelled: the state at the last window's end
+            return self._stopped(records, integ[0], time.perf_counter() - wall0)
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
             w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
                      p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
@@ -492,6 +505,20 @@ class MultiscaleDrive(Drive):
         if not self.state_only:
             self.estimate.update(self.load_error(final, after))
         return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
+
+    def _stopped(self, records: list, integration_s: float, wall_s: float) -> DriveResult:
+        """The result of a cancelled run: the state at the end of its last window (the start if none ran)."""
+        if records:
+            w = records[-1]
+            st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=self.settings.distance_m + 1.0,
+                            last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
+                            solver_memory=w["memory"])
+        else:
+            st = self.initial_state()
+        after = self.equilibrium_solver.solve(st.x[self.T_oil_index], self.gas_masses, st.x[self.oil_index])
+        self.window_log, self.estimate = records, {}
+        return DriveResult(state=st, after=after, wall_s=wall_s, integration_s=integration_s)
 
     # --- control variate ------------------------------------------------------------------------
     def _per_component(self, p: np.ndarray, stations: np.ndarray) -> np.ndarray:

@@ -49,11 +49,12 @@ from concurrent.futures import Future
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import UserInputError
 
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.scenario.settings import SEGMENTS_RANGE, MultiscaleSettings
-from vehicle.engines.contract import DriveState
+from vehicle.engines.contract import DriveResult, DriveState
 from vehicle.engines.ensemble import current_full_solver, lane_stepper, run_lockstep
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
@@ -415,11 +416,15 @@ class TimeParallelDrive(SegmentJoin):
         return self.fine.end.whole_time_s
 
     # --- the drive -------------------------------------------------------------------------------
-    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6):
+    def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
+            cancel: CancelToken = NEVER):
+        """The segments in parallel and their join (module docstring), or serially the full drive (a resumed run,
+        one segment, no fork). The segments are not checkpointed: once `cancel` is requested, before the join, it
+        returns the start state having written nothing (the run is then started again or resumed serially)."""
         # serially: a resumed run, one segment, no fork, or inside a daemonic worker (which cannot start processes)
         if (state is not None and state.s_m > 0) or self.segments <= 1 or not can_fork():
             self.parareal = {}
-            return self.fine.run(sink, state, progress, checkpoint_every_blocks)       # serially
+            return self.fine.run(sink, state, progress, checkpoint_every_blocks, cancel=cancel)       # serially
         wall0 = time.perf_counter()
         t, tw = self.layout()
         P, L = self.segments, self.lanes
@@ -447,6 +452,10 @@ class TimeParallelDrive(SegmentJoin):
             for f in futs:
                 r = f.result()
                 parts += r if isinstance(r, list) else [r]
+            if cancel.requested:            # nothing written yet: the drive's start is what it has
+                st = self.fine.initial_state()
+                return DriveResult(state=st, after=self.fine.initial_equilibrium(), wall_s=time.perf_counter() - wall0,
+                                   integration_s=float(sum(p["integration_s"] for p in parts)))
             # the join, with the pool's processes (free now) running its error checks
             j0, jw0 = time.process_time(), time.perf_counter()
             res = self._join(parts, sink, progress, pool)
