@@ -61,7 +61,7 @@ def test_the_time_parallel_drive_ends_at_its_distance():
 
 def test_the_multiscale_drive_carries_its_slow_states_to_its_distance():
     """Its rows are its windows (each at least one output interval long); its final state is at the distance."""
-    sink = run_in_memory(_source(PROFILE, {"mode": "multiscale", "window": "300 m", "spacing": "1 km",
+    sink = run_in_memory(_source(PROFILE, {"mode": "multiscale", "window": "200 m", "spacing": "500 m",
                                            "warm_up": "30 m"}))
     assert all(r["duration_s"] >= 1.0 for r in sink.rows)
     assert sink.rows[-1]["distance_end_m"] <= DISTANCE_M
