@@ -19,6 +19,7 @@ from vehicle.engines.full import Drive, DriveResult, DriveState
 from vehicle.engines.control_variate import (band_power_cumulative, control_variate, on_grid, station_patterns,
                                              stratified_error_covariance, variance_ratio)
 from vehicle.engines.linear_proxy import LinearProxy
+from vehicle.engines.slow_manifold import SlowManifold
 from vehicle.engines.window_pair import WindowPair
 from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
                                        warm_up_correction, window_forcings)
@@ -38,13 +39,14 @@ class MultiscaleDrive(Drive):
         super().__init__(model, road, settings, **kw)
         self.ms = multiscale
         self.state_only = False          # True: only the states are wanted (no error estimate), as for a coarse run
-        self._S = None                   # the slaving matrix, once computed (`_slaving`)
         t0 = time.perf_counter()
-        self.slow_index = np.asarray(model.slow_state_indices(), int)
-        self.ext_index = np.arange(model.n_dynamic, model.nx)
+        # the standing vehicle at the slow states, shared with whoever composes this drive (time_parallel)
+        self.manifold = SlowManifold(model, self.equilibrium_solver, self.gas_masses, self.T_oil_index, self.s_grid,
+                                     self.t_grid)
+        self.slow_index, self.ext_index = self.manifold.slow_index, self.manifold.ext_index
         self.J_slow = slow_rate_jacobian(model, compiled=self._caps.compiled)
         self._J_sums: dict = {}
-        self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
+        self.oil_index = self.manifold.oil_index
         self._proxy_setup()
         # the linear-model proxy's first part starts now, beside what comes before the drive (`_start_proxy`)
         self._proxy_start = self._start_proxy() if self._linear_proxy_pending else None
@@ -61,38 +63,6 @@ class MultiscaleDrive(Drive):
         block, row, state = super().describe()
         row["window_start_m"] = 0.0
         return block, row, state
-
-    def _rest_state(self, x_prev: np.ndarray) -> np.ndarray:
-        """The vehicle standing in equilibrium at x_prev's slow states, with x_prev's slow states and quadratures."""
-        m = self.model
-        eq = self.equilibrium_solver.solve(x_prev[self.T_oil_index], self.gas_masses, x_prev[self.oil_index])
-        x = m.state_at_rest(eq, self.gas_masses)
-        x[self.slow_index] = x_prev[self.slow_index]
-        x[self.ext_index] = x_prev[self.ext_index]
-        return x
-
-    def _slaving(self, x: np.ndarray) -> np.ndarray:
-        """S = dx/dx_slow (nx, ns) on the manifold of the vehicle at rest (`_rest_state`): the slow states
-        themselves move one to one, the fast ones as the standing vehicle's do (gas temperatures with the strut
-        temperature, deflections with gas expansion and oil), the quadratures not at all. Finite differences,
-        computed once per drive (it changes little with the slow states). The standing vehicle depends on the oil's
-        temperatures and volumes only (`_rest_state`): the column of any other slow state is its own unit column,
-        written without an equilibrium solve (the same numbers: the solve would repeat the base's)."""
-        if self._S is not None:
-            return self._S
-        base = self._rest_state(x)
-        S = np.zeros((self.model.nx, len(self.slow_index)))
-        standing_inputs = set(self.T_oil_index.tolist()) | set(self.oil_index.tolist())
-        for k, j in enumerate(self.slow_index):
-            h = 1e-4 * max(abs(x[j]), 1e-3)
-            xp = x.copy()
-            xp[j] += h
-            if j in standing_inputs:
-                S[:, k] = (self._rest_state(xp) - base) / h
-            else:
-                S[j, k] = (xp[j] - base[j]) / h
-        self._S = S
-        return S
 
     # --- the road proxy of the control variate ------------------------------------------------------
     def _linear_proxy_inputs(self) -> tuple:
@@ -177,21 +147,18 @@ class MultiscaleDrive(Drive):
 
     def proxy(self, s0_m: float, s1_m: float) -> np.ndarray:
         """Mean of each station's road proxy over the drive from s0 to s1 (time mean; 0 for an empty stretch)."""
-        dt = self._time_at(s1_m) - self._time_at(s0_m)
+        dt = self.manifold.time_at(s1_m) - self.manifold.time_at(s0_m)
         if dt <= 0:
             return np.zeros(self.model.n)
         if self._proxy_t is not None:
             tg, c = self._proxy_t
-            t0, t1 = self._time_at(s0_m), self._time_at(s1_m)
+            t0, t1 = self.manifold.time_at(s0_m), self.manifold.time_at(s1_m)
             return np.array([np.interp(t1, tg, ci) - np.interp(t0, tg, ci) for ci in c]) / dt
         out = np.zeros(self.model.n)
         for i, (h, c) in enumerate(self._proxy_c):
             a = float(self.model.a[i])
             out[i] = (on_grid(c, h, s1_m - a) - on_grid(c, h, s0_m - a)) / dt
         return out
-
-    def _time_at(self, s_m: float) -> float:
-        return float(np.interp(s_m, self.s_grid, self.t_grid))
 
     # --- one window ------------------------------------------------------------------------------
     def integrate(self, solver, x0, t0, t_end, t_warm) -> dict:
@@ -227,12 +194,12 @@ class MultiscaleDrive(Drive):
 
     def _window_times(self, c0: float, c1: float, t_total: float) -> tuple:
         """(start, warm-up end, end) [s] of the window from c0 to c1 [m]."""
-        t0 = self._time_at(c0)
-        t_end = min(self._time_at(c1), t_total)
-        return t0, min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end), t_end
+        t0 = self.manifold.time_at(c0)
+        t_end = min(self.manifold.time_at(c1), t_total)
+        return t0, min(self.manifold.time_at(min(c0 + self.ms.warm_up_m, c1)), t_end), t_end
 
     def _window_arrays(self, t0, t_warm, t_end, run) -> dict:
-        """The window's samples checked (`_check`; its error kept, raised by `_window`: a window integrated from a
+        """The window's samples checked (`BlockRecorder.check`; its error kept, raised by `window_record`: a window integrated from a
         predicted start may be integrated again) and joined: states X, times T, solver memory MEM, inputs U, the
         first sample of the averaged stretch a, and J, the sum of the slow rates' Jacobian over that stretch."""
         sample_dt = self.K * self.settings.dt_s
@@ -245,7 +212,7 @@ class MultiscaleDrive(Drive):
         try:
             for X, t_s, memory, U_s, take in run["blocks"]:
                 s_s = self.distance_at(t_s)
-                self._check(X, t_s, s_s, x)
+                self.recorder.check(X, t_s, s_s, x)
                 X, t_s, s_s, memory = X[:, :take], t_s[:take], s_s[:take], memory[:, :take]
                 samples.append((X, U_s, t_s, s_s, memory))
                 xs.append(X)
@@ -272,23 +239,21 @@ class MultiscaleDrive(Drive):
         return {"error": None, "samples": samples, "X": X, "T": T, "MEM": MEM, "a": a, "N": N, "J": J,
                 "q_rate": q_rate}
 
-    def _window(self, run: dict, integ: list) -> dict:
+    def window_record(self, run: dict) -> dict:
         """The record of the window `integrate` gave (run: from run["x0"], with its arrays): the averaged slow
-        model, the end state, ..., with its samples for the sink (`_to_sink`); its integration time added to
-        integ[0]."""
-        integ[0] += run["integration_s"]
+        model, the end state, ..., with its samples for the sink (`_to_sink`)."""
         arrays = run["arrays"]
         if arrays["error"] is not None:
             raise arrays["error"]
         X, T, MEM, a, N, J = (arrays[k] for k in ("X", "T", "MEM", "a", "N", "J"))
         # d(slow rates)/d(all states), averaged, times how the state moves with the slow states (fast states
         # slaved to them: a gas temperature follows its strut's): A = mean(J) S
-        A = (J / N) @ self._slaving(X[:, -1])
+        A = (J / N) @ self.manifold.slaving(X[:, -1])
         dur = T[-1] - T[a]
         xa, xb = X[:, a], X[:, -1]
         r = (xb[self.slow_index] - xa[self.slow_index]) / dur
         xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
-        row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
+        row = self.stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
                               X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
         return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
@@ -301,7 +266,7 @@ class MultiscaleDrive(Drive):
         while records:
             w = records.pop(0)
             for block in w.pop("samples"):
-                sink.samples(self._block_outputs(*block))
+                sink.samples(self.recorder.block_outputs(*block))
             sink.stats([w["row"]])
             st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=self.settings.distance_m + 1.0,
                             last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
@@ -313,11 +278,11 @@ class MultiscaleDrive(Drive):
         """The vehicle at rest at the start of the window at s_next_m, predicted from the state x at t_from (the start
         of the window before it) by the averaged slow model of the window before that (`w_prev`): the slow states by
         its linear flow, the totals by its rates (`paired_windows`)."""
-        tau = max(self._time_at(s_next_m) - t_from, 0.0)
+        tau = max(self.manifold.time_at(s_next_m) - t_from, 0.0)
         flow, xp = w_prev["flow"], x.copy()
         xp[self.slow_index] = flow.phi(tau) @ x[self.slow_index] + flow.gamma(tau) @ w_prev["b"]
         xp[self.ext_index] = x[self.ext_index] + w_prev["q_rate"] * tau
-        return self._rest_state(xp)
+        return self.manifold.rest_state(xp)
 
     def _start_proxy(self) -> tuple:
         """The linear-model proxy's first part (`LinearProxy.prepare`) started on a thread of its own when the drive
@@ -347,7 +312,7 @@ class MultiscaleDrive(Drive):
             return timed("drive: the proxy's set-up", proxy.finish)
         return beside.submit(after_match)
 
-    def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list,
+    def _drive_windows(self, sink, progress, t_total: float, pair: WindowPair, unwritten: list,
                        cancel: CancelToken = NEVER) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
         state at the drive's end); the linear-model proxy is set up beside them (`_start_proxy`). With
@@ -368,7 +333,7 @@ class MultiscaleDrive(Drive):
             c0, c1 = windows[k]
             t0, t_warm, t_end = self._window_times(c0, c1, t_total)
             if k > 0:
-                x = self._rest_state(x)
+                x = self.manifold.rest_state(x)
             run = None
             if pending is not None:      # integrated beside the window before, from a predicted start
                 run, pending = pending.result(), None
@@ -390,7 +355,8 @@ class MultiscaleDrive(Drive):
                 run = job.result()
             if k == 0 and proxy_start is not None and run["arrays"]["error"] is None:
                 proxy_job = self._match_proxy(*proxy_start, run["arrays"])
-            w = self._window(run, integ)
+            w = self.window_record(run)
+            w["integration_s"] = run["integration_s"]
             w["flow"] = LinearFlow(w["A"])
             w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
             if k == 0 and self.ms.placement == "weighted":
@@ -398,7 +364,7 @@ class MultiscaleDrive(Drive):
                 lam = lam[lam < -1e-12]
                 tau = -1.0 / np.max(lam) if len(lam) else t_total
                 w["tau_slow_s"] = float(tau)
-                windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self._time_at,
+                windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self.manifold.time_at,
                                                                   self.distance_at, t_total)
             if k > 0:
                 # the warm-up settles the start from rest (the tyres meet a road that is not flat): its extra
@@ -416,7 +382,7 @@ class MultiscaleDrive(Drive):
                                                                   w["t_end"] - w["t_avg0"])
                 w["x_end"][self.ext_index] += (x_start[self.ext_index] + w["q_rate"] * tw) - w["x_avg0"][self.ext_index]
             # the gap: to the next window's start, or to the end of the drive
-            t_next = self._time_at(windows[k + 1][0]) if k + 1 < len(windows) else self.end.time_s
+            t_next = self.manifold.time_at(windows[k + 1][0]) if k + 1 < len(windows) else self.end.time_s
             tau = max(t_next - w["t_end"], 0.0)
             x = w["x_end"].copy()
             Phi, forced = w["flow"].phi(tau), w["flow"].gamma(tau) @ w["b"]
@@ -439,13 +405,13 @@ class MultiscaleDrive(Drive):
             self._use_linear_proxy(proxy_start[1], finished.result())
         return records, x
 
-    def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair,
+    def _drive_windows_to(self, sink, progress, t_total: float, pair: WindowPair,
                           cancel: CancelToken = NEVER) -> tuple:
         """`_drive_windows`, every processed window written to the sink at the end, or when the drive fails, before
         the failure is raised (nothing computed is lost)."""
         unwritten: list = []
         try:
-            return self._drive_windows(sink, progress, t_total, integ, pair, unwritten, cancel)
+            return self._drive_windows(sink, progress, t_total, pair, unwritten, cancel)
         finally:
             if sink is not None:
                 self._to_sink(sink, unwritten)
@@ -472,17 +438,16 @@ class MultiscaleDrive(Drive):
         # end (`DriveEnd.time_s`, where its distance is reached)
         t_total, t_end = self.end.whole_time_s, self.end.time_s
         wall0 = time.perf_counter()
-        integ = [0.0]
         pair = WindowPair(self)
         try:
-            records, x = self._drive_windows_to(sink, progress, t_total, integ, pair, cancel)
+            records, x = self._drive_windows_to(sink, progress, t_total, pair, cancel)
         finally:
             pair.close()
             if self._proxy_start is not None:          # its jobs end (or, the drive failed, are dropped) by themselves
                 self._proxy_start[0].shutdown(wait=False, cancel_futures=True)
                 self._proxy_start = None               # set up once: a second run reuses the proxy
         if x is None:                                  # cancelled: the state at the last window's end
-            return self._stopped(records, integ[0], time.perf_counter() - wall0)
+            return self._stopped(records, time.perf_counter() - wall0)
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
             w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
                      p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
@@ -504,9 +469,17 @@ class MultiscaleDrive(Drive):
         self.window_log = records
         if not self.state_only:
             self.estimate.update(self.load_error(final, after))
-        return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
+        return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=self._integration_s(records))
 
-    def _stopped(self, records: list, integration_s: float, wall_s: float) -> DriveResult:
+    @staticmethod
+    def _integration_s(records: list) -> float:
+        """The windows' integration wall time [s] (their solver calls), summed in drive order."""
+        total = 0.0
+        for w in records:
+            total += w["integration_s"]
+        return total
+
+    def _stopped(self, records: list, wall_s: float) -> DriveResult:
         """The result of a cancelled run: the state at the end of its last window (the start if none ran)."""
         if records:
             w = records[-1]
@@ -518,7 +491,7 @@ class MultiscaleDrive(Drive):
             st = self.initial_state()
         after = self.equilibrium_solver.solve(st.x[self.T_oil_index], self.gas_masses, st.x[self.oil_index])
         self.window_log, self.estimate = records, {}
-        return DriveResult(state=st, after=after, wall_s=wall_s, integration_s=integration_s)
+        return DriveResult(state=st, after=after, wall_s=wall_s, integration_s=self._integration_s(records))
 
     # --- control variate ------------------------------------------------------------------------
     def _per_component(self, p: np.ndarray, stations: np.ndarray) -> np.ndarray:
@@ -648,35 +621,14 @@ class MultiscaleDrive(Drive):
         cov_T = cov[np.ix_(iT, iT)]
         sig_T_station = np.sqrt(np.maximum(np.diag(cov_T), 0.0))
         sig_T_axle = np.sqrt(np.maximum(np.diag(W_ax @ cov_T @ W_ax.T), 0.0))
-        G = self._load_sensitivity(final.x, after, W_ax)
+        G = self.manifold.load_sensitivity(final.x, after, W_ax, self.initial_equilibrium().wheel_loads_N,
+                                           self.settings.compensation)
         idx = iT_eq + (iV if len(iV) == n else [])
         G = G[:, :len(idx)]
         sig_dN = np.sqrt(np.maximum(np.diag(G @ cov[np.ix_(idx, idx)] @ G.T), 0.0))
         k = error_factor(self.estimate["dof"])
         return {"sigmas": k, "strut_temperature_K": k * sig_T_station, "axle_temperature_K": k * sig_T_axle,
                 "load_change_pct": k * sig_dN}
-
-    def _load_sensitivity(self, x_end, after, W_ax, dT: float = 0.5, dV: float = 1e-6) -> np.ndarray:
-        """d(per-axle wheel load change [pp of the before-drive load])/d(final T per station, V_oil per station)."""
-        m = self.model
-        N0 = W_ax @ np.asarray(self.initial_equilibrium().wheel_loads_N, float)
-        T, V = x_end[self.T_oil_index].copy(), x_end[self.oil_index].copy()
-        N1 = W_ax @ np.asarray(after.wheel_loads_N, float)
-        cols = []
-        for i in range(m.n):
-            Tp = T.copy()
-            Tp[i] += dT
-            e = self.equilibrium_solver.solve(Tp, self.gas_masses, V)
-            cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dT)
-        if self.settings.compensation:
-            for i in range(m.n):
-                Vp = V.copy()
-                Vp[i] += dV
-                e = self.equilibrium_solver.solve(T, self.gas_masses, Vp)
-                cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dV)
-        else:
-            cols += [np.zeros(len(N0))] * m.n
-        return np.array(cols).T
 
     def summary_extra(self) -> dict:
         """What the results add for this mode: /summary attributes and per-station/axle error variables."""

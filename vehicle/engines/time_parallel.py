@@ -13,7 +13,7 @@ Sci. Comput. 29(2)), one correction sweep:
    (vehicle.engines.ensemble: each segment a lane, bit for bit what the scalar engine gives it), P = workers x L;
    all start after G (no lead for segment 0), and the join's error checks below run in lane groups too.
    Segment k > 0 starts from the vehicle standing in equilibrium at the predicted slow states
-   (`MultiscaleDrive._rest_state`) a warm-up stretch (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
+   (`SlowManifold.rest_state`) a warm-up stretch (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
    first sample: the fast states forget their start within seconds, the slow ones do not.
 3. Correction: the mismatch delta_k = x_s,end(k-1) (corrected) - x_s(k) at the segment start is carried
    through segment k by the slow states' linearisation dx_s/dt = r + A (x_s - xbar) (A: the mean over the
@@ -72,16 +72,16 @@ COARSE_COST = 1.5                 # the coarse run's wall time / the full model'
 
 
 def _check_worker(t0, t1, x, n_windows, slaving):
-    """One propagation of the join's error check (`TimeParallelDrive._coarse_propagate`) in a pool worker."""
+    """One propagation of the join's error check (`TimeParallelDrive.coarse_propagate`) in a pool worker."""
     d = inherited()
-    d.coarse._S = slaving                 # computed once in the parent: the same for every propagation of the drive
-    return d._coarse_propagate(t0, t1, x, n_windows)
+    d.coarse.manifold.share_slaving(slaving)    # computed once in the parent: the same for every propagation
+    return d.coarse_propagate(t0, t1, x, n_windows)
 
 
 def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
-    out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
+    out = d.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
     out["cpu_s"] = time.process_time() - c0
     out["wall_s"] = time.perf_counter() - w0
     return out
@@ -106,7 +106,7 @@ def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
     The group's CPU time is shared out over its segments by their lengths."""
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
-    out = _in_lockstep(d._lane_segment, items, lanes, "segment")
+    out = _in_lockstep(d.lane_segment, items, lanes, "segment")
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     span = sum(p["t1"] - p["t0"] for p in out)
     for p in out:
@@ -117,8 +117,8 @@ def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
 def _check_group_worker(items: list[tuple], slaving, lanes: int) -> list[np.ndarray]:
     """Several propagations of the join's error check (each item: (t0, t1, x)) in lockstep on the lane library."""
     d = inherited()
-    d.coarse._S = slaving
-    return _in_lockstep(d._lane_check, items, lanes, "error check")
+    d.coarse.manifold.share_slaving(slaving)
+    return _in_lockstep(d.lane_check, items, lanes, "error check")
 
 
 class _Pick:
@@ -188,7 +188,7 @@ class TimeParallelDrive(SegmentJoin):
             raise UserInputError(f"solver.time_parallel: must be in [{lo}, {hi}] (processes) or auto, got {workers}")
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
-        # the segments end on whole output intervals, the last at the drive's end (`_fine_segment`)
+        # the segments end on whole output intervals, the last at the drive's end (`fine_segment`)
         self.fine = Drive(model, road, settings)
         self.coarse = MultiscaleDrive(model, road, settings,
                                       coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M),
@@ -253,7 +253,7 @@ class TimeParallelDrive(SegmentJoin):
         tw = np.zeros(P)
         for k in range(1, P):
             s = float(self.fine.distance_at(t[k]))
-            lead = t[k] - self.coarse._time_at(max(s - self.warm_up_m, 0.0))
+            lead = t[k] - self.coarse.manifold.time_at(max(s - self.warm_up_m, 0.0))
             tw[k] = max(t[k] - np.ceil(lead / sample_dt - 1e-9) * sample_dt, 0.0)
         return t, tw
 
@@ -291,39 +291,39 @@ class TimeParallelDrive(SegmentJoin):
                 out.append(res.state.x.copy())
         return out
 
-    def _coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> list[Future]:
-        """G(x_b) - G(x_a) of the slow states at t1 (`_coarse_propagate` from each start at t0 over the same
+    def coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> list[Future]:
+        """G(x_b) - G(x_a) of the slow states at t1 (`coarse_propagate` from each start at t0 over the same
         windows, whose road noise cancels in the difference), as its two propagations: futures of the pool, or,
-        without one, run here (completed futures). `_coarse_difference_result` takes the difference."""
+        without one, run here (completed futures). `coarse_difference_result` takes the difference."""
         if pool is None:
-            return [_done(self._coarse_propagate(t0, t1, x, n_windows)) for x in (x_a, x_b)]
-        S = self.coarse._slaving(np.asarray(x_a, float))
+            return [_done(self.coarse_propagate(t0, t1, x, n_windows)) for x in (x_a, x_b)]
+        S = self.coarse.manifold.slaving(np.asarray(x_a, float))
         return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
 
-    def _coarse_differences_submit(self, jobs: list[tuple], pool=None) -> list[list]:
-        """`_coarse_difference_submit` for every (t0, t1, x_a, x_b) of jobs; on the lane library, their propagations
+    def coarse_differences_submit(self, jobs: list[tuple], pool=None) -> list[list]:
+        """`coarse_difference_submit` for every (t0, t1, x_a, x_b) of jobs; on the lane library, their propagations
         in lockstep groups of `lanes` per pool task (bit for bit the same numbers)."""
         if pool is None or not self.lane_library or not jobs:
-            return [self._coarse_difference_submit(*j, pool=pool) for j in jobs]
-        S = self.coarse._slaving(np.asarray(jobs[0][2], float))
+            return [self.coarse_difference_submit(*j, pool=pool) for j in jobs]
+        S = self.coarse.manifold.slaving(np.asarray(jobs[0][2], float))
         runs = [(t0, t1, np.asarray(x, float)) for t0, t1, x_a, x_b in jobs for x in (x_a, x_b)]
         L = self.lanes
         futs = [pool.submit(_check_group_worker, runs[g:g + L], S, L) for g in range(0, len(runs), L)]
         picks = [_Pick(futs[i // L], i % L) for i in range(len(runs))]
         return [picks[2 * i: 2 * i + 2] for i in range(len(jobs))]
 
-    def _lane_check(self, t0, t1, x) -> np.ndarray:
-        """`_coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
+    def lane_check(self, t0, t1, x) -> np.ndarray:
+        """`coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
         c = copy.copy(self.coarse)
         c.solver = current_full_solver()(self.settings.dt_s).bind(self.model, c.K, c.M)
-        return self._coarse_propagate(t0, t1, x, coarse=c)
+        return self.coarse_propagate(t0, t1, x, coarse=c)
 
     @staticmethod
-    def _coarse_difference_result(runs: list[Future]) -> np.ndarray:
+    def coarse_difference_result(runs: list[Future]) -> np.ndarray:
         a, b = (r.result() for r in runs)
         return b - a
 
-    def _coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
+    def coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
         """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
         start of each equal stretch of [t0, t1]; default CHECK_WINDOWS, as many as fit), the linear slow model across
         the gaps (coarse: the multiscale drive that runs the windows, default the drive's own)."""
@@ -335,24 +335,24 @@ class TimeParallelDrive(SegmentJoin):
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
         x = np.asarray(x, float).copy()
         for i, s in enumerate(starts):
-            tw0 = c._time_at(s) if i else t0
-            t_end = min(c._time_at(min(s + span, s1)), t1)
-            t_warm = min(c._time_at(min(s + c.ms.warm_up_m, s1)), t_end)
-            x0 = c._rest_state(x)
-            w = c._window(c.integrate(c.solver, x0, tw0, t_end, t_warm), [0.0])
-            t_next = c._time_at(starts[i + 1]) if i + 1 < n_windows else t1
+            tw0 = c.manifold.time_at(s) if i else t0
+            t_end = min(c.manifold.time_at(min(s + span, s1)), t1)
+            t_warm = min(c.manifold.time_at(min(s + c.ms.warm_up_m, s1)), t_end)
+            x0 = c.manifold.rest_state(x)
+            w = c.window_record(c.integrate(c.solver, x0, tw0, t_end, t_warm))
+            t_next = c.manifold.time_at(starts[i + 1]) if i + 1 < n_windows else t1
             x = w["x_end"].copy()
             Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
             x[c.slow_index] = Phi @ x[c.slow_index] + forced
         return x[c.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def _lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
-        """`_fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
-        return self._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
+    def lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+        """`fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
+        return self.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
                                   solver=current_full_solver()(self.settings.dt_s))
 
-    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
+    def fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
@@ -371,7 +371,7 @@ class TimeParallelDrive(SegmentJoin):
         if k == 0:
             st = seg.initial_state()
         else:
-            x0 = self.coarse._rest_state(np.asarray(x_pred, float))
+            x0 = self.coarse.manifold.rest_state(np.asarray(x_pred, float))
             x0[self.coarse.ext_index] = 0.0
             seg.end = self.fine.end.at_sample(round(t0 / sample_dt))
             stw = DriveState(t_s=float(t_warm), s_m=float(self.fine.distance_at(t_warm)), x=x0, next_stats_m=np.inf,
@@ -406,7 +406,7 @@ class TimeParallelDrive(SegmentJoin):
         X_sub, M_sub, U_sub = (np.concatenate(a, axis=1) for a in (rec.Xs, rec.Ms, rec.Us))
         # the segment's slow-state Jacobian (whole, halves) here, in parallel, not in the join (the slaving S: the
         # drive's start's, cached, as the join's)
-        A = self._A_parts(X_sub, M_sub, U_sub, self.coarse._slaving(self.fine.initial_state().x))
+        A = self._A_parts(X_sub, M_sub, U_sub, self.coarse.manifold.slaving(self.fine.initial_state().x))
         return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
                 "x_end": res.state.x.copy(), "state": res.state, "blocks": blocks, "rows": rec.rows,
                 "X_sub": X_sub, "M_sub": M_sub, "U_sub": U_sub, "A": A, "integration_s": res.integration_s,
@@ -439,7 +439,7 @@ class TimeParallelDrive(SegmentJoin):
                 futs.append(pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0]))
             c0 = time.perf_counter()
             cpu0 = time.process_time()
-            self.coarse._slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
+            self.coarse.manifold.slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
             pred = [None] + (self.coarse_states(list(tw[1:])) if P > 1 else [])
             coarse_s = time.perf_counter() - c0
             coarse_cpu = time.process_time() - cpu0

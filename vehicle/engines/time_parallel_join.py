@@ -88,7 +88,7 @@ class SegmentJoin:
     def _join(self, parts, sink, progress, pool=None) -> DriveResult:
         """The segments joined in order: each corrected for its start's mismatch (the corrected end of the one
         before), its series and statistics rows handed to the sink, the correction's error estimated."""
-        Sl = self.coarse._slaving(parts[0]["x_end"])
+        Sl = self.coarse.manifold.slaving(parts[0]["x_end"])
         # the corrections first (each segment's delta needs the corrected end of the one before), so that the error
         # checks' coarse propagations can start in the pool while the series are corrected and written here
         pre = self._corrections(parts, Sl, pool)
@@ -114,7 +114,7 @@ class SegmentJoin:
         seg_err, err_end = [], np.zeros(len(self.coarse.slow_index))   # the correction's error, carried to the end
         for e, check, Phi_T, delta, e_restart in errors:
             if check is not None:
-                e = np.maximum(e, np.abs(self._coarse_difference_result(check) - Phi_T @ delta))
+                e = np.maximum(e, np.abs(self.coarse_difference_result(check) - Phi_T @ delta))
             seg_err.append(e + np.abs(Phi_T) @ e_restart)
             err_end = np.abs(Phi_T) @ (err_end + e_restart) + e
         coarse_check_s = time.perf_counter() - c0          # the wait for the checks (their own cost if run here)
@@ -127,7 +127,7 @@ class SegmentJoin:
         pre, jobs, x_slow_prev = [], [], None
         for p in parts:
             k, T = p["k"], p["t1"] - p["t0"]
-            A = p["A"][0]                  # computed in the segment's worker (`_fine_segment`)
+            A = p["A"][0]                  # computed in the segment's worker (`fine_segment`)
             flow = LinearFlow(A)           # e^{A t} for the many t of the series and statistics rows
             Phi_T = flow.phi(T)
             delta = np.zeros(ns) if (k == 0 or not self.correct) else x_slow_prev - p["x_start"][slow]
@@ -138,7 +138,7 @@ class SegmentJoin:
             if k > 0 and self.correct and np.any(delta):
                 jobs.append((len(pre), (p["t0"], p["t1"], p["x_start"], p["x_start"] + Sl @ delta)))
             pre.append([A, flow, Phi_T, delta, None])
-        for (i, _), check in zip(jobs, self._coarse_differences_submit([j for _, j in jobs], pool)):
+        for (i, _), check in zip(jobs, self.coarse_differences_submit([j for _, j in jobs], pool)):
             pre[i][4] = check
         return [tuple(p) for p in pre]
 
@@ -223,7 +223,7 @@ class SegmentJoin:
                     gas = (c_gs + gas * nb) / (c_gn + nb)
                 dur, dq = dur + c_dur, dq + c_dq
                 j.carry = None
-            j.rows.append(self.fine._stats_row(s_end, dur, dq, x_end, gas))
+            j.rows.append(self.fine.stats_row(s_end, dur, dq, x_end, gas))
         # what stays open at the segment's end (nothing for the last)
         fs = p["state"]
         open_dq = p["x_end"][self.fine.quad_index] - np.asarray(fs.last_stats["q"], float)
@@ -278,7 +278,9 @@ class SegmentJoin:
         sensitivities (as if all had the same sign: a bound, not an interval)."""
         pos = {int(j): k for k, j in enumerate(self.coarse.slow_index)}
         T_err = err_end[[pos[int(j)] for j in self.T_index]]
-        G = self.coarse._load_sensitivity(x_end, after, self._axle_matrix())
+        G = self.coarse.manifold.load_sensitivity(x_end, after, self._axle_matrix(),
+                                                  self.fine.initial_equilibrium().wheel_loads_N,
+                                                  self.settings.compensation)
         e = np.concatenate([err_end[[pos[int(j)] for j in self.fine.T_oil_index]],
                             err_end[[pos[int(j)] for j in self.coarse.oil_index]]])
         return T_err, np.abs(G) @ e
