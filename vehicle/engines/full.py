@@ -21,10 +21,10 @@ from hpsim.cancellation import NEVER, CancelToken
 
 from vehicle.physics.model import VehicleModel
 from vehicle.numerics.error_estimate import StepDoublingEstimate, check_spacing_s, window_steps
-from vehicle.numerics.codegen import precompile
-from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
+from vehicle.numerics.solvers import Ros2
 from vehicle.scenario.settings import DriveSettings
 from vehicle.scenario.work_limits import samples_per_call
+from vehicle.engines.binding import bind_solver
 from vehicle.engines.contract import BlockObserver, DriveResult, DriveSink, DriveState
 from vehicle.engines.recorder import BlockRecorder
 from vehicle.engines.state_index import StateIndex
@@ -66,25 +66,20 @@ class Drive:
         # the block outputs in one compiled call per block (the samples of a full block); the baseline engine of
         # the benchmarks (capabilities.compiled_outputs False) and an uncompiled solver keep CasADi's virtual machine
         caps = self._caps = solver.capabilities
-        outputs_compiled = caps.compiled_outputs
         estimate = settings.error_check_every > 0 and caps.step_doubling
         # the step-doubling window: ERROR_WINDOW_S of drive whatever the output interval (an estimate of the step's
         # error must not depend on how often results are stored)
         self.error_steps = window_steps(settings.dt_s)
-        if caps.compiled:
-            # the libraries this drive needs, compiled together (one compiler each) when not in the cache yet
-            graphs = [solver.block_graph(model, self.K, self.M)]
+        graphs = []
+        if caps.compiled:             # the probes' libraries, compiled with the block function when missing
             if estimate:
                 graphs.append(solver.refined_solver(2).block_graph(model, 2 * self.error_steps, 1))
                 if self._coarse_sample() is None:
                     graphs.append(solver.refined_solver(1).block_graph(model, self.error_steps, 1))
             if self.partial_last_sample and self.end.tail_steps:
                 graphs.append(solver.refined_solver(1).block_graph(model, 1, 1))
-            if outputs_compiled:
-                graphs.append(outputs_graph(model, self.M))
-            precompile([g for g in graphs + self._libraries(model) if g is not None])
-        self.solver = solver.bind(model, self.K, self.M)
-        self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
+        bound = bind_solver(solver, model, self.K, self.M, graphs=graphs)
+        self.solver, self.compiled_outputs = bound.solver, bound.outputs
         self.recorder = BlockRecorder(self.vehicle, settings.distance_m, self.M, self.compiled_outputs)
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
         # continues (vehicle.engines.time_parallel) leaves it open
@@ -103,11 +98,6 @@ class Drive:
             t0 = time.perf_counter()
             self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
             self.build_s += time.perf_counter() - t0
-
-    def _libraries(self, model) -> list:
-        """Libraries an engine built on this drive needs besides the solver's and the block outputs' (as
-        `codegen.Library`, compiled together with those when the cache misses them)."""
-        return []
 
     # --- the parts' services, as the engine contract and the engines built on this drive read them ----------
     @property

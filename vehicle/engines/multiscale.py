@@ -5,6 +5,7 @@ with the measurements behind each choice: docs/engines.md, "Multiscale mode"."""
 from __future__ import annotations
 
 import time
+from dataclasses import fields
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
@@ -15,7 +16,13 @@ from hpsim.stages import timed
 
 from vehicle.physics.model import DISSIPATION_TERMS
 from vehicle.scenario.settings import MultiscaleSettings
-from vehicle.engines.full import Drive, DriveResult, DriveState
+from vehicle.numerics.solvers import Ros2
+from vehicle.scenario.work_limits import samples_per_call
+from vehicle.engines.binding import bind_solver
+from vehicle.engines.contract import DriveResult, DriveState
+from vehicle.engines.recorder import BlockRecorder
+from vehicle.engines.state_index import StateIndex
+from vehicle.engines.vehicle_on_road import VehicleOnRoad
 from vehicle.engines.control_variate import (band_power_cumulative, control_variate, on_grid, station_patterns,
                                              stratified_error_covariance, variance_ratio)
 from vehicle.engines.linear_proxy import LinearProxy
@@ -27,26 +34,45 @@ from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor,
 MODE = "multiscale"
 
 
-class MultiscaleDrive(Drive):
-    """A Drive that integrates windows of the road with the full model and the slow states between them."""
+class MultiscaleDrive:
+    """The ride integrated on windows of the road with the full model, the slow states carried between them
+    (module docstring). Composed of the vehicle on its road, a block recorder for the windows' samples, the slow
+    manifold and a solver (default: the compiled ROS2 at settings.dt_s)."""
 
-    partial_last_sample = False       # windows end on whole output intervals
     mode = MODE
     resumable = False                 # it takes seconds: an interrupted run starts again
     MIN_CV_WINDOWS = 5      # the control variate needs a few residual degrees of freedom (windows less 3)
 
-    def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):
-        super().__init__(model, road, settings, **kw)
-        self.ms = multiscale
+    def __init__(self, model, road, settings, multiscale: MultiscaleSettings, *, gas_masses=None, solver=None):
+        if solver is not None:
+            settings.dt_s = solver.dt
+        settings.validate()
+        self.model, self.settings, self.ms = model, settings, multiscale
         self.state_only = False          # True: only the states are wanted (no error estimate), as for a coarse run
         t0 = time.perf_counter()
+        self.vehicle = VehicleOnRoad(model, road, settings, gas_masses)
+        v = self.vehicle
+        self.station_roads, self.gas_masses, self.equilibrium_solver = v.station_roads, v.gas_masses, v.equilibrium_solver
+        self.p, self.s_grid, self.t_grid, self.total_time_s = v.p, v.s_grid, v.t_grid, v.total_time_s
+        self.index = v.index
+        for f in fields(StateIndex):
+            setattr(self, f.name, getattr(self.index, f.name))
+        self.K = int(round(settings.output_interval_s / settings.dt_s))
+        self.M = samples_per_call(self.K, settings.samples_per_block)
+        self.end = v.end(self.K)         # the windows end on whole samples, the slow states at `end.time_s`
+        solver = solver or Ros2(settings.dt_s)
+        bound = bind_solver(solver, model, self.K, self.M, libraries=[slow_rate_library(model)])
+        self.solver = bound.solver
+        self.recorder = BlockRecorder(v, settings.distance_m, self.M, bound.outputs)
         # the standing vehicle at the slow states, shared with whoever composes this drive (time_parallel)
         self.manifold = SlowManifold(model, self.equilibrium_solver, self.gas_masses, self.T_oil_index, self.s_grid,
                                      self.t_grid)
         self.slow_index, self.ext_index = self.manifold.slow_index, self.manifold.ext_index
-        self.J_slow = slow_rate_jacobian(model, compiled=self._caps.compiled)
+        self.J_slow = slow_rate_jacobian(model, compiled=solver.capabilities.compiled)
         self._J_sums: dict = {}
         self.oil_index = self.manifold.oil_index
+        self.build_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
         self._proxy_setup()
         # the linear-model proxy's first part starts now, beside what comes before the drive (`_start_proxy`)
         self._proxy_start = self._start_proxy() if self._linear_proxy_pending else None
@@ -54,15 +80,30 @@ class MultiscaleDrive(Drive):
         self.estimate: dict | None = None
         self.window_log: list[dict] = []
 
-    def _libraries(self, model) -> list:
-        """The full drive's libraries and the slow rates' Jacobian (compiled together when missing)."""
-        return super()._libraries(model) + [slow_rate_library(model)]
+    # --- the engine contract through the parts ---------------------------------------------------------
+    def initial_equilibrium(self):
+        return self.vehicle.initial_equilibrium()
 
-    # --- layout for the sink: the full drive's, plus where each window's averages start ------------
+    def initial_state(self) -> DriveState:
+        return self.vehicle.initial_state(np.zeros_like(self.solver.get_state()))
+
+    def distance_at(self, t):
+        return self.vehicle.distance_at(t)
+
+    def inputs(self, t: np.ndarray) -> np.ndarray:
+        return self.vehicle.inputs(t)
+
+    def final_values(self, state: DriveState) -> dict:
+        return self.recorder.final_values(state)
+
     def describe(self):
-        block, row, state = super().describe()
+        """The full drive's layout (`Drive.describe`), plus where each window's averages start."""
+        st = self.initial_state()
+        t = np.array([0.0])
+        block = self.recorder.block_outputs(st.x[:, None], self.inputs(t), t, t, st.solver_memory[:, None])
+        row = self.recorder.stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
         row["window_start_m"] = 0.0
-        return block, row, state
+        return block, row, st.as_dict()
 
     # --- the road proxy of the control variate ------------------------------------------------------
     def _linear_proxy_inputs(self) -> tuple:
@@ -253,7 +294,7 @@ class MultiscaleDrive(Drive):
         xa, xb = X[:, a], X[:, -1]
         r = (xb[self.slow_index] - xa[self.slow_index]) / dur
         xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
-        row = self.stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
+        row = self.recorder.stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
                               X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
         return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
