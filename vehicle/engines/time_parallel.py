@@ -55,7 +55,7 @@ from hpsim.errors import UserInputError
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.scenario.settings import SEGMENTS_RANGE, MultiscaleSettings
 from vehicle.engines.contract import DriveResult, DriveState
-from vehicle.engines.ensemble import current_full_solver, lane_stepper, run_lockstep
+from vehicle.engines.ensemble import lane_stepper, run_lockstep
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
 from vehicle.engines.pool import can_fork, fork_pool, inherited
@@ -88,9 +88,10 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
 
 
 def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
-    """fn(*item) for every item, each in a lane thread of one `LockstepGroup` (vehicle.engines.ensemble): their
+    """fn(make_solver, *item) for every item, each in a lane thread of one `LockstepGroup` (vehicle.engines.ensemble): their
     drives step together on the lane library, bit for bit what the scalar engine gives each. Results in order."""
-    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes)
+    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes,
+                     solver_argument=True)
     out = []
     for i in range(len(items)):
         v = r["cases"].get(str(i))
@@ -312,10 +313,10 @@ class TimeParallelDrive(SegmentJoin):
         picks = [_Pick(futs[i // L], i % L) for i in range(len(runs))]
         return [picks[2 * i: 2 * i + 2] for i in range(len(jobs))]
 
-    def lane_check(self, t0, t1, x) -> np.ndarray:
+    def lane_check(self, make_solver, t0, t1, x) -> np.ndarray:
         """`coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
         c = copy.copy(self.coarse)
-        c.solver = current_full_solver()(self.settings.dt_s).bind(self.model, c.K, c.M)
+        c.solver = make_solver(self.settings.dt_s).bind(self.model, c.K, c.M)
         return self.coarse_propagate(t0, t1, x, coarse=c)
 
     @staticmethod
@@ -347,10 +348,10 @@ class TimeParallelDrive(SegmentJoin):
         return x[c.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+    def lane_segment(self, make_solver, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
         """`fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
         return self.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
-                                  solver=current_full_solver()(self.settings.dt_s))
+                                  solver=make_solver(self.settings.dt_s))
 
     def fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
