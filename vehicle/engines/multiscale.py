@@ -52,7 +52,8 @@ class MultiscaleDrive:
         t0 = time.perf_counter()
         self.vehicle = VehicleOnRoad(model, road, settings, gas_masses)
         v = self.vehicle
-        self.station_roads, self.gas_masses, self.equilibrium_solver = v.station_roads, v.gas_masses, v.equilibrium_solver
+        self.station_roads, self.gas_masses = v.station_roads, v.gas_masses
+        self.equilibrium_solver = v.equilibrium_solver
         self.p, self.s_grid, self.t_grid, self.total_time_s = v.p, v.s_grid, v.t_grid, v.total_time_s
         self.index = v.index
         for f in fields(StateIndex):

@@ -60,7 +60,7 @@ from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
 from vehicle.engines.pool import can_fork, fork_pool, inherited
 from vehicle.engines.slow_flow import propagators
-from vehicle.engines.time_parallel_join import SegmentJoin
+from vehicle.engines.time_parallel_join import SegmentJoiner, SegmentRun
 
 MODE = "time_parallel"
 MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
@@ -82,13 +82,13 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
     out = d.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
-    out["cpu_s"] = time.process_time() - c0
-    out["wall_s"] = time.perf_counter() - w0
+    out.cpu_s = time.process_time() - c0
+    out.wall_s = time.perf_counter() - w0
     return out
 
 
 def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
-    """fn(make_solver, *item) for every item, each in a lane thread of one `LockstepGroup` (vehicle.engines.ensemble): their
+    """fn(make_solver, *item) for every item, each in a lane thread of one `LockstepGroup` (engines.ensemble): their
     drives step together on the lane library, bit for bit what the scalar engine gives each. Results in order."""
     r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes,
                      solver_argument=True)
@@ -102,16 +102,16 @@ def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
     return out
 
 
-def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
+def _group_worker(items: list[tuple], lanes: int) -> list[SegmentRun]:
     """Several segments (each item: _segment_worker's arguments) in one worker, in lockstep on the lane library.
     The group's CPU time is shared out over its segments by their lengths."""
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
     out = _in_lockstep(d.lane_segment, items, lanes, "segment")
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-    span = sum(p["t1"] - p["t0"] for p in out)
+    span = sum(p.t1 - p.t0 for p in out)
     for p in out:
-        p["cpu_s"], p["wall_s"] = cpu * (p["t1"] - p["t0"]) / span, wall
+        p.cpu_s, p.wall_s = cpu * (p.t1 - p.t0) / span, wall
     return out
 
 
@@ -172,7 +172,7 @@ class _SegmentRecorder:
                       for s_end, duration, dq, x_end, gas in intervals]
 
 
-class TimeParallelDrive(SegmentJoin):
+class TimeParallelDrive:
     """A full drive split into `segments` segments in time, run in parallel processes and joined with a correction
     of the slow states (module docstring). It composes two engines on one model, road and settings: the full
     drive (`fine`, each segment) and a multiscale drive (`coarse`: the prediction at the segment starts and the
@@ -207,6 +207,8 @@ class TimeParallelDrive(SegmentJoin):
                                  f"{max(1, int(self.total_time_s // MIN_SEGMENT_S))} segments")
         self.warm_up_m = float(warm_up_m)
         self.correct = correct
+        self.joiner = SegmentJoiner(self.fine, self.coarse, correct, self.coarse_differences_submit,
+                                    self.coarse_difference_result)
         # segments per worker: `lanes` consecutive segments run in lockstep on the lane library (lane_library
         # False: the same segmentation, each segment on the scalar engine in its own worker)
         self.lane_library = bool(lane_library) and self.lanes > 1
@@ -348,12 +350,12 @@ class TimeParallelDrive(SegmentJoin):
         return x[c.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def lane_segment(self, make_solver, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
+    def lane_segment(self, make_solver, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> SegmentRun:
         """`fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
         return self.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
                                   solver=make_solver(self.settings.dt_s))
 
-    def fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
+    def fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> SegmentRun:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
@@ -407,14 +409,10 @@ class TimeParallelDrive(SegmentJoin):
         X_sub, M_sub, U_sub = (np.concatenate(a, axis=1) for a in (rec.Xs, rec.Ms, rec.Us))
         # the segment's slow-state Jacobian (whole, halves) here, in parallel, not in the join (the slaving S: the
         # drive's start's, cached, as the join's)
-        A = self._A_parts(X_sub, M_sub, U_sub, self.coarse.manifold.slaving(self.fine.initial_state().x))
-        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
-                "x_end": res.state.x.copy(), "state": res.state, "blocks": blocks, "rows": rec.rows,
-                "X_sub": X_sub, "M_sub": M_sub, "U_sub": U_sub, "A": A, "integration_s": res.integration_s,
-                "estimate": seg.error_estimate}
-
-    def _t_total(self) -> float:
-        return self.fine.end.whole_time_s
+        A = self.joiner.A_parts(X_sub, M_sub, U_sub, self.coarse.manifold.slaving(self.fine.initial_state().x))
+        return SegmentRun(k=k, t0=t0, t1=t1, x_start=x_start, mark=rec.mark, tail=tail, x_end=res.state.x.copy(),
+                          state=res.state, blocks=blocks, rows=rec.rows, X_sub=X_sub, M_sub=M_sub, U_sub=U_sub, A=A,
+                          integration_s=res.integration_s, estimate=seg.error_estimate)
 
     # --- the drive -------------------------------------------------------------------------------
     def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
@@ -456,12 +454,13 @@ class TimeParallelDrive(SegmentJoin):
             if cancel.requested:            # nothing written yet: the drive's start is what it has
                 st = self.fine.initial_state()
                 return DriveResult(state=st, after=self.fine.initial_equilibrium(), wall_s=time.perf_counter() - wall0,
-                                   integration_s=float(sum(p["integration_s"] for p in parts)))
+                                   integration_s=float(sum(p.integration_s for p in parts)))
             # the join, with the pool's processes (free now) running its error checks
             j0, jw0 = time.process_time(), time.perf_counter()
-            res = self._join(parts, sink, progress, pool)
+            res = self.joiner.join(parts, sink, progress, pool)
+            self.parareal = self.joiner.parareal
             join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
-        w = [p["cpu_s"] for p in parts]
+        w = [p.cpu_s for p in parts]
         # the error checks' CPU: the workers' (waited for when the pool closed) less their segments'
         check_cpu = max(_children_cpu() - children0 - sum(w), 0.0)
         # what the run takes with a core per worker: segment 0, or the coarse run then the slowest other worker; then
@@ -473,7 +472,7 @@ class TimeParallelDrive(SegmentJoin):
         self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
                              check_cpu_s=check_cpu,
                              join_wall_s=join_wall, workers=len(groups), lanes=L, lane_library=self.lane_library,
-                             critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
+                             critical_cpu_s=critical, worker_wall_s=[p.wall_s for p in parts],
                              boundaries_s=t.tolist())
         res.wall_s = time.perf_counter() - wall0
         return res

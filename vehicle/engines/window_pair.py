@@ -11,8 +11,8 @@ import numpy as np
 class WindowPair:
     """Windows integrated on threads (`integrate`), two at once: slot 0 a window from its true start, slot 1 the
     next one from a predicted start (`paired_windows`), each on a solver of its own (the same compiled step; its
-    integration leaves Python's lock). Where the drive's solver has no `refined_solver` (its `capabilities.step_doubling`
-    False: vehicle.numerics.contract), each runs at once on it (the
+    integration leaves Python's lock). Where the drive's solver has no `refined_solver` (its
+    `capabilities.step_doubling` False: vehicle.numerics.contract), each runs at once on it (the
     numerics are the same either way: only the wall time differs)."""
 
     def __init__(self, drive):

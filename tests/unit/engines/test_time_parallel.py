@@ -100,7 +100,7 @@ def test_the_correction_reduces_the_error(runs):
     T_serial = np.array([a["T_end_C"] for a in rs["axles"]])
     T_corr = np.array([a["T_end_C"] for a in rp["axles"]])
     x_raw = drive.parareal["uncorrected_final_x"]
-    W = drive._axle_matrix()
+    W = drive.joiner.axle_matrix()
     T_raw = W @ x_raw[drive.T_index] - 273.15
     err_corr = np.max(np.abs(T_corr - T_serial))
     err_raw = np.max(np.abs(T_raw - T_serial))
