@@ -23,13 +23,13 @@ from vehicle.engines.contract import DriveResult, DriveState
 from vehicle.engines.recorder import BlockRecorder
 from vehicle.engines.state_index import StateIndex
 from vehicle.engines.vehicle_on_road import VehicleOnRoad
-from vehicle.engines.control_variate import (band_power_cumulative, control_variate, on_grid, station_patterns,
-                                             stratified_error_covariance, variance_ratio)
+from vehicle.engines.control_variate import band_power_cumulative, on_grid, station_patterns
 from vehicle.engines.linear_proxy import LinearProxy
 from vehicle.engines.slow_manifold import SlowManifold
 from vehicle.engines.window_pair import WindowPair
 from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
-                                       warm_up_correction, window_forcings)
+                                       warm_up_correction)
+from vehicle.engines.window_estimates import WindowEstimator, WindowRecord
 
 MODE = "multiscale"
 
@@ -75,11 +75,13 @@ class MultiscaleDrive:
         self.build_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         self._proxy_setup()
+        self.estimator = WindowEstimator(self.slow_index, self.ext_index, self.slow_station, self.cv_basis,
+                                         self.cv_quad, self.cv_quad_station, self.T_oil_index)
         # the linear-model proxy's first part starts now, beside what comes before the drive (`_start_proxy`)
         self._proxy_start = self._start_proxy() if self._linear_proxy_pending else None
         self.build_s += time.perf_counter() - t0
         self.estimate: dict | None = None
-        self.window_log: list[dict] = []
+        self.window_log: list[WindowRecord] = []
 
     # --- the engine contract through the parts ---------------------------------------------------------
     def initial_equilibrium(self):
@@ -281,7 +283,7 @@ class MultiscaleDrive:
         return {"error": None, "samples": samples, "X": X, "T": T, "MEM": MEM, "a": a, "N": N, "J": J,
                 "q_rate": q_rate}
 
-    def window_record(self, run: dict) -> dict:
+    def window_record(self, run: dict) -> WindowRecord:
         """The record of the window `integrate` gave (run: from run["x0"], with its arrays): the averaged slow
         model, the end state, ..., with its samples for the sink (`_to_sink`)."""
         arrays = run["arrays"]
@@ -295,25 +297,26 @@ class MultiscaleDrive:
         xa, xb = X[:, a], X[:, -1]
         r = (xb[self.slow_index] - xa[self.slow_index]) / dur
         xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
-        row = self.recorder.stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
-                              X[self.T_gas_index, a + 1:].mean(axis=1))
+        row = self.recorder.stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index],
+                                      xb, X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
-        return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
-                "A": A, "r": r, "xbar": xbar, "b": r - A @ xbar, "q_rate": arrays["q_rate"], "row": row,
-                "memory": MEM[:, -1].copy(), "samples": arrays["samples"]}
+        return WindowRecord(x_end=xb.copy(), x_avg0=xa.copy(), t_end=float(T[-1]), t_avg0=float(T[a]), A=A, r=r,
+                            xbar=xbar, b=r - A @ xbar, q_rate=arrays["q_rate"], row=row, memory=MEM[:, -1].copy(),
+                            samples=arrays["samples"], integration_s=run["integration_s"])
 
     def _to_sink(self, sink, records: list) -> None:
         """The processed windows' samples, statistics rows and checkpoints to the sink, in order (emptied). Called
         while the next windows integrate: the outputs are evaluated beside them."""
         while records:
             w = records.pop(0)
-            for block in w.pop("samples"):
+            blocks, w.samples = w.samples, []          # written: the samples are not kept
+            for block in blocks:
                 sink.samples(self.recorder.block_outputs(*block))
-            sink.stats([w["row"]])
-            st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=self.settings.distance_m + 1.0,
-                            last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+            sink.stats([w.row])
+            st = DriveState(t_s=w.t_end, s_m=w.s_end, x=w.x_end, next_stats_m=self.settings.distance_m + 1.0,
+                            last_stats={"t_s": w.t_end, "q": w.x_end[self.quad_index].copy(),
                                         "gas_sum": np.zeros(self.model.n), "gas_n": 0},
-                            solver_memory=w["memory"])
+                            solver_memory=w.memory)
             sink.checkpoint(st.as_dict())
 
     def _predicted_start(self, x: np.ndarray, t_from: float, w_prev: dict, s_next_m: float) -> np.ndarray:
@@ -321,9 +324,9 @@ class MultiscaleDrive:
         of the window before it) by the averaged slow model of the window before that (`w_prev`): the slow states by
         its linear flow, the totals by its rates (`paired_windows`)."""
         tau = max(self.manifold.time_at(s_next_m) - t_from, 0.0)
-        flow, xp = w_prev["flow"], x.copy()
-        xp[self.slow_index] = flow.phi(tau) @ x[self.slow_index] + flow.gamma(tau) @ w_prev["b"]
-        xp[self.ext_index] = x[self.ext_index] + w_prev["q_rate"] * tau
+        flow, xp = w_prev.flow, x.copy()
+        xp[self.slow_index] = flow.phi(tau) @ x[self.slow_index] + flow.gamma(tau) @ w_prev.b
+        xp[self.ext_index] = x[self.ext_index] + w_prev.q_rate * tau
         return self.manifold.rest_state(xp)
 
     def _start_proxy(self) -> tuple:
@@ -398,14 +401,13 @@ class MultiscaleDrive:
             if k == 0 and proxy_start is not None and run["arrays"]["error"] is None:
                 proxy_job = self._match_proxy(*proxy_start, run["arrays"])
             w = self.window_record(run)
-            w["integration_s"] = run["integration_s"]
-            w["flow"] = LinearFlow(w["A"])
-            w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
+            w.flow = LinearFlow(w.A)
+            w.predicted_start = predicted             # integrated from a predicted start (`paired_windows`)
             if k == 0 and self.ms.placement == "weighted":
-                lam = np.linalg.eigvals(w["A"]).real
+                lam = np.linalg.eigvals(w.A).real
                 lam = lam[lam < -1e-12]
                 tau = -1.0 / np.max(lam) if len(lam) else t_total
-                w["tau_slow_s"] = float(tau)
+                w.tau_slow_s = float(tau)
                 windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self.manifold.time_at,
                                                                   self.distance_at, t_total)
             if k > 0:
@@ -418,21 +420,22 @@ class MultiscaleDrive:
                 # end (in a linear model exactly: x_end(x_a + d) = x_end(x_a) + e^{A L} d; docs/engines.md, "Warm-up").
                 # A window integrated from a predicted start (paired) is carried to its true start, x, the same way
                 x_start = x
-                tw = w["t_avg0"] - t0
-                w["x_end"][self.slow_index] += warm_up_correction(w["flow"], w["b"], x_start[self.slow_index],
-                                                                  w["x_avg0"][self.slow_index], tw,
-                                                                  w["t_end"] - w["t_avg0"])
-                w["x_end"][self.ext_index] += (x_start[self.ext_index] + w["q_rate"] * tw) - w["x_avg0"][self.ext_index]
+                tw = w.t_avg0 - t0
+                w.x_end[self.slow_index] += warm_up_correction(w.flow, w.b, x_start[self.slow_index],
+                                                                  w.x_avg0[self.slow_index], tw,
+                                                                  w.t_end - w.t_avg0)
+                w.x_end[self.ext_index] += (x_start[self.ext_index] + w.q_rate * tw) - w.x_avg0[self.ext_index]
             # the gap: to the next window's start, or to the end of the drive
             t_next = self.manifold.time_at(windows[k + 1][0]) if k + 1 < len(windows) else self.end.time_s
-            tau = max(t_next - w["t_end"], 0.0)
-            x = w["x_end"].copy()
-            Phi, forced = w["flow"].phi(tau), w["flow"].gamma(tau) @ w["b"]
+            tau = max(t_next - w.t_end, 0.0)
+            x = w.x_end.copy()
+            Phi, forced = w.flow.phi(tau), w.flow.gamma(tau) @ w.b
             x[self.slow_index] = Phi @ x[self.slow_index] + forced
-            x[self.ext_index] = x[self.ext_index] + w["q_rate"] * tau
-            w.update(t_start=t0, t_gap_end=t_next, tau=tau, s_start=c0, s_end=float(self.distance_at(w["t_end"])),
-                     s_gap_end=float(self.distance_at(t_next)), s_avg0=float(self.distance_at(w["t_avg0"])))
-            w["tw"] = (w["t_avg0"] - t0) if k > 0 else 0.0
+            x[self.ext_index] = x[self.ext_index] + w.q_rate * tau
+            w.t_start, w.t_gap_end, w.tau, w.s_start = t0, t_next, tau, c0
+            w.s_end, w.s_gap_end = float(self.distance_at(w.t_end)), float(self.distance_at(t_next))
+            w.s_avg0 = float(self.distance_at(w.t_avg0))
+            w.tw = (w.t_avg0 - t0) if k > 0 else 0.0
             records.append(w)
             unwritten.append(w)
             if progress is not None:
@@ -491,8 +494,8 @@ class MultiscaleDrive:
         if x is None:                                  # cancelled: the state at the last window's end
             return self._stopped(records, time.perf_counter() - wall0)
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
-            w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
-                     p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
+            w.p_win, w.p_warm = self.proxy(w.s_avg0, w.s_end), self.proxy(w.s_start, w.s_avg0)
+            w.p_gap = self.proxy(w.s_end, w.s_gap_end)
         cv = None
         if self.ms.control_variate and len(records) >= self.MIN_CV_WINDOWS:
             cv = self._control_variate(records, t_end)
@@ -518,17 +521,17 @@ class MultiscaleDrive:
         """The windows' integration wall time [s] (their solver calls), summed in drive order."""
         total = 0.0
         for w in records:
-            total += w["integration_s"]
+            total += w.integration_s
         return total
 
     def _stopped(self, records: list, wall_s: float) -> DriveResult:
         """The result of a cancelled run: the state at the end of its last window (the start if none ran)."""
         if records:
             w = records[-1]
-            st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=self.settings.distance_m + 1.0,
-                            last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+            st = DriveState(t_s=w.t_end, s_m=w.s_end, x=w.x_end, next_stats_m=self.settings.distance_m + 1.0,
+                            last_stats={"t_s": w.t_end, "q": w.x_end[self.quad_index].copy(),
                                         "gas_sum": np.zeros(self.model.n), "gas_n": 0},
-                            solver_memory=w["memory"])
+                            solver_memory=w.memory)
         else:
             st = self.initial_state()
         after = self.equilibrium_solver.solve(st.x[self.T_oil_index], self.gas_masses, st.x[self.oil_index])
@@ -536,115 +539,13 @@ class MultiscaleDrive:
         return DriveResult(state=st, after=after, wall_s=wall_s, integration_s=self._integration_s(records))
 
     # --- control variate ------------------------------------------------------------------------
-    def _per_component(self, p: np.ndarray, stations: np.ndarray) -> np.ndarray:
-        """A station proxy vector (n,) spread over components by their station (the mean for -1)."""
-        return np.where(stations >= 0, p[np.maximum(stations, 0)], p.mean())
-
     def _control_variate(self, records, t_end: float) -> dict:
-        """The regression estimate (`control_variate`) of every stratum's forcing, as a correction of the final
-        state: the slow states' forcings b_k (`window_forcings`) and the dissipated energies' rates, each regressed
-        on its station's road proxy over the window; the slope times the proxy's difference between the stretch
-        the window stands for (warm-up, gap) and the window is added to that stretch's forcing and carried to
-        the end of the drive by the linear slow model (the gaps' response is linear in their forcing).
+        """`WindowEstimator.control_variate` of this drive's windows."""
+        return self.estimator.control_variate(records, t_end)
 
-        The slow states' forcings are regressed pattern by pattern (`cv_basis`, `station_patterns`): each pattern
-        of a kind of slow state over the stations (the vehicle's mean, linear in position, ...) on the same pattern
-        of the proxy. The regression estimate holds for any linear combination of the strata (Cochran 1977 ch. 7);
-        per station, the windows' large common part (the whole vehicle's dissipation, and the state dependence's
-        remainder shared by all struts, +0.8 K/min in the cold first window of the 106 km test) is fitted with a
-        slope per station and leaks into the differences between the stations, which the after-drive loads follow;
-        per pattern it stays in the mean. Returned in that basis: `residuals`, `H`, `beta`, and `M_beta` (final
-        slow states per pattern slope); `basis` maps the slow states to the patterns."""
-        A_mean = np.mean([w["A"] for w in records], axis=0)
-        flow = LinearFlow(A_mean)
-        st, qst = self.slow_station, self.cv_quad_station
-        T = self.cv_basis
-        t = np.array([w["t_avg0"] for w in records])
-        Y = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records]) @ T.T
-        PWs = np.array([self._per_component(w["p_win"], st) for w in records])
-        PW = PWs @ T.T
-        tu = np.array([w["tw"] + w["tau"] for w in records])
-
-        def stretch(w, stations):
-            tot = w["tw"] + w["tau"]
-            if tot <= 0:
-                return self._per_component(w["p_win"], stations)
-            return self._per_component((w["tw"] * w["p_warm"] + w["tau"] * w["p_gap"]) / tot, stations)
-        PS = np.array([stretch(w, st) for w in records]) @ T.T
-        _, beta, res, dof, H = control_variate(Y, PW, PS, t)
-        # the correction, and how the final slow state moves with each slope (for the slope's own error)
-        ns = len(self.slow_index)
-        dx, Mb = np.zeros(ns), np.zeros((ns, ns))
-        for k, w in enumerate(records):
-            for dur, t_from, p in ((w["tw"], w["t_avg0"], w["p_warm"]), (w["tau"], w["t_gap_end"], w["p_gap"])):
-                if dur <= 0:
-                    continue
-                G = flow.phi(max(t_end - t_from, 0.0)) @ flow.gamma(dur) @ T.T
-                D = (self._per_component(p, st) - PWs[k]) @ T.T
-                dx += G @ (beta * D)
-                Mb += G * D[None, :]
-        QW = np.array([self._per_component(w["p_win"], qst) for w in records])
-        QS = np.array([stretch(w, qst) for w in records])
-        Yq = np.array([w["q_rate"][np.searchsorted(self.ext_index, self.cv_quad)] for w in records])
-        _, beta_q, _, _, _ = control_variate(Yq, QW, QS, t)
-        dq = np.sum(tu[:, None] * beta_q * (QS - QW), axis=0)
-        # how much of the forcings' scatter the proxy explains (the plain estimate's residuals: [1, t] only)
-        _, _, res0, _, _ = control_variate(Y, np.zeros_like(PW), PW, t)
-        return {"dx_slow": dx, "dq": dq, "beta": beta, "residuals": res, "dof": dof, "H": H, "M_beta": Mb,
-                "basis": T, "variance_ratio": variance_ratio(res, res0, self.T_oil_slots())}
-
-    def T_oil_slots(self) -> np.ndarray:
-        pos = {int(j): k for k, j in enumerate(self.slow_index)}
-        return np.array([pos[int(j)] for j in self.T_oil_index])
-
-    # --- a-posteriori error ----------------------------------------------------------------------
     def road_sampling_error(self, records, t_end: float, cv: dict | None = None) -> dict:
-        """Covariance of the final slow states from the scatter of the window forcings b_k (`window_forcings`),
-        propagated through the linear slow model (module docstring); with the
-        control variate (cv) the scatter is the regression's residual scatter, plus the slope's own error."""
-        ns = len(self.slow_index)
-        nw = len(records)
-        A_mean = np.mean([w["A"] for w in records], axis=0)
-        flow = LinearFlow(A_mean)
-        B = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records])
-        # the sampling error is the scatter about the forcing's slow drift along the drive (each gap follows its
-        # own window, so a drift is followed): residuals of a straight line in time, 2 degrees of freedom
-        t = np.array([w["t_avg0"] for w in records])
-        if cv is not None:
-            res, dof = cv["residuals"], cv["dof"]
-            Cb = res.T @ res / dof
-        elif nw >= 4:
-            T = np.column_stack([np.ones(nw), t - t.mean()])
-            res = B - T @ np.linalg.lstsq(T, B, rcond=None)[0]
-            Cb = res.T @ res / (nw - 2)
-            dof = nw - 2
-        elif nw >= 2:
-            Cb = np.atleast_2d(np.cov(B.T, ddof=1))
-            dof = nw - 1
-        else:
-            Cb = np.full((ns, ns), np.nan)
-            dof = 1
-        # the error of each stratum's total: the window's deviation from the local mean (variance Cb) and the
-        # unsimulated stretch's own (Cb L / tu, windows much longer than the road's correlation length):
-        # tu^2 Cb (1 + L / tu) (Cochran 1977 eq. 5.6: N^2 (1 - f) S^2 / n, N = L + tu, n = L), carried to the end
-        # of the drive; with the control variate the slope's error too, which moves every stratum's correction
-        # together and shares each window's residual with its stratum (`stratified_error_covariance`)
-        Q, own = np.zeros((nw, ns, ns)), np.zeros(nw)
-        for k, w in enumerate(records):
-            tu = w["tau"] + w.get("tw", 0.0)          # the stretch the window stands for, not driven (gap, warm-up)
-            if tu <= 0:
-                continue
-            Q[k] = flow.phi(max(t_end - w["t_gap_end"], 0.0)) @ flow.gamma(tu)
-            if cv is not None:
-                Q[k] = Q[k] @ cv["basis"].T          # from the patterns' errors (Cb in that basis)
-            own[k] = (w["t_end"] - w["t_avg0"]) / tu
-        cov = stratified_error_covariance(Q, own, Cb, *((cv["M_beta"], cv["H"]) if cv is not None else ()))
-        out = {"cov": cov, "n_windows": nw, "dof": dof,
-               "covered_m": float(sum(w["s_end"] - w["s_start"] for w in records)),
-               "control_variate": cv is not None}
-        if cv is not None:
-            out["variance_ratio"] = cv["variance_ratio"]
-        return out
+        """`WindowEstimator.road_sampling_error` of this drive's windows."""
+        return self.estimator.road_sampling_error(records, t_end, cv)
 
     def load_error(self, final: DriveState, after) -> dict:
         """Per-station and per-axle temperature errors and the per-axle wheel-load-change error (95 % interval,
@@ -680,7 +581,7 @@ class MultiscaleDrive:
                  "multiscale_window_m": float(ms.window_m), "multiscale_spacing_m": float(ms.spacing_m),
                  "multiscale_warm_up_m": float(ms.warm_up_m), "multiscale_placement": ms.placement,
                  "multiscale_covered_km": float(e.get("covered_m", 0.0)) / 1e3,
-                 "multiscale_paired_windows": sum(bool(w.get("predicted_start")) for w in self.window_log),
+                 "multiscale_paired_windows": sum(bool(w.predicted_start) for w in self.window_log),
                  "multiscale_control_variate": bool(e.get("control_variate", False)),
                  "multiscale_proxy": ms.proxy if e.get("control_variate", False) else "none",
                  "estimated_error_sigmas": float(e.get("sigmas", np.nan)),

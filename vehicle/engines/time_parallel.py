@@ -277,17 +277,17 @@ class TimeParallelDrive:
                 out.append(res.state.x.copy())
                 continue
             for i, w in enumerate(log):
-                if w["t_start"] - 1e-9 <= t <= w["t_gap_end"] + 1e-9:
+                if w.t_start - 1e-9 <= t <= w.t_gap_end + 1e-9:
                     # inside a window: forward from the window before it (its model carried on past its gap; the
                     # drive's start for the first), not back from this window's end: e^{A tau} with tau < 0
                     # amplifies the fast slow modes (the oil's ~2 min) by up to e^(window / 10 s)
-                    base = w if t >= w["t_end"] - 1e-9 else (log[i - 1] if i else None)
-                    x = (base["x_end"] if base else x0).copy()
+                    base = w if t >= w.t_end - 1e-9 else (log[i - 1] if i else None)
+                    x = (base.x_end if base else x0).copy()
                     m = base or w
-                    tau = t - (base["t_end"] if base else 0.0)
-                    Phi, forced, _ = propagators(m["A"], m["b"], tau)
+                    tau = t - (base.t_end if base else 0.0)
+                    Phi, forced, _ = propagators(m.A, m.b, tau)
                     x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
-                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + m["q_rate"] * tau
+                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + m.q_rate * tau
                     out.append(x)
                     break
             else:
@@ -344,8 +344,8 @@ class TimeParallelDrive:
             x0 = c.manifold.rest_state(x)
             w = c.window_record(c.integrate(c.solver, x0, tw0, t_end, t_warm))
             t_next = c.manifold.time_at(starts[i + 1]) if i + 1 < n_windows else t1
-            x = w["x_end"].copy()
-            Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
+            x = w.x_end.copy()
+            Phi, forced, _ = propagators(w.A, w.b, max(t_next - w.t_end, 0.0))
             x[c.slow_index] = Phi @ x[c.slow_index] + forced
         return x[c.slow_index]
 
