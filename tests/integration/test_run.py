@@ -224,14 +224,14 @@ def test_ctrl_c_leaves_a_readable_resumable_file(reference, workdir):
 
 def test_solver_failure_stops_with_a_message_and_keeps_the_data(workdir, monkeypatch, capsys):
     from hpsim.errors import SimulationError
-    from vehicle.engines.full import Drive
+    from vehicle.engines.recorder import BlockRecorder
 
     def failing_check(self, X, t, s, *more):
         if s[-1] > 1200.0:
             raise SimulationError(f"strut axle2_left bottomed out (beyond the bump stop) at {s[-1] / 1e3:.3f} km "
                                   f"(t = {t[-1]:.1f} s)")
 
-    monkeypatch.setattr(Drive, "_check", failing_check)
+    monkeypatch.setattr(BlockRecorder, "check", failing_check)
     out = workdir / "failed.h5"
     code = cli.main(["run", str(workdir / "drive.yaml"), "-o", str(out), "--no-progress"])
     err = capsys.readouterr().err

@@ -8,6 +8,7 @@ from hpsim.stages import timed
 
 from vehicle.scenario.settings import resolve_segments, resolve_time_parallel_lanes
 from vehicle.scenario.work_limits import segments_for
+from vehicle.engines.choice import engine_for
 from vehicle.engines.contract import Engine
 from vehicle.engines.ensemble import current_full_solver
 from vehicle.engines.full import Drive
@@ -44,10 +45,9 @@ ENGINES = {"full": _full, "multiscale": _multiscale, "time_parallel": _time_para
 
 
 def engine_name(prepared) -> str:
-    """The engine a scenario asks for: its solver.mode, "time_parallel" for a full drive in P > 1 segments."""
-    if prepared.scenario.solver.mode == "full" and _segments(prepared) > 1:
-        return "time_parallel"
-    return prepared.scenario.solver.mode
+    """The engine a scenario asks for (`choice.engine_for`): its solver.mode, "time_parallel" for a full drive in
+    P > 1 segments."""
+    return engine_for(prepared.scenario.solver.mode, _segments(prepared))
 
 
 def build_engine(prepared) -> tuple[object, Engine]:

@@ -14,6 +14,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from hpsim.cancellation import NEVER, CancelToken
+
 
 class Engine(Protocol):
     """A drive of a vehicle model over a road with settings (vehicle.scenario.settings.DriveSettings).
@@ -47,9 +49,12 @@ class Engine(Protocol):
         so that a file's datasets can all be made before the drive starts (SWMR cannot create objects)."""
 
     def run(self, sink: "DriveSink | None" = None, state: "DriveState | None" = None,
-            progress: Callable | None = None, checkpoint_every_blocks: int = 6) -> "DriveResult":
+            progress: Callable | None = None, checkpoint_every_blocks: int = 6,
+            cancel: CancelToken = NEVER) -> "DriveResult":
         """Drive from `state` (None: the start) to the end, handing samples, statistics rows and checkpoints to
-        `sink`; resumable from any checkpoint the sink kept."""
+        `sink`; resumable from any checkpoint the sink kept. Once `cancel` is requested the engine returns
+        normally at its next checkpoint with what it has (nothing is raised); the caller reads
+        `cancel.requested` to tell a stopped run from a finished one."""
 
     def final_values(self, state: "DriveState") -> dict:
         """The /summary values of the drive's end (energies, temperatures, whole-drive ride numbers)."""

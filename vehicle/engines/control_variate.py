@@ -71,7 +71,7 @@ def stratified_error_covariance(Q: np.ndarray, own: np.ndarray, Cb: np.ndarray, 
     (windows and stretches much longer than the road's correlation length); Cb (ns, ns): the residual
     covariance of one window's forcing. Stratum k's estimate takes the window's value for the stretch's,
     error e_w,k - e_s,k. With the control variate (Mb (ns, ns): how the final state moves with the slopes,
-    `MultiscaleDrive._control_variate`; H (ns, nw): slope_j = H_j . y_j) each stratum also carries
+    `WindowEstimator.control_variate`; H (ns, nw): slope_j = H_j . y_j) each stratum also carries
     beta_hat - beta = sum_k H_k o e_w,k, so window k's own residual enters twice, in its stratum and in the
     slope (R_k = Mb diag(H_k)):
         error = sum_k (Q_k + R_k) e_w,k - Q_k e_s,k

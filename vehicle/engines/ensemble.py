@@ -36,6 +36,8 @@ from hpsim.errors import UserInputError
 
 from vehicle.numerics.codegen import kill_running_compilers
 from vehicle.numerics.lanes import ISAS, LaneStepper, default_lanes
+from vehicle.scenario.settings import resolve_segments
+from vehicle.engines.choice import engine_for
 from vehicle.numerics.solvers import Ros2
 
 # the solver of full drives built in this thread (None: the compiled ROS2): a lane of an ensemble or of a
@@ -217,11 +219,16 @@ class LaneSolver(Ros2):
         return Z[: self.nx]
 
 
-def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple, out: dict, tag: str) -> None:
+def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple, out: dict, tag: str,
+          solver_argument: bool) -> None:
     LANE_LOCK.acquire()
     try:
-        with full_drive_solver(lambda dt: LaneSolver(dt, group, slot)):
-            out[tag] = fn(*args)
+        make_solver = lambda dt: LaneSolver(dt, group, slot)      # noqa: E731 (one lane's solver at step dt)
+        if solver_argument:
+            out[tag] = fn(make_solver, *args)
+        else:
+            with full_drive_solver(make_solver):
+                out[tag] = fn(*args)
     except KeyboardInterrupt:
         out[tag] = {"status": "interrupted", "error": "interrupted", "seconds": 0.0}
     except BaseException as exc:     # fn is meant not to raise; a bug fails this case only
@@ -233,10 +240,13 @@ def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple,
 
 
 def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes: int | None = None,
-                 isa: str | None = None) -> dict:
+                 isa: str | None = None, solver_argument: bool = False) -> dict:
     """Run fn(*args) for every (tag, args) of `items` (at most `lanes`), each in a thread whose drive is a lane of
     one `LockstepGroup`. Returns {"status": "done", "cases": {tag: fn's result}, "lanes", "calls", "lane_blocks"}.
-    A Ctrl-C (in the main thread) stops every lane at its next block (their files stay resumable)."""
+    A Ctrl-C (in the main thread) stops every lane at its next block (their files stay resumable).
+
+    solver_argument True: fn(make_solver, *args), make_solver(dt) the lane's solver, for a caller that builds its
+    drives itself; False: the drives `build_engine` makes in fn step with it (`full_drive_solver`)."""
     lanes = int(lanes or default_lanes(isa))
     if len(items) > lanes:
         raise ValueError(f"run_lockstep: {len(items)} cases for {lanes} lanes")
@@ -244,7 +254,7 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
     for slot in range(len(items), lanes):
         group.present.discard(slot)
     out: dict = {}
-    threads = [threading.Thread(target=_lane, args=(group, slot, fn, args, out, tag), daemon=True,
+    threads = [threading.Thread(target=_lane, args=(group, slot, fn, args, out, tag, solver_argument), daemon=True,
                                 name=f"hpsim-lane-{slot}") for slot, (tag, args) in enumerate(items)]
     old = None
     if threading.current_thread() is threading.main_thread():
@@ -268,10 +278,11 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
 
 
 def eligible(scenario_data: dict) -> bool:
-    """A scenario mapping whose drive can be a lane: the full-fidelity mode without time-parallel segments."""
+    """A scenario mapping whose drive can be a lane: one the full engine runs (`choice.engine_for`: the full mode in
+    one segment; solver.time_parallel "auto" counts one segment per CPU)."""
     solver = scenario_data.get("solver") or {}
-    tp = solver.get("time_parallel", 1)
-    return solver.get("mode", "full") in ("full", None) and (tp in (None, 1, "1", False))
+    tp = solver.get("time_parallel")
+    return engine_for(solver.get("mode"), resolve_segments(None if tp is False else tp)) == "full"
 
 
 # The most lanes one lockstep group may have (`--ensemble K`): four vectors of the widest instruction set (AVX-512,

@@ -13,25 +13,22 @@ from __future__ import annotations
 
 import time
 from dataclasses import fields
-from functools import cached_property
 from typing import Callable
 
 import numpy as np
 
 from hpsim.cancellation import NEVER, CancelToken
-from hpsim.errors import SimulationError
 
-from vehicle.physics import thermal
-from vehicle.physics.equilibrium import charge_gas_masses, equilibrium_solver
-from vehicle.physics import ride
-from vehicle.physics.model import DISSIPATION_TERMS, ENERGY_TERMS, HULL_ACCELERATIONS, VehicleModel
+from vehicle.physics.model import VehicleModel
 from vehicle.numerics.error_estimate import StepDoublingEstimate, check_spacing_s, window_steps
-from vehicle.numerics.codegen import precompile
-from vehicle.numerics.solvers import Ros2, compiled_outputs, outputs_graph
+from vehicle.numerics.solvers import Ros2
 from vehicle.scenario.settings import DriveSettings
 from vehicle.scenario.work_limits import samples_per_call
+from vehicle.engines.binding import bind_solver
 from vehicle.engines.contract import BlockObserver, DriveResult, DriveSink, DriveState
+from vehicle.engines.recorder import BlockRecorder
 from vehicle.engines.state_index import StateIndex
+from vehicle.engines.vehicle_on_road import VehicleOnRoad
 
 
 class Drive:
@@ -54,58 +51,45 @@ class Drive:
         settings.validate()
         self.model = model
         self.settings = settings
-        # the road each station reads: enveloped by its axle's tyre (one envelope per distinct contact length)
-        envelopes: dict = {}
-        self.station_roads = []
-        for i in range(model.n):
-            L = float(model.tyre[i].contact_length)
-            if L not in envelopes:
-                envelopes[L] = road.enveloped(L) if L > 0 else road
-            self.station_roads.append(envelopes[L])
-        for surface in {id(r): r for r in self.station_roads}.values():    # the splines of what the tyres read
-            surface.prepare(sorted({model.params.station_axle(i) for i in range(model.n)
-                                    if self.station_roads[i] is surface}))
-        self.road = self.station_roads[0]
         t0 = time.perf_counter()
-        self.gas_masses = charge_gas_masses(model) if gas_masses is None else np.asarray(gas_masses, float)
-        self.equilibrium_solver = equilibrium_solver(model)
-        self.p = model.run_parameters(self.gas_masses, settings.compensation)
+        # the parts: the vehicle on its road (envelopes, charge, inputs, distance map), then the solver bound to
+        # its block shape, then the recorder of the blocks it integrates
+        self.vehicle = VehicleOnRoad(model, road, settings, gas_masses)
+        self.station_roads, self.road = self.vehicle.station_roads, self.vehicle.station_roads[0]
+        self.gas_masses, self.equilibrium_solver = self.vehicle.gas_masses, self.vehicle.equilibrium_solver
+        self.p, self.s_grid, self.t_grid = self.vehicle.p, self.vehicle.s_grid, self.vehicle.t_grid
+        self.total_time_s = self.vehicle.total_time_s
         self.K = int(round(settings.output_interval_s / settings.dt_s))
         self.M = samples_per_call(self.K, settings.samples_per_block)   # a long interval: fewer samples per call
+        self.end = self.vehicle.end(self.K)
         solver = solver or Ros2(settings.dt_s)
         # the block outputs in one compiled call per block (the samples of a full block); the baseline engine of
         # the benchmarks (capabilities.compiled_outputs False) and an uncompiled solver keep CasADi's virtual machine
         caps = self._caps = solver.capabilities
-        outputs_compiled = caps.compiled_outputs
-        self.s_grid, self.t_grid = settings.speed.time_grid(settings.distance_m + 1.0)
-        self.total_time_s = float(np.interp(settings.distance_m, self.s_grid, self.t_grid))
         estimate = settings.error_check_every > 0 and caps.step_doubling
         # the step-doubling window: ERROR_WINDOW_S of drive whatever the output interval (an estimate of the step's
         # error must not depend on how often results are stored)
         self.error_steps = window_steps(settings.dt_s)
-        if caps.compiled:
-            # the libraries this drive needs, compiled together (one compiler each) when not in the cache yet
-            graphs = [solver.block_graph(model, self.K, self.M)]
+        graphs = []
+        if caps.compiled:             # the probes' libraries, compiled with the block function when missing
             if estimate:
                 graphs.append(solver.refined_solver(2).block_graph(model, 2 * self.error_steps, 1))
                 if self._coarse_sample() is None:
                     graphs.append(solver.refined_solver(1).block_graph(model, self.error_steps, 1))
-            if self._tail_steps():
+            if self.partial_last_sample and self.end.tail_steps:
                 graphs.append(solver.refined_solver(1).block_graph(model, 1, 1))
-            if outputs_compiled:
-                graphs.append(outputs_graph(model, self.M))
-            precompile([g for g in graphs + self._libraries(model) if g is not None])
-        self.solver = solver.bind(model, self.K, self.M)
-        self.compiled_outputs = compiled_outputs(model, self.M) if outputs_compiled else None
+        bound = bind_solver(solver, model, self.K, self.M, graphs=graphs)
+        self.solver, self.compiled_outputs = bound.solver, bound.outputs
+        self.recorder = BlockRecorder(self.vehicle, settings.distance_m, self.M, self.compiled_outputs)
         # the drive's end closes the statistics interval it cuts (a partial row); a piece of a drive that another
         # continues (vehicle.engines.time_parallel) leaves it open
         self.close_last_interval = True
         self.build_s = time.perf_counter() - t0
         # where each quantity sits in the state vector (vehicle.engines.state_index), as attributes of the drive
-        self.index = StateIndex.of(model)
+        self.index = self.vehicle.index
         for f in fields(StateIndex):
             setattr(self, f.name, getattr(self.index, f.name))
-        self.travel_bin_edges_m = model.travel_bin_edges()
+        self.travel_bin_edges_m = self.recorder.travel_bin_edges_m
         self.error_estimate = None
         self._probes = {}
         if estimate:
@@ -115,76 +99,37 @@ class Drive:
             self._probe(2)                   # compiled (or fetched) now: part of the set-up, not of the run
             self.build_s += time.perf_counter() - t0
 
-    def _libraries(self, model) -> list:
-        """Libraries an engine built on this drive needs besides the solver's and the block outputs' (as
-        `codegen.Library`, compiled together with those when the cache misses them)."""
-        return []
-
-    @cached_property
+    # --- the parts' services, as the engine contract and the engines built on this drive read them ----------
+    @property
     def outputs(self):
-        """The model's outputs y(x, memory, u, p) in CasADi's virtual machine (`VehicleModel.output_function_ode`):
-        for blocks the compiled block outputs do not serve. Built on first use: a drive whose libraries are in the
-        compile cache builds no graph it does not evaluate."""
-        return self.model.output_function_ode()
+        return self.recorder.outputs
 
-    # --- initial state --------------------------------------------------------------------------
     def initial_equilibrium(self):
-        T0 = np.broadcast_to(np.asarray(self.settings.initial_temperatures_K, float), (self.model.n,))
-        return self.equilibrium_solver.solve(T0, self.gas_masses)
+        return self.vehicle.initial_equilibrium()
 
     def initial_state(self) -> DriveState:
-        x = self.model.state_at_rest(self.initial_equilibrium(), self.gas_masses)
-        return DriveState(t_s=0.0, s_m=0.0, x=x, next_stats_m=self.settings.stats_interval_m,
-                          last_stats={"t_s": 0.0, "q": x[self.quad_index].copy(), "gas_sum": np.zeros(self.model.n),
-                                      "gas_n": 0},
-                          solver_memory=np.zeros_like(self.solver.get_state()))
+        return self.vehicle.initial_state(np.zeros_like(self.solver.get_state()))
+
+    def distance_at(self, t):
+        return self.vehicle.distance_at(t)
+
+    def inputs(self, t: np.ndarray) -> np.ndarray:
+        return self.vehicle.inputs(t)
+
+    def stats_row(self, s_end, duration, dq, x_end, gas_mean=None) -> dict:
+        return self.recorder.stats_row(s_end, duration, dq, x_end, gas_mean)
+
+    def final_values(self, state: DriveState) -> dict:
+        return self.recorder.final_values(state)
 
     def describe(self):
         """(one block of samples, one statistics row, one state dict) with the keys and shapes the drive
         will hand to a sink, so a sink can lay out its storage before the drive starts."""
         st = self.initial_state()
         t = np.array([0.0])
-        block = self._block_outputs(st.x[:, None], self.inputs(t), t, t, st.solver_memory[:, None])
-        row = self._stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
+        block = self.recorder.block_outputs(st.x[:, None], self.inputs(t), t, t, st.solver_memory[:, None])
+        row = self.stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
         return block, row, st.as_dict()
-
-    # --- inputs -----------------------------------------------------------------------------------
-    def distance_at(self, t):
-        return np.interp(t, self.t_grid, self.s_grid)
-
-    @cached_property
-    def _strokes_m(self) -> np.ndarray:
-        """Each station's strut stroke [m] as a column (n, 1) (`_check`)."""
-        return np.array([st.p.geometry.stroke for st in self.model.struts])[:, None]
-
-    @cached_property
-    def _input_groups(self) -> list[tuple]:
-        """The stations grouped by the surface their tyre reads: (enveloped road, track, pass, station indices,
-        their distances behind the first axle [m])."""
-        m, P = self.model, self.model.params
-        groups: dict = {}
-        for i in range(m.n):
-            track = "left" if i % 2 == 0 else "right"
-            surface, k = self.station_roads[i], P.station_axle(i)
-            key = (id(surface), track, id(surface.heights(track, k)))
-            groups.setdefault(key, (surface, track, k, []))[3].append(i)
-        return [(surface, track, k, np.array(st), np.array([float(m.a[i]) for i in st]))
-                for surface, track, k, st in groups.values()]
-
-    def inputs(self, t: np.ndarray) -> np.ndarray:
-        """Input matrix (nu, len(t)) by name (`VehicleModel.input_matrix`): road height and rate under each
-        tyre (axle k reads pass k of the ground, terrain.passes: the wheels ahead of it have rolled over it),
-        speed, ambient, the speed profile's longitudinal acceleration a = v dv/ds (0 at constant speed)."""
-        m = self.model
-        s = self.distance_at(t)
-        v = self.settings.speed.speed(s)
-        road, rate = np.empty((m.n, len(t))), np.empty((m.n, len(t)))
-        for surface, track, pass_index, stations, offsets in self._input_groups:
-            # the stations on one surface in one call (elementwise: the same values as one call per station)
-            road[stations], slope = surface.evaluate(s[None, :] - offsets[:, None], track, pass_index=pass_index)
-            rate[stations] = slope * v
-        return m.input_matrix(len(t), road=road, road_rate=rate, speed=v, ambient=self.settings.ambient_K,
-                              acceleration=self.settings.speed.acceleration(s))
 
     # --- error estimate -------------------------------------------------------------------------
     def _probe(self, factor: int):
@@ -236,8 +181,9 @@ class Drive:
             progress: Callable[[float, float, float], None] | None = None,
             checkpoint_every_blocks: int = 6, observer: "BlockObserver | None" = None,
             cancel: CancelToken = NEVER) -> "DriveResult":
-        """Drive from `state` to the end; a request on `cancel` stops it after the next checkpointed block (the
-        result then holds that block's state and no after-drive equilibrium)."""
+        """Drive from `state` (None: the start) to `self.end`, block by block, then the partial last interval
+        (`_tail`). Stops early, returning normally with what it has, once `cancel` is requested (checked after
+        each checkpointed block)."""
         m, S = self.model, self.settings
         st = self.initial_state() if state is None else state
         self.solver.set_state(st.solver_memory)
@@ -245,12 +191,12 @@ class Drive:
         wall0 = time.perf_counter()
         integ_s = 0.0
         blocks = 0
-        sample_dt = self.K * dt
         # error windows every error_check_every blocks of at least check_spacing_s (the first block is left out)
         spacing = check_spacing_s(self.K * self.M * dt)
         next_check = st.t_s + spacing
-        # whole output samples within the distance, then the partial last one (_tail)
-        while st.t_s + sample_dt <= self.total_time_s + 1e-9:
+        left, tail = self.end.steps_left(st.t_s)          # whole samples, then the partial last interval's steps
+        tail = tail if self._tail_steps() else 0
+        while left > 0:
             t_cols = st.t_s + dt * np.arange(self.K * self.M + 1)
             U = self.inputs(t_cols)
             ti = time.perf_counter()
@@ -263,40 +209,23 @@ class Drive:
                 next_check = st.t_s + spacing * self.settings.error_check_every
             t_samples = st.t_s + dt * self.K * np.arange(1, self.M + 1)
             s_samples = self.distance_at(t_samples)
-            self._check(X, t_samples, s_samples, st.x)
-            # keep only samples within the drive
-            keep = t_samples <= self.total_time_s + 1e-9
-            if not np.all(keep):
-                X, t_samples, s_samples, memory = X[:, keep], t_samples[keep], s_samples[keep], memory[:, keep]
-            U_samples = U[:, self.K * np.arange(1, X.shape[1] + 1)]
-            block = self._block_outputs(X, U_samples, t_samples, s_samples, memory)
-            intervals = self._stats_intervals(st, X, t_samples, s_samples)
-            rows = [self._stats_row(*interval) for interval in intervals]
-            if observer is not None:
-                observer.block(X, U_samples, memory, block)
-                observer.intervals(intervals)
-            st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=X[:, -1].copy(),
-                            next_stats_m=st.next_stats_m, last_stats=st.last_stats,
-                            sample_index=st.sample_index + X.shape[1], solver_memory=memory[:, -1].copy())
-            if sink is not None:
-                sink.samples(block)
-                if rows:
-                    sink.stats(rows)
+            self.recorder.check(X, t_samples, s_samples, st.x)
+            take = min(self.M, left)                       # only samples within the drive
+            X, t_samples, s_samples, memory = X[:, :take], t_samples[:take], s_samples[:take], memory[:, :take]
+            left -= take
+            U_samples = U[:, self.K * np.arange(1, take + 1)]
             blocks += 1
-            last = st.t_s + sample_dt > self.total_time_s + 1e-9
-            if sink is not None and (blocks % checkpoint_every_blocks == 0 or last):
-                sink.checkpoint(st.as_dict())
-                if cancel.requested:
-                    return DriveResult(state=st, after=None, wall_s=time.perf_counter() - wall0,
-                                       integration_s=integ_s)
-            if progress is not None:
-                progress(st.s_m, float(S.speed.speed(st.s_m)), st.t_s)
-            if not np.all(keep):
-                break
-        if self._tail_steps(st.t_s):
-            ti = time.perf_counter()
-            st = self._tail(st, sink, observer, progress)
-            integ_s += time.perf_counter() - ti
+            checkpoint = blocks % checkpoint_every_blocks == 0 or left == 0
+            st = self._record(st, X, U_samples, t_samples, s_samples, memory, sink, observer, progress,
+                              ends=left == 0 and not tail, checkpoint=checkpoint)
+            if checkpoint and cancel.requested:
+                # stopped: the block's state only, no after-drive equilibrium (the drive is resumed from here)
+                return DriveResult(state=st, after=None, wall_s=time.perf_counter() - wall0, integration_s=integ_s)
+        else:
+            if tail:
+                ti = time.perf_counter()
+                st = self._tail(st, tail, sink, observer, progress)
+                integ_s += time.perf_counter() - ti
         wall = time.perf_counter() - wall0
         final_T = st.x[self.T_oil_index]
         V_oil = np.array([st.x[m.idx(f"V_oil[{i}]")] for i in range(m.n)])
@@ -304,27 +233,23 @@ class Drive:
         error = None if self.error_estimate is None else self.error_estimate.summary(integ_s)
         return DriveResult(state=st, after=after, wall_s=wall, integration_s=integ_s, solver_error=error)
 
-    def _tail_steps(self, t_s: float | None = None) -> int:
-        """Steps of the partial last output interval from t_s (default: the last whole sample) to the drive's end
-        (0: the drive ends on a whole sample, or the engine keeps whole intervals)."""
+    def _record(self, st: DriveState, X, U, t, s, memory, sink, observer, progress, *, ends: bool,
+                checkpoint: bool) -> DriveState:
+        """`BlockRecorder.record`, the last interval closed at the drive's end unless this drive is a piece of one
+        that another continues (`close_last_interval` False)."""
+        return self.recorder.record(st, X, U, t, s, memory, sink, observer, progress,
+                                    ends=ends and self.close_last_interval, checkpoint=checkpoint or ends)
+
+    def _tail_steps(self) -> int:
+        """Steps of the partial last output interval after the last whole sample (`DriveEnd.tail_steps`; 0 when
+        the engine keeps whole intervals)."""
         if not self.partial_last_sample or not self._caps.step_doubling:    # the one-step solver is a refined one
             return 0
-        dt = self.settings.dt_s
-        sample_dt = self.K * dt
-        if t_s is None:
-            t_s = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
-        rest = self.total_time_s - t_s
-        # the distance -> time map is integrated in floating point (106 km at 20 km/h: 19080.0000000226 s): what the
-        # last whole sample leaves of the distance below DISTANCE_ROUNDING of it is that rounding, not an interval
-        left_m = float(self.distance_at(self.total_time_s) - self.distance_at(t_s))
-        if left_m <= self.DISTANCE_ROUNDING * self.settings.distance_m:
-            return 0
-        return int(np.ceil(rest / dt - 1e-6)) if rest > 1e-6 * dt else 0
+        return self.end.tail_steps
 
-    def _tail(self, st: "DriveState", sink, observer, progress) -> "DriveState":
-        """The partial last output interval: its steps one by one (a one-step compiled function), one sample at the
-        drive's end (within a step of it), its statistics row closed, a checkpoint."""
-        n = self._tail_steps(st.t_s)
+    def _tail(self, st: "DriveState", n: int, sink, observer, progress) -> "DriveState":
+        """The partial last output interval: its n steps one by one (a one-step compiled function), one sample at
+        the drive's end, recorded as a block that ends the drive."""
         dt = self.settings.dt_s
         if "tail" not in self._probes:
             self._probes["tail"] = self.solver.refined_solver(1).bind(self.model, 1, 1)
@@ -338,209 +263,9 @@ class Drive:
         X, memory = x[:, None], one.memory_samples
         t_samples = t_cols[-1:]
         s_samples = self.distance_at(t_samples)
-        self._check(X, t_samples, s_samples, st.x)
-        block = self._block_outputs(X, U[:, -1:], t_samples, s_samples, memory)
-        intervals = self._stats_intervals(st, X, t_samples, s_samples, final=True)
-        if observer is not None:
-            observer.block(X, U[:, -1:], memory, block)
-            observer.intervals(intervals)
-        st = DriveState(t_s=float(t_samples[-1]), s_m=float(s_samples[-1]), x=x.copy(), next_stats_m=st.next_stats_m,
-                        last_stats=st.last_stats, sample_index=st.sample_index + 1,
-                        solver_memory=memory[:, -1].copy())
-        if sink is not None:
-            sink.samples(block)
-            rows = [self._stats_row(*interval) for interval in intervals]
-            if rows:
-                sink.stats(rows)
-            sink.checkpoint(st.as_dict())
-        if progress is not None:
-            progress(st.s_m, float(self.settings.speed.speed(st.s_m)), st.t_s)
-        return st
-
-    DISTANCE_ROUNDING = 1e-9     # relative: the float error of the distance -> time map is ~1e-12 of the drive
-
-    # a state this far outside physics means the integration has failed, whatever the solver says
-    PHYSICAL_TEMPERATURE_K = (150.0, 273.15 + 400.0)
-    STROKE_MARGIN_M = 0.02
-
-    def _advice(self) -> str:
-        S = self.settings
-        v_max = float(np.max(S.speed.speeds_m_per_s)) * 3.6
-        return (f"scenario extremes: speed up to {v_max:.4g} km/h, solver.dt {S.dt_s * 1e3:.4g} ms; "
-                f"try a smaller solver.dt (e.g. {S.dt_s * 500:.3g} ms) or a lower speed / smoother road")
-
-    def _check(self, X, t, s, x_before=None):
-        """Stop with a SimulationError naming the strut, the state and what to change when the solution
-        is non-finite or outside physical bounds (deflection beyond the end stops, temperatures)."""
-        m = self.model
-        finite = np.isfinite(X)
-        if not np.all(finite):
-            col = int(np.argmax(~np.all(finite, axis=0)))
-            bad = [m.layout.names[k] for k in np.flatnonzero(~finite[:, col])]
-            first = bad[0]
-            station = None
-            if "[" in first:
-                k = int(first[first.index("[") + 1:-1])
-                station = m.station_names[k] if k < m.n else None
-            where = f"strut {station}, state {first.split('[')[0]}" if station else f"state {first}"
-            last = ""
-            if station is not None:
-                prev = X[:, col - 1] if col > 0 else x_before
-                if prev is not None and np.all(np.isfinite(prev)):
-                    k = m.station_names.index(station)
-                    x_def = float(m.strut_deflections(prev[:, None])[k, 0])
-                    last = (f"; last finite sample: deflection {x_def * 1e3:.1f} mm, strut temperature "
-                            f"{prev[m.idx(f'T_surface[{k}]')] - 273.15:.1f} degC (surface), "
-                            f"{prev[m.idx(f'T_oil[{k}]')] - 273.15:.1f} degC (oil)")
-            raise SimulationError(
-                f"the solution became non-finite at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s), first in {where} "
-                f"({len(bad)} states non-finite){last}; {self._advice()}")
-        deflections = m.strut_deflections(X)
-        strokes = self._strokes_m
-        outside = (deflections < -self.STROKE_MARGIN_M) | (deflections > strokes + self.STROKE_MARGIN_M)
-        if np.any(outside):                  # the first station out of its stroke, at its first such sample
-            i = int(np.argmax(np.any(outside, axis=1)))
-            stroke, xs, col = float(strokes[i, 0]), deflections[i], int(np.argmax(outside[i]))
-            where = "bottomed out (beyond the bump stop)" if xs[col] > stroke else "over-extended (beyond the rebound stop)"
-            raise SimulationError(
-                f"strut {m.station_names[i]} {where} at {s[col] / 1e3:.3f} km (t = {t[col]:.1f} s): deflection "
-                f"{xs[col] * 1e3:.1f} mm, stroke 0-{stroke * 1e3:.0f} mm, strut temperature "
-                f"{X[m.idx(f'T_oil[{i}]'), col] - 273.15:.1f} degC (oil); {self._advice()}")
-        T = X[self.heat_nodes_index]
-        lo, hi = self.PHYSICAL_TEMPERATURE_K
-        bad = (T < lo) | (T > hi)
-        if np.any(bad):
-            k, col = (int(v[0]) for v in np.nonzero(bad))
-            i, node = k % m.n, thermal.NODES[k // m.n]
-            raise SimulationError(
-                f"strut {m.station_names[i]} {node} temperature {T[i, col] - 273.15:.1f} degC at {s[col] / 1e3:.3f} km "
-                f"(t = {t[col]:.1f} s) is outside any physical range ({lo - 273.15:.0f} to {hi - 273.15:.0f} degC): "
-                f"the heat balance has failed; {self._advice()}")
-
-    def _block_outputs(self, X, U, t, s, memory) -> dict:
-        """Every time series of the output table (vehicle.physics.outputs) at a block's samples."""
-        m = self.model
-        n = X.shape[1]
-        if self.compiled_outputs is not None and n <= self.M:
-            # fewer samples than a block (the first, a window's or the drive's last): the compiled block outputs on
-            # the samples padded with copies of the last (each column is evaluated on its own), the padding dropped
-            pad = np.full(self.M, n - 1)
-            pad[:n] = np.arange(n)
-            Y, acc, heights = (np.asarray(v)[:, :n] for v in self.compiled_outputs(
-                X[:, pad], np.broadcast_to(memory, (m.n_memory, n))[:, pad], U[:, pad], self.p))
-        else:
-            Y, acc, heights = self.outputs.map(n)(X, np.broadcast_to(memory, (m.n_memory, n)), U,
-                                                  np.repeat(self.p[:, None], n, axis=1))
-        outs = m.split_outputs(np.asarray(Y))
-        block = {}
-        for key, f in self.series.items():
-            rows = self.series_rows.get(key)
-            if rows is not None:
-                block[key] = X[rows]
-            elif f.kind == "time":
-                block[key] = t
-            elif f.kind == "distance":
-                block[key] = s
-            elif f.kind == "input":
-                block[key] = U[m.input_index[f.name]]
-            elif f.kind == "output":
-                block[key] = outs[f.name]
-            elif f.kind == "axle_heights":
-                block[key] = np.asarray(heights)
-            elif f.kind == "hull_accelerations":
-                block[key] = np.asarray(acc)
-            else:
-                raise ValueError(f"output table: {key!r} has an unknown series kind {f.kind!r}")
-        return block
-
-    def _stats_intervals(self, st: DriveState, X, t, s, final: bool = False) -> list[tuple]:
-        """Every statistics interval ended in this block, as the arguments of `_stats_row` (distance at the end,
-        duration, quadrature differences, state at the end, interval mean gas temperature); the last partial
-        one at the drive's end if `close_last_interval`. Advances st.next_stats_m and st.last_stats."""
-        rows = []
-        q = X[self.quad_index]
-        T = X
-        t_last, q_last = st.last_stats["t_s"], st.last_stats["q"]
-        s0, t0, q0, T0 = st.s_m, st.t_s, st.x[self.quad_index], st.x
-        # the gas temperature swings by kelvins with every bump: its interval mean over the output samples
-        Tg = X[self.T_gas_index]
-        g_sum = np.broadcast_to(np.asarray(st.last_stats.get("gas_sum", 0.0), float), (self.model.n,)).copy()
-        g_n = int(st.last_stats.get("gas_n", 0))
-        for j in range(len(t)):
-            g_sum += Tg[:, j]
-            g_n += 1
-            while s[j] >= st.next_stats_m - 1e-9:
-                # the quadratures are smooth and monotone: interpolate them to the boundary
-                a = (st.next_stats_m - s0) / (s[j] - s0) if s[j] > s0 else 1.0
-                tb, qb, Tb = t0 + a * (t[j] - t0), q0 + a * (q[:, j] - q0), T0 + a * (T[:, j] - T0)
-                rows.append((st.next_stats_m, tb - t_last, qb - q_last, Tb, g_sum / g_n if g_n else Tg[:, j]))
-                t_last, q_last = tb, qb
-                g_sum, g_n = np.zeros(self.model.n), 0
-                st.next_stats_m += self.settings.stats_interval_m
-            s0, t0, q0, T0 = s[j], t[j], q[:, j], T[:, j]
-        last = final or (t[-1] + self.K * self.settings.dt_s > self.total_time_s + 1e-9 and not self._tail_steps())
-        if self.close_last_interval and last and t[-1] > t_last + 1e-9:
-            rows.append((s[-1], t[-1] - t_last, q[:, -1] - q_last, T[:, -1], g_sum / g_n if g_n else Tg[:, -1]))
-            t_last, q_last = t[-1], q[:, -1]
-            g_sum, g_n = np.zeros(self.model.n), 0
-        st.last_stats = {"t_s": t_last, "q": q_last, "gas_sum": g_sum, "gas_n": g_n}
-        return rows
-
-    def _stats_row(self, s_end, duration, dq, x_end, gas_mean=None) -> dict:
-        """One statistics row; x_end: the state at the interval's end (its temperatures are reported);
-        gas_mean: the interval mean of the gas temperature (default its value at the end)."""
-        n = self.model.n
-        nE = len(ENERGY_TERMS)
-        E = dq[: nE * n].reshape(nE, n)
-        row = {"distance_end_m": float(s_end), "duration_s": float(duration),
-               "strut_temperature_K": x_end[self.T_index].copy(),
-               "wall_temperature_K": x_end[self.T_wall_index].copy(),
-               "oil_temperature_K": x_end[self.T_oil_index].copy(),
-               "mean_gas_temperature_K": np.array(x_end[self.T_gas_index] if gas_mean is None else gas_mean,
-                                                  float)}
-        for k, e in enumerate(ENERGY_TERMS):
-            if e in DISSIPATION_TERMS:
-                row[f"power_{e}_W"] = E[k] / max(duration, 1e-12)
-        row["rms_strut_velocity_m_per_s"] = np.sqrt(np.maximum(dq[nE * n: nE * n + n], 0) / max(duration, 1e-12))
-        row["rms_hull_acceleration"] = np.sqrt(np.maximum(dq[nE * n + n: nE * n + n + len(HULL_ACCELERATIONS)], 0)
-                                               / max(duration, 1e-12))
-        if self.ride_slots:
-            row.update(self._ride_row(duration, dq, E[ENERGY_TERMS.index("end_stop")]))
-        return row
-
-    def _ride_row(self, duration, dq, end_stop_energy_J) -> dict:
-        """Ride and road-holding statistics of an interval from the differences of the ride quadratures
-        (vehicle.physics.ride; the keys vehicle.analysis.ride_metrics reads)."""
-        Q = {q: dq[k] for q, k in self.ride_slots.items()}
-        T = max(duration, 1e-12)
-        row = {}
-        if len(self.model.seat_names):
-            row["weighted_rms_acceleration_m_s2"] = ride.weighted_rms(Q["aw2"], T)
-            row["weighted_rms_lateral_acceleration_m_s2"] = ride.weighted_rms(Q["awl2"], T)
-            row["vdv_m_s175"] = ride.vibration_dose_value(Q["aw4"])
-            row["absorbed_power_W"] = np.maximum(Q["pabs"], 0.0) / T
-        row["dynamic_load_coefficient"] = ride.dynamic_load_coefficient(Q["F"], Q["F2"], T)
-        row["lift_off_share"] = np.clip(Q["lift"] / T, 0.0, 1.0)
-        row["end_stop_time_s"] = np.maximum(Q["stop"], 0.0)
-        row["end_stop_energy_J"] = np.asarray(end_stop_energy_J, float).copy()
-        hist = ride.travel_histogram(Q["above"], duration)
-        row["strut_travel_min_m"], row["strut_travel_max_m"] = ride.travel_range(hist, self.travel_bin_edges_m)
-        row["strut_travel_histogram_s"] = hist
-        return row
-
-    def final_values(self, state: DriveState) -> dict:
-        """The drive's end as stored in /summary: energies since the start, the heat network's temperatures and
-        (with ride metrics) the whole drive's ride numbers from the quadratures since the start."""
-        m = self.model
-        x = state.x
-        values = {f"energy_{e}_J": np.asarray(x[idx], float) for e, idx in m.energy_index.items()}
-        values["strut_temperature_K"] = np.asarray(x[self.T_index], float)          # the surface (pyrometer)
-        values["wall_temperature_K"] = np.asarray(x[self.T_wall_index], float)
-        values["oil_temperature_K"] = np.asarray(x[self.T_oil_index], float)
-        if m.ride_metrics:
-            values.update(self._ride_row(float(state.t_s), x[self.quad_index], x[m.energy_index["end_stop"]]))
-            values["strut_travel_bin_edges_m"] = np.asarray(self.travel_bin_edges_m, float)
-        return values
+        self.recorder.check(X, t_samples, s_samples, st.x)
+        return self._record(st, X, U[:, -1:], t_samples, s_samples, memory, sink, observer, progress, ends=True,
+                            checkpoint=True)
 
     def summary_extra(self) -> dict:
         """The full drive adds nothing to /summary beyond the step-doubling estimate of its result."""

@@ -5,6 +5,7 @@ with the measurements behind each choice: docs/engines.md, "Multiscale mode"."""
 from __future__ import annotations
 
 import time
+from dataclasses import fields
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
@@ -15,85 +16,97 @@ from hpsim.stages import timed
 
 from vehicle.physics.model import DISSIPATION_TERMS
 from vehicle.scenario.settings import MultiscaleSettings
-from vehicle.engines.full import Drive, DriveResult, DriveState
-from vehicle.engines.control_variate import (band_power_cumulative, control_variate, on_grid, station_patterns,
-                                             stratified_error_covariance, variance_ratio)
+from vehicle.numerics.solvers import Ros2
+from vehicle.scenario.work_limits import samples_per_call
+from vehicle.engines.binding import bind_solver
+from vehicle.engines.contract import DriveResult, DriveState
+from vehicle.engines.recorder import BlockRecorder
+from vehicle.engines.state_index import StateIndex
+from vehicle.engines.vehicle_on_road import VehicleOnRoad
+from vehicle.engines.control_variate import band_power_cumulative, on_grid, station_patterns
 from vehicle.engines.linear_proxy import LinearProxy
+from vehicle.engines.slow_manifold import SlowManifold
 from vehicle.engines.window_pair import WindowPair
 from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
-                                       warm_up_correction, window_forcings)
+                                       warm_up_correction)
+from vehicle.engines.window_estimates import WindowEstimator, WindowRecord
 
 MODE = "multiscale"
 
 
-class MultiscaleDrive(Drive):
-    """A Drive that integrates windows of the road with the full model and the slow states between them."""
+class MultiscaleDrive:
+    """The ride integrated on windows of the road with the full model, the slow states carried between them
+    (module docstring). Composed of the vehicle on its road, a block recorder for the windows' samples, the slow
+    manifold and a solver (default: the compiled ROS2 at settings.dt_s)."""
 
-    partial_last_sample = False       # windows end on whole output intervals
     mode = MODE
     resumable = False                 # it takes seconds: an interrupted run starts again
-    _cancel: CancelToken = NEVER      # the token of the run in progress
     MIN_CV_WINDOWS = 5      # the control variate needs a few residual degrees of freedom (windows less 3)
 
-    def __init__(self, model, road, settings, multiscale: MultiscaleSettings, **kw):
-        super().__init__(model, road, settings, **kw)
-        self.ms = multiscale
+    def __init__(self, model, road, settings, multiscale: MultiscaleSettings, *, gas_masses=None, solver=None):
+        if solver is not None:
+            settings.dt_s = solver.dt
+        settings.validate()
+        self.model, self.settings, self.ms = model, settings, multiscale
         self.state_only = False          # True: only the states are wanted (no error estimate), as for a coarse run
-        self._S = None                   # the slaving matrix, once computed (`_slaving`)
         t0 = time.perf_counter()
-        self.slow_index = np.asarray(model.slow_state_indices(), int)
-        self.ext_index = np.arange(model.n_dynamic, model.nx)
-        self.J_slow = slow_rate_jacobian(model, compiled=self._caps.compiled)
+        self.vehicle = VehicleOnRoad(model, road, settings, gas_masses)
+        v = self.vehicle
+        self.station_roads, self.gas_masses = v.station_roads, v.gas_masses
+        self.equilibrium_solver = v.equilibrium_solver
+        self.p, self.s_grid, self.t_grid, self.total_time_s = v.p, v.s_grid, v.t_grid, v.total_time_s
+        self.index = v.index
+        for f in fields(StateIndex):
+            setattr(self, f.name, getattr(self.index, f.name))
+        self.K = int(round(settings.output_interval_s / settings.dt_s))
+        self.M = samples_per_call(self.K, settings.samples_per_block)
+        self.end = v.end(self.K)         # the windows end on whole samples, the slow states at `end.time_s`
+        solver = solver or Ros2(settings.dt_s)
+        bound = bind_solver(solver, model, self.K, self.M, libraries=[slow_rate_library(model)])
+        self.solver = bound.solver
+        self.recorder = BlockRecorder(v, settings.distance_m, self.M, bound.outputs)
+        # the standing vehicle at the slow states, shared with whoever composes this drive (time_parallel)
+        self.manifold = SlowManifold(model, self.equilibrium_solver, self.gas_masses, self.T_oil_index, self.s_grid,
+                                     self.t_grid)
+        self.slow_index, self.ext_index = self.manifold.slow_index, self.manifold.ext_index
+        self.J_slow = slow_rate_jacobian(model, compiled=solver.capabilities.compiled)
         self._J_sums: dict = {}
-        self.oil_index = np.array([model.idx(f"V_oil[{i}]") for i in range(model.n)])
+        self.oil_index = self.manifold.oil_index
+        self.build_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
         self._proxy_setup()
+        self.estimator = WindowEstimator(self.slow_index, self.ext_index, self.slow_station, self.cv_basis,
+                                         self.cv_quad, self.cv_quad_station, self.T_oil_index)
         # the linear-model proxy's first part starts now, beside what comes before the drive (`_start_proxy`)
         self._proxy_start = self._start_proxy() if self._linear_proxy_pending else None
         self.build_s += time.perf_counter() - t0
         self.estimate: dict | None = None
-        self.window_log: list[dict] = []
+        self.window_log: list[WindowRecord] = []
 
-    def _libraries(self, model) -> list:
-        """The full drive's libraries and the slow rates' Jacobian (compiled together when missing)."""
-        return super()._libraries(model) + [slow_rate_library(model)]
+    # --- the engine contract through the parts ---------------------------------------------------------
+    def initial_equilibrium(self):
+        return self.vehicle.initial_equilibrium()
 
-    # --- layout for the sink: the full drive's, plus where each window's averages start ------------
+    def initial_state(self) -> DriveState:
+        return self.vehicle.initial_state(np.zeros_like(self.solver.get_state()))
+
+    def distance_at(self, t):
+        return self.vehicle.distance_at(t)
+
+    def inputs(self, t: np.ndarray) -> np.ndarray:
+        return self.vehicle.inputs(t)
+
+    def final_values(self, state: DriveState) -> dict:
+        return self.recorder.final_values(state)
+
     def describe(self):
-        block, row, state = super().describe()
+        """The full drive's layout (`Drive.describe`), plus where each window's averages start."""
+        st = self.initial_state()
+        t = np.array([0.0])
+        block = self.recorder.block_outputs(st.x[:, None], self.inputs(t), t, t, st.solver_memory[:, None])
+        row = self.recorder.stats_row(self.settings.stats_interval_m, 1.0, np.zeros(len(self.quad_index)), st.x)
         row["window_start_m"] = 0.0
-        return block, row, state
-
-    def _rest_state(self, x_prev: np.ndarray) -> np.ndarray:
-        """The vehicle standing in equilibrium at x_prev's slow states, with x_prev's slow states and quadratures."""
-        m = self.model
-        eq = self.equilibrium_solver.solve(x_prev[self.T_oil_index], self.gas_masses, x_prev[self.oil_index])
-        x = m.state_at_rest(eq, self.gas_masses)
-        x[self.slow_index] = x_prev[self.slow_index]
-        x[self.ext_index] = x_prev[self.ext_index]
-        return x
-
-    def _slaving(self, x: np.ndarray) -> np.ndarray:
-        """S = dx/dx_slow (nx, ns) on the manifold of the vehicle at rest (`_rest_state`): the slow states
-        themselves move one to one, the fast ones as the standing vehicle's do (gas temperatures with the strut
-        temperature, deflections with gas expansion and oil), the quadratures not at all. Finite differences,
-        computed once per drive (it changes little with the slow states). The standing vehicle depends on the oil's
-        temperatures and volumes only (`_rest_state`): the column of any other slow state is its own unit column,
-        written without an equilibrium solve (the same numbers: the solve would repeat the base's)."""
-        if self._S is not None:
-            return self._S
-        base = self._rest_state(x)
-        S = np.zeros((self.model.nx, len(self.slow_index)))
-        standing_inputs = set(self.T_oil_index.tolist()) | set(self.oil_index.tolist())
-        for k, j in enumerate(self.slow_index):
-            h = 1e-4 * max(abs(x[j]), 1e-3)
-            xp = x.copy()
-            xp[j] += h
-            if j in standing_inputs:
-                S[:, k] = (self._rest_state(xp) - base) / h
-            else:
-                S[j, k] = (xp[j] - base[j]) / h
-        self._S = S
-        return S
+        return block, row, st.as_dict()
 
     # --- the road proxy of the control variate ------------------------------------------------------
     def _linear_proxy_inputs(self) -> tuple:
@@ -178,21 +191,18 @@ class MultiscaleDrive(Drive):
 
     def proxy(self, s0_m: float, s1_m: float) -> np.ndarray:
         """Mean of each station's road proxy over the drive from s0 to s1 (time mean; 0 for an empty stretch)."""
-        dt = self._time_at(s1_m) - self._time_at(s0_m)
+        dt = self.manifold.time_at(s1_m) - self.manifold.time_at(s0_m)
         if dt <= 0:
             return np.zeros(self.model.n)
         if self._proxy_t is not None:
             tg, c = self._proxy_t
-            t0, t1 = self._time_at(s0_m), self._time_at(s1_m)
+            t0, t1 = self.manifold.time_at(s0_m), self.manifold.time_at(s1_m)
             return np.array([np.interp(t1, tg, ci) - np.interp(t0, tg, ci) for ci in c]) / dt
         out = np.zeros(self.model.n)
         for i, (h, c) in enumerate(self._proxy_c):
             a = float(self.model.a[i])
             out[i] = (on_grid(c, h, s1_m - a) - on_grid(c, h, s0_m - a)) / dt
         return out
-
-    def _time_at(self, s_m: float) -> float:
-        return float(np.interp(s_m, self.s_grid, self.t_grid))
 
     # --- one window ------------------------------------------------------------------------------
     def integrate(self, solver, x0, t0, t_end, t_warm) -> dict:
@@ -228,12 +238,12 @@ class MultiscaleDrive(Drive):
 
     def _window_times(self, c0: float, c1: float, t_total: float) -> tuple:
         """(start, warm-up end, end) [s] of the window from c0 to c1 [m]."""
-        t0 = self._time_at(c0)
-        t_end = min(self._time_at(c1), t_total)
-        return t0, min(self._time_at(min(c0 + self.ms.warm_up_m, c1)), t_end), t_end
+        t0 = self.manifold.time_at(c0)
+        t_end = min(self.manifold.time_at(c1), t_total)
+        return t0, min(self.manifold.time_at(min(c0 + self.ms.warm_up_m, c1)), t_end), t_end
 
     def _window_arrays(self, t0, t_warm, t_end, run) -> dict:
-        """The window's samples checked (`_check`; its error kept, raised by `_window`: a window integrated from a
+        """The window's samples checked (`BlockRecorder.check`; its error kept, raised by `window_record`: a window integrated from a
         predicted start may be integrated again) and joined: states X, times T, solver memory MEM, inputs U, the
         first sample of the averaged stretch a, and J, the sum of the slow rates' Jacobian over that stretch."""
         sample_dt = self.K * self.settings.dt_s
@@ -246,7 +256,7 @@ class MultiscaleDrive(Drive):
         try:
             for X, t_s, memory, U_s, take in run["blocks"]:
                 s_s = self.distance_at(t_s)
-                self._check(X, t_s, s_s, x)
+                self.recorder.check(X, t_s, s_s, x)
                 X, t_s, s_s, memory = X[:, :take], t_s[:take], s_s[:take], memory[:, :take]
                 samples.append((X, U_s, t_s, s_s, memory))
                 xs.append(X)
@@ -273,54 +283,51 @@ class MultiscaleDrive(Drive):
         return {"error": None, "samples": samples, "X": X, "T": T, "MEM": MEM, "a": a, "N": N, "J": J,
                 "q_rate": q_rate}
 
-    def _window(self, run: dict, integ: list) -> dict:
+    def window_record(self, run: dict) -> WindowRecord:
         """The record of the window `integrate` gave (run: from run["x0"], with its arrays): the averaged slow
-        model, the end state, ..., with its samples for the sink (`_to_sink`); its integration time added to
-        integ[0]."""
-        integ[0] += run["integration_s"]
+        model, the end state, ..., with its samples for the sink (`_to_sink`)."""
         arrays = run["arrays"]
         if arrays["error"] is not None:
             raise arrays["error"]
         X, T, MEM, a, N, J = (arrays[k] for k in ("X", "T", "MEM", "a", "N", "J"))
         # d(slow rates)/d(all states), averaged, times how the state moves with the slow states (fast states
         # slaved to them: a gas temperature follows its strut's): A = mean(J) S
-        A = (J / N) @ self._slaving(X[:, -1])
+        A = (J / N) @ self.manifold.slaving(X[:, -1])
         dur = T[-1] - T[a]
         xa, xb = X[:, a], X[:, -1]
         r = (xb[self.slow_index] - xa[self.slow_index]) / dur
         xbar = 0.5 * (X[self.slow_index, a:-1] + X[self.slow_index, a + 1:]).mean(axis=1)  # trapezoid
-        row = self._stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index], xb,
-                              X[self.T_gas_index, a + 1:].mean(axis=1))
+        row = self.recorder.stats_row(float(self.distance_at(T[-1])), dur, xb[self.quad_index] - xa[self.quad_index],
+                                      xb, X[self.T_gas_index, a + 1:].mean(axis=1))
         row["window_start_m"] = float(self.distance_at(T[a]))
-        return {"x_end": xb.copy(), "x_avg0": xa.copy(), "t_end": float(T[-1]), "t_avg0": float(T[a]),
-                "A": A, "r": r, "xbar": xbar, "b": r - A @ xbar, "q_rate": arrays["q_rate"], "row": row,
-                "memory": MEM[:, -1].copy(), "samples": arrays["samples"]}
+        return WindowRecord(x_end=xb.copy(), x_avg0=xa.copy(), t_end=float(T[-1]), t_avg0=float(T[a]), A=A, r=r,
+                            xbar=xbar, b=r - A @ xbar, q_rate=arrays["q_rate"], row=row, memory=MEM[:, -1].copy(),
+                            samples=arrays["samples"], integration_s=run["integration_s"])
 
     def _to_sink(self, sink, records: list) -> None:
         """The processed windows' samples, statistics rows and checkpoints to the sink, in order (emptied). Called
         while the next windows integrate: the outputs are evaluated beside them."""
         while records:
             w = records.pop(0)
-            for block in w.pop("samples"):
-                sink.samples(self._block_outputs(*block))
-            sink.stats([w["row"]])
-            st = DriveState(t_s=w["t_end"], s_m=w["s_end"], x=w["x_end"], next_stats_m=self.settings.distance_m + 1.0,
-                            last_stats={"t_s": w["t_end"], "q": w["x_end"][self.quad_index].copy(),
+            blocks, w.samples = w.samples, []          # written: the samples are not kept
+            for block in blocks:
+                sink.samples(self.recorder.block_outputs(*block))
+            sink.stats([w.row])
+            st = DriveState(t_s=w.t_end, s_m=w.s_end, x=w.x_end, next_stats_m=self.settings.distance_m + 1.0,
+                            last_stats={"t_s": w.t_end, "q": w.x_end[self.quad_index].copy(),
                                         "gas_sum": np.zeros(self.model.n), "gas_n": 0},
-                            solver_memory=w["memory"])
+                            solver_memory=w.memory)
             sink.checkpoint(st.as_dict())
-            if self._cancel.requested and not records:
-                raise KeyboardInterrupt
 
     def _predicted_start(self, x: np.ndarray, t_from: float, w_prev: dict, s_next_m: float) -> np.ndarray:
         """The vehicle at rest at the start of the window at s_next_m, predicted from the state x at t_from (the start
         of the window before it) by the averaged slow model of the window before that (`w_prev`): the slow states by
         its linear flow, the totals by its rates (`paired_windows`)."""
-        tau = max(self._time_at(s_next_m) - t_from, 0.0)
-        flow, xp = w_prev["flow"], x.copy()
-        xp[self.slow_index] = flow.phi(tau) @ x[self.slow_index] + flow.gamma(tau) @ w_prev["b"]
-        xp[self.ext_index] = x[self.ext_index] + w_prev["q_rate"] * tau
-        return self._rest_state(xp)
+        tau = max(self.manifold.time_at(s_next_m) - t_from, 0.0)
+        flow, xp = w_prev.flow, x.copy()
+        xp[self.slow_index] = flow.phi(tau) @ x[self.slow_index] + flow.gamma(tau) @ w_prev.b
+        xp[self.ext_index] = x[self.ext_index] + w_prev.q_rate * tau
+        return self.manifold.rest_state(xp)
 
     def _start_proxy(self) -> tuple:
         """The linear-model proxy's first part (`LinearProxy.prepare`) started on a thread of its own when the drive
@@ -350,7 +357,8 @@ class MultiscaleDrive(Drive):
             return timed("drive: the proxy's set-up", proxy.finish)
         return beside.submit(after_match)
 
-    def _drive_windows(self, sink, progress, t_total: float, integ: list, pair: WindowPair, unwritten: list) -> tuple:
+    def _drive_windows(self, sink, progress, t_total: float, pair: WindowPair, unwritten: list,
+                       cancel: CancelToken = NEVER) -> tuple:
         """Every window in order, the slow states carried across the gaps between them: (the window records, the
         state at the drive's end); the linear-model proxy is set up beside them (`_start_proxy`). With
         `paired_windows` the window after each odd one integrates beside it from a predicted start
@@ -370,7 +378,7 @@ class MultiscaleDrive(Drive):
             c0, c1 = windows[k]
             t0, t_warm, t_end = self._window_times(c0, c1, t_total)
             if k > 0:
-                x = self._rest_state(x)
+                x = self.manifold.rest_state(x)
             run = None
             if pending is not None:      # integrated beside the window before, from a predicted start
                 run, pending = pending.result(), None
@@ -392,15 +400,15 @@ class MultiscaleDrive(Drive):
                 run = job.result()
             if k == 0 and proxy_start is not None and run["arrays"]["error"] is None:
                 proxy_job = self._match_proxy(*proxy_start, run["arrays"])
-            w = self._window(run, integ)
-            w["flow"] = LinearFlow(w["A"])
-            w["predicted_start"] = predicted             # integrated from a predicted start (`paired_windows`)
+            w = self.window_record(run)
+            w.flow = LinearFlow(w.A)
+            w.predicted_start = predicted             # integrated from a predicted start (`paired_windows`)
             if k == 0 and self.ms.placement == "weighted":
-                lam = np.linalg.eigvals(w["A"]).real
+                lam = np.linalg.eigvals(w.A).real
                 lam = lam[lam < -1e-12]
                 tau = -1.0 / np.max(lam) if len(lam) else t_total
-                w["tau_slow_s"] = float(tau)
-                windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self._time_at,
+                w.tau_slow_s = float(tau)
+                windows = windows[:1] + self.ms.weighted_windows(D, windows[0][1], tau, self.manifold.time_at,
                                                                   self.distance_at, t_total)
             if k > 0:
                 # the warm-up settles the start from rest (the tyres meet a road that is not flat): its extra
@@ -412,37 +420,43 @@ class MultiscaleDrive(Drive):
                 # end (in a linear model exactly: x_end(x_a + d) = x_end(x_a) + e^{A L} d; docs/engines.md, "Warm-up").
                 # A window integrated from a predicted start (paired) is carried to its true start, x, the same way
                 x_start = x
-                tw = w["t_avg0"] - t0
-                w["x_end"][self.slow_index] += warm_up_correction(w["flow"], w["b"], x_start[self.slow_index],
-                                                                  w["x_avg0"][self.slow_index], tw,
-                                                                  w["t_end"] - w["t_avg0"])
-                w["x_end"][self.ext_index] += (x_start[self.ext_index] + w["q_rate"] * tw) - w["x_avg0"][self.ext_index]
+                tw = w.t_avg0 - t0
+                w.x_end[self.slow_index] += warm_up_correction(w.flow, w.b, x_start[self.slow_index],
+                                                                  w.x_avg0[self.slow_index], tw,
+                                                                  w.t_end - w.t_avg0)
+                w.x_end[self.ext_index] += (x_start[self.ext_index] + w.q_rate * tw) - w.x_avg0[self.ext_index]
             # the gap: to the next window's start, or to the end of the drive
-            t_next = self._time_at(windows[k + 1][0]) if k + 1 < len(windows) else t_total
-            tau = max(t_next - w["t_end"], 0.0)
-            x = w["x_end"].copy()
-            Phi, forced = w["flow"].phi(tau), w["flow"].gamma(tau) @ w["b"]
+            t_next = self.manifold.time_at(windows[k + 1][0]) if k + 1 < len(windows) else self.end.time_s
+            tau = max(t_next - w.t_end, 0.0)
+            x = w.x_end.copy()
+            Phi, forced = w.flow.phi(tau), w.flow.gamma(tau) @ w.b
             x[self.slow_index] = Phi @ x[self.slow_index] + forced
-            x[self.ext_index] = x[self.ext_index] + w["q_rate"] * tau
-            w.update(t_start=t0, t_gap_end=t_next, tau=tau, s_start=c0, s_end=float(self.distance_at(w["t_end"])),
-                     s_gap_end=float(self.distance_at(t_next)), s_avg0=float(self.distance_at(w["t_avg0"])))
-            w["tw"] = (w["t_avg0"] - t0) if k > 0 else 0.0
+            x[self.ext_index] = x[self.ext_index] + w.q_rate * tau
+            w.t_start, w.t_gap_end, w.tau, w.s_start = t0, t_next, tau, c0
+            w.s_end, w.s_gap_end = float(self.distance_at(w.t_end)), float(self.distance_at(t_next))
+            w.s_avg0 = float(self.distance_at(w.t_avg0))
+            w.tw = (w.t_avg0 - t0) if k > 0 else 0.0
             records.append(w)
             unwritten.append(w)
             if progress is not None:
                 progress(float(self.distance_at(t_next)), float(S.speed.speed(self.distance_at(t_next))), t_next)
+            if cancel.requested:
+                if pending is not None:
+                    pending.cancel()
+                return records, None
         if proxy_job is not None:        # the proxy was matched after the last window (a drive of one window)
             finished = self._finish_proxy(*proxy_start, proxy_job)
         if finished is not None:
             self._use_linear_proxy(proxy_start[1], finished.result())
         return records, x
 
-    def _drive_windows_to(self, sink, progress, t_total: float, integ: list, pair: WindowPair) -> tuple:
+    def _drive_windows_to(self, sink, progress, t_total: float, pair: WindowPair,
+                          cancel: CancelToken = NEVER) -> tuple:
         """`_drive_windows`, every processed window written to the sink at the end, or when the drive fails, before
         the failure is raised (nothing computed is lost)."""
         unwritten: list = []
         try:
-            return self._drive_windows(sink, progress, t_total, integ, pair, unwritten)
+            return self._drive_windows(sink, progress, t_total, pair, unwritten, cancel)
         finally:
             if sink is not None:
                 self._to_sink(sink, unwritten)
@@ -457,39 +471,40 @@ class MultiscaleDrive(Drive):
     # --- the drive -------------------------------------------------------------------------------
     def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
             cancel: CancelToken = NEVER):
-        """The windowed drive; a request on `cancel` stops it after the next window written to the sink (raised as
-        KeyboardInterrupt: a multiscale run is not resumed, only its written windows are kept)."""
-        self._cancel = cancel
+        """Every window, the slow states carried across the gaps to the drive's end, the control variate and the
+        sampling error. Once `cancel` is requested it returns after the window being integrated, its state at
+        that window's end and no estimate (a multiscale run is not resumed: it is run again)."""
         if state is not None and state.s_m > 0:
             raise UserInputError("solver.mode multiscale: a multiscale run cannot be resumed (it takes seconds): "
                                  "run it again with --overwrite")
         S = self.settings
         D = S.distance_m
-        # the drive ends at the last output sample within the distance, as a full drive does
-        sample_dt = self.K * S.dt_s
-        t_total = np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt
+        # the windows end on whole output samples; the slow states are carried across the last gap to the drive's
+        # end (`DriveEnd.time_s`, where its distance is reached)
+        t_total, t_end = self.end.whole_time_s, self.end.time_s
         wall0 = time.perf_counter()
-        integ = [0.0]
         pair = WindowPair(self)
         try:
-            records, x = self._drive_windows_to(sink, progress, t_total, integ, pair)
+            records, x = self._drive_windows_to(sink, progress, t_total, pair, cancel)
         finally:
             pair.close()
             if self._proxy_start is not None:          # its jobs end (or, the drive failed, are dropped) by themselves
                 self._proxy_start[0].shutdown(wait=False, cancel_futures=True)
                 self._proxy_start = None               # set up once: a second run reuses the proxy
+        if x is None:                                  # cancelled: the state at the last window's end
+            return self._stopped(records, time.perf_counter() - wall0)
         for w in records:       # the road proxy over the averaged stretch and what the window stands for (warm-up, gap)
-            w.update(p_win=self.proxy(w["s_avg0"], w["s_end"]), p_warm=self.proxy(w["s_start"], w["s_avg0"]),
-                     p_gap=self.proxy(w["s_end"], w["s_gap_end"]))
+            w.p_win, w.p_warm = self.proxy(w.s_avg0, w.s_end), self.proxy(w.s_start, w.s_avg0)
+            w.p_gap = self.proxy(w.s_end, w.s_gap_end)
         cv = None
         if self.ms.control_variate and len(records) >= self.MIN_CV_WINDOWS:
-            cv = self._control_variate(records, t_total)
+            cv = self._control_variate(records, t_end)
             x = x.copy()
             x[self.slow_index] += cv["dx_slow"]
             x[self.cv_quad] += cv["dq"]
-        self.estimate = {} if self.state_only else self.road_sampling_error(records, t_total, cv)
-        final = DriveState(t_s=float(t_total), s_m=float(self.distance_at(t_total)), x=x, next_stats_m=D + 1.0,
-                           last_stats={"t_s": float(t_total), "q": x[self.quad_index].copy(),
+        self.estimate = {} if self.state_only else self.road_sampling_error(records, t_end, cv)
+        final = DriveState(t_s=float(t_end), s_m=float(self.distance_at(t_end)), x=x, next_stats_m=D + 1.0,
+                           last_stats={"t_s": float(t_end), "q": x[self.quad_index].copy(),
                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
                            solver_memory=np.zeros_like(self.solver.get_state()))
         if sink is not None:
@@ -499,118 +514,38 @@ class MultiscaleDrive(Drive):
         self.window_log = records
         if not self.state_only:
             self.estimate.update(self.load_error(final, after))
-        return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=integ[0])
+        return DriveResult(state=final, after=after, wall_s=time.perf_counter() - wall0, integration_s=self._integration_s(records))
+
+    @staticmethod
+    def _integration_s(records: list) -> float:
+        """The windows' integration wall time [s] (their solver calls), summed in drive order."""
+        total = 0.0
+        for w in records:
+            total += w.integration_s
+        return total
+
+    def _stopped(self, records: list, wall_s: float) -> DriveResult:
+        """The result of a cancelled run: the state at the end of its last window (the start if none ran)."""
+        if records:
+            w = records[-1]
+            st = DriveState(t_s=w.t_end, s_m=w.s_end, x=w.x_end, next_stats_m=self.settings.distance_m + 1.0,
+                            last_stats={"t_s": w.t_end, "q": w.x_end[self.quad_index].copy(),
+                                        "gas_sum": np.zeros(self.model.n), "gas_n": 0},
+                            solver_memory=w.memory)
+        else:
+            st = self.initial_state()
+        after = self.equilibrium_solver.solve(st.x[self.T_oil_index], self.gas_masses, st.x[self.oil_index])
+        self.window_log, self.estimate = records, {}
+        return DriveResult(state=st, after=after, wall_s=wall_s, integration_s=self._integration_s(records))
 
     # --- control variate ------------------------------------------------------------------------
-    def _per_component(self, p: np.ndarray, stations: np.ndarray) -> np.ndarray:
-        """A station proxy vector (n,) spread over components by their station (the mean for -1)."""
-        return np.where(stations >= 0, p[np.maximum(stations, 0)], p.mean())
-
     def _control_variate(self, records, t_end: float) -> dict:
-        """The regression estimate (`control_variate`) of every stratum's forcing, as a correction of the final
-        state: the slow states' forcings b_k (`window_forcings`) and the dissipated energies' rates, each regressed
-        on its station's road proxy over the window; the slope times the proxy's difference between the stretch
-        the window stands for (warm-up, gap) and the window is added to that stretch's forcing and carried to
-        the end of the drive by the linear slow model (the gaps' response is linear in their forcing).
+        """`WindowEstimator.control_variate` of this drive's windows."""
+        return self.estimator.control_variate(records, t_end)
 
-        The slow states' forcings are regressed pattern by pattern (`cv_basis`, `station_patterns`): each pattern
-        of a kind of slow state over the stations (the vehicle's mean, linear in position, ...) on the same pattern
-        of the proxy. The regression estimate holds for any linear combination of the strata (Cochran 1977 ch. 7);
-        per station, the windows' large common part (the whole vehicle's dissipation, and the state dependence's
-        remainder shared by all struts, +0.8 K/min in the cold first window of the 106 km test) is fitted with a
-        slope per station and leaks into the differences between the stations, which the after-drive loads follow;
-        per pattern it stays in the mean. Returned in that basis: `residuals`, `H`, `beta`, and `M_beta` (final
-        slow states per pattern slope); `basis` maps the slow states to the patterns."""
-        A_mean = np.mean([w["A"] for w in records], axis=0)
-        flow = LinearFlow(A_mean)
-        st, qst = self.slow_station, self.cv_quad_station
-        T = self.cv_basis
-        t = np.array([w["t_avg0"] for w in records])
-        Y = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records]) @ T.T
-        PWs = np.array([self._per_component(w["p_win"], st) for w in records])
-        PW = PWs @ T.T
-        tu = np.array([w["tw"] + w["tau"] for w in records])
-
-        def stretch(w, stations):
-            tot = w["tw"] + w["tau"]
-            if tot <= 0:
-                return self._per_component(w["p_win"], stations)
-            return self._per_component((w["tw"] * w["p_warm"] + w["tau"] * w["p_gap"]) / tot, stations)
-        PS = np.array([stretch(w, st) for w in records]) @ T.T
-        _, beta, res, dof, H = control_variate(Y, PW, PS, t)
-        # the correction, and how the final slow state moves with each slope (for the slope's own error)
-        ns = len(self.slow_index)
-        dx, Mb = np.zeros(ns), np.zeros((ns, ns))
-        for k, w in enumerate(records):
-            for dur, t_from, p in ((w["tw"], w["t_avg0"], w["p_warm"]), (w["tau"], w["t_gap_end"], w["p_gap"])):
-                if dur <= 0:
-                    continue
-                G = flow.phi(max(t_end - t_from, 0.0)) @ flow.gamma(dur) @ T.T
-                D = (self._per_component(p, st) - PWs[k]) @ T.T
-                dx += G @ (beta * D)
-                Mb += G * D[None, :]
-        QW = np.array([self._per_component(w["p_win"], qst) for w in records])
-        QS = np.array([stretch(w, qst) for w in records])
-        Yq = np.array([w["q_rate"][np.searchsorted(self.ext_index, self.cv_quad)] for w in records])
-        _, beta_q, _, _, _ = control_variate(Yq, QW, QS, t)
-        dq = np.sum(tu[:, None] * beta_q * (QS - QW), axis=0)
-        # how much of the forcings' scatter the proxy explains (the plain estimate's residuals: [1, t] only)
-        _, _, res0, _, _ = control_variate(Y, np.zeros_like(PW), PW, t)
-        return {"dx_slow": dx, "dq": dq, "beta": beta, "residuals": res, "dof": dof, "H": H, "M_beta": Mb,
-                "basis": T, "variance_ratio": variance_ratio(res, res0, self.T_oil_slots())}
-
-    def T_oil_slots(self) -> np.ndarray:
-        pos = {int(j): k for k, j in enumerate(self.slow_index)}
-        return np.array([pos[int(j)] for j in self.T_oil_index])
-
-    # --- a-posteriori error ----------------------------------------------------------------------
     def road_sampling_error(self, records, t_end: float, cv: dict | None = None) -> dict:
-        """Covariance of the final slow states from the scatter of the window forcings b_k (`window_forcings`),
-        propagated through the linear slow model (module docstring); with the
-        control variate (cv) the scatter is the regression's residual scatter, plus the slope's own error."""
-        ns = len(self.slow_index)
-        nw = len(records)
-        A_mean = np.mean([w["A"] for w in records], axis=0)
-        flow = LinearFlow(A_mean)
-        B = window_forcings([w["A"] for w in records], [w["r"] for w in records], [w["xbar"] for w in records])
-        # the sampling error is the scatter about the forcing's slow drift along the drive (each gap follows its
-        # own window, so a drift is followed): residuals of a straight line in time, 2 degrees of freedom
-        t = np.array([w["t_avg0"] for w in records])
-        if cv is not None:
-            res, dof = cv["residuals"], cv["dof"]
-            Cb = res.T @ res / dof
-        elif nw >= 4:
-            T = np.column_stack([np.ones(nw), t - t.mean()])
-            res = B - T @ np.linalg.lstsq(T, B, rcond=None)[0]
-            Cb = res.T @ res / (nw - 2)
-            dof = nw - 2
-        elif nw >= 2:
-            Cb = np.atleast_2d(np.cov(B.T, ddof=1))
-            dof = nw - 1
-        else:
-            Cb = np.full((ns, ns), np.nan)
-            dof = 1
-        # the error of each stratum's total: the window's deviation from the local mean (variance Cb) and the
-        # unsimulated stretch's own (Cb L / tu, windows much longer than the road's correlation length):
-        # tu^2 Cb (1 + L / tu) (Cochran 1977 eq. 5.6: N^2 (1 - f) S^2 / n, N = L + tu, n = L), carried to the end
-        # of the drive; with the control variate the slope's error too, which moves every stratum's correction
-        # together and shares each window's residual with its stratum (`stratified_error_covariance`)
-        Q, own = np.zeros((nw, ns, ns)), np.zeros(nw)
-        for k, w in enumerate(records):
-            tu = w["tau"] + w.get("tw", 0.0)          # the stretch the window stands for, not driven (gap, warm-up)
-            if tu <= 0:
-                continue
-            Q[k] = flow.phi(max(t_end - w["t_gap_end"], 0.0)) @ flow.gamma(tu)
-            if cv is not None:
-                Q[k] = Q[k] @ cv["basis"].T          # from the patterns' errors (Cb in that basis)
-            own[k] = (w["t_end"] - w["t_avg0"]) / tu
-        cov = stratified_error_covariance(Q, own, Cb, *((cv["M_beta"], cv["H"]) if cv is not None else ()))
-        out = {"cov": cov, "n_windows": nw, "dof": dof,
-               "covered_m": float(sum(w["s_end"] - w["s_start"] for w in records)),
-               "control_variate": cv is not None}
-        if cv is not None:
-            out["variance_ratio"] = cv["variance_ratio"]
-        return out
+        """`WindowEstimator.road_sampling_error` of this drive's windows."""
+        return self.estimator.road_sampling_error(records, t_end, cv)
 
     def load_error(self, final: DriveState, after) -> dict:
         """Per-station and per-axle temperature errors and the per-axle wheel-load-change error (95 % interval,
@@ -629,35 +564,14 @@ class MultiscaleDrive(Drive):
         cov_T = cov[np.ix_(iT, iT)]
         sig_T_station = np.sqrt(np.maximum(np.diag(cov_T), 0.0))
         sig_T_axle = np.sqrt(np.maximum(np.diag(W_ax @ cov_T @ W_ax.T), 0.0))
-        G = self._load_sensitivity(final.x, after, W_ax)
+        G = self.manifold.load_sensitivity(final.x, after, W_ax, self.initial_equilibrium().wheel_loads_N,
+                                           self.settings.compensation)
         idx = iT_eq + (iV if len(iV) == n else [])
         G = G[:, :len(idx)]
         sig_dN = np.sqrt(np.maximum(np.diag(G @ cov[np.ix_(idx, idx)] @ G.T), 0.0))
         k = error_factor(self.estimate["dof"])
         return {"sigmas": k, "strut_temperature_K": k * sig_T_station, "axle_temperature_K": k * sig_T_axle,
                 "load_change_pct": k * sig_dN}
-
-    def _load_sensitivity(self, x_end, after, W_ax, dT: float = 0.5, dV: float = 1e-6) -> np.ndarray:
-        """d(per-axle wheel load change [pp of the before-drive load])/d(final T per station, V_oil per station)."""
-        m = self.model
-        N0 = W_ax @ np.asarray(self.initial_equilibrium().wheel_loads_N, float)
-        T, V = x_end[self.T_oil_index].copy(), x_end[self.oil_index].copy()
-        N1 = W_ax @ np.asarray(after.wheel_loads_N, float)
-        cols = []
-        for i in range(m.n):
-            Tp = T.copy()
-            Tp[i] += dT
-            e = self.equilibrium_solver.solve(Tp, self.gas_masses, V)
-            cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dT)
-        if self.settings.compensation:
-            for i in range(m.n):
-                Vp = V.copy()
-                Vp[i] += dV
-                e = self.equilibrium_solver.solve(T, self.gas_masses, Vp)
-                cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dV)
-        else:
-            cols += [np.zeros(len(N0))] * m.n
-        return np.array(cols).T
 
     def summary_extra(self) -> dict:
         """What the results add for this mode: /summary attributes and per-station/axle error variables."""
@@ -667,7 +581,7 @@ class MultiscaleDrive(Drive):
                  "multiscale_window_m": float(ms.window_m), "multiscale_spacing_m": float(ms.spacing_m),
                  "multiscale_warm_up_m": float(ms.warm_up_m), "multiscale_placement": ms.placement,
                  "multiscale_covered_km": float(e.get("covered_m", 0.0)) / 1e3,
-                 "multiscale_paired_windows": sum(bool(w.get("predicted_start")) for w in self.window_log),
+                 "multiscale_paired_windows": sum(bool(w.predicted_start) for w in self.window_log),
                  "multiscale_control_variate": bool(e.get("control_variate", False)),
                  "multiscale_proxy": ms.proxy if e.get("control_variate", False) else "none",
                  "estimated_error_sigmas": float(e.get("sigmas", np.nan)),

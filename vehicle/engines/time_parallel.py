@@ -13,7 +13,7 @@ Sci. Comput. 29(2)), one correction sweep:
    (vehicle.engines.ensemble: each segment a lane, bit for bit what the scalar engine gives it), P = workers x L;
    all start after G (no lead for segment 0), and the join's error checks below run in lane groups too.
    Segment k > 0 starts from the vehicle standing in equilibrium at the predicted slow states
-   (`MultiscaleDrive._rest_state`) a warm-up stretch (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
+   (`SlowManifold.rest_state`) a warm-up stretch (default 50 m) before its start, so the ride transient of meeting the road settles before the segment's
    first sample: the fast states forget their start within seconds, the slow ones do not.
 3. Correction: the mismatch delta_k = x_s,end(k-1) (corrected) - x_s(k) at the segment start is carried
    through segment k by the slow states' linearisation dx_s/dt = r + A (x_s - xbar) (A: the mean over the
@@ -55,13 +55,13 @@ from hpsim.errors import UserInputError
 from vehicle.numerics.error_estimate import StepDoublingEstimate
 from vehicle.scenario.settings import SEGMENTS_RANGE, MultiscaleSettings
 from vehicle.scenario.work_limits import drive_duration_s
-from vehicle.engines.contract import DriveState
-from vehicle.engines.ensemble import current_full_solver, lane_stepper, run_lockstep
+from vehicle.engines.contract import DriveResult, DriveState
+from vehicle.engines.ensemble import lane_stepper, run_lockstep
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
 from vehicle.engines.pool import can_fork, fork_pool, inherited
 from vehicle.engines.slow_flow import propagators
-from vehicle.engines.time_parallel_join import SegmentJoin
+from vehicle.engines.time_parallel_join import SegmentJoiner, SegmentRun
 
 MODE = "time_parallel"
 MIN_SEGMENT_S = 60.0              # a segment shorter than this is mostly warm-up: refused
@@ -73,25 +73,26 @@ COARSE_COST = 1.5                 # the coarse run's wall time / the full model'
 
 
 def _check_worker(t0, t1, x, n_windows, slaving):
-    """One propagation of the join's error check (`TimeParallelDrive._coarse_propagate`) in a pool worker."""
+    """One propagation of the join's error check (`TimeParallelDrive.coarse_propagate`) in a pool worker."""
     d = inherited()
-    d.coarse._S = slaving                 # computed once in the parent: the same for every propagation of the drive
-    return d._coarse_propagate(t0, t1, x, n_windows)
+    d.coarse.manifold.share_slaving(slaving)    # computed once in the parent: the same for every propagation
+    return d.coarse_propagate(t0, t1, x, n_windows)
 
 
 def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
-    out = d._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
-    out["cpu_s"] = time.process_time() - c0
-    out["wall_s"] = time.perf_counter() - w0
+    out = d.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail)
+    out.cpu_s = time.process_time() - c0
+    out.wall_s = time.perf_counter() - w0
     return out
 
 
 def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
-    """fn(*item) for every item, each in a lane thread of one `LockstepGroup` (vehicle.engines.ensemble): their
+    """fn(make_solver, *item) for every item, each in a lane thread of one `LockstepGroup` (engines.ensemble): their
     drives step together on the lane library, bit for bit what the scalar engine gives each. Results in order."""
-    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes)
+    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes,
+                     solver_argument=True)
     out = []
     for i in range(len(items)):
         v = r["cases"].get(str(i))
@@ -102,24 +103,24 @@ def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
     return out
 
 
-def _group_worker(items: list[tuple], lanes: int) -> list[dict]:
+def _group_worker(items: list[tuple], lanes: int) -> list[SegmentRun]:
     """Several segments (each item: _segment_worker's arguments) in one worker, in lockstep on the lane library.
     The group's CPU time is shared out over its segments by their lengths."""
     d = inherited()
     c0, w0 = time.process_time(), time.perf_counter()
-    out = _in_lockstep(d._lane_segment, items, lanes, "segment")
+    out = _in_lockstep(d.lane_segment, items, lanes, "segment")
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-    span = sum(p["t1"] - p["t0"] for p in out)
+    span = sum(p.t1 - p.t0 for p in out)
     for p in out:
-        p["cpu_s"], p["wall_s"] = cpu * (p["t1"] - p["t0"]) / span, wall
+        p.cpu_s, p.wall_s = cpu * (p.t1 - p.t0) / span, wall
     return out
 
 
 def _check_group_worker(items: list[tuple], slaving, lanes: int) -> list[np.ndarray]:
     """Several propagations of the join's error check (each item: (t0, t1, x)) in lockstep on the lane library."""
     d = inherited()
-    d.coarse._S = slaving
-    return _in_lockstep(d._lane_check, items, lanes, "error check")
+    d.coarse.manifold.share_slaving(slaving)
+    return _in_lockstep(d.lane_check, items, lanes, "error check")
 
 
 class _Pick:
@@ -172,7 +173,7 @@ class _SegmentRecorder:
                       for s_end, duration, dq, x_end, gas in intervals]
 
 
-class TimeParallelDrive(SegmentJoin):
+class TimeParallelDrive:
     """A full drive split into `segments` segments in time, run in parallel processes and joined with a correction
     of the slow states (module docstring). It composes two engines on one model, road and settings: the full
     drive (`fine`, each segment) and a multiscale drive (`coarse`: the prediction at the segment starts and the
@@ -192,7 +193,8 @@ class TimeParallelDrive(SegmentJoin):
         self._check_segment_length(drive_duration_s(settings.speed, settings.distance_m), workers)
         # the coarse propagation: one window per COARSE_SPACING_M of road, no control variate (docs/engines.md,
         # "Time-parallel mode": the correction takes out the prediction's error to first order)
-        self.fine = Drive(model, road, settings, partial_last_sample=False)   # segments end on whole intervals
+        # the segments end on whole output intervals, the last at the drive's end (`fine_segment`)
+        self.fine = Drive(model, road, settings)
         self.coarse = MultiscaleDrive(model, road, settings,
                                       coarse or MultiscaleSettings(control_variate=False, spacing_m=COARSE_SPACING_M),
                                       gas_masses=self.fine.gas_masses)
@@ -202,6 +204,8 @@ class TimeParallelDrive(SegmentJoin):
         self.build_s = self.fine.build_s + self.coarse.build_s
         self.warm_up_m = float(warm_up_m)
         self.correct = correct
+        self.joiner = SegmentJoiner(self.fine, self.coarse, correct, self.coarse_differences_submit,
+                                    self.coarse_difference_result)
         # segments per worker: `lanes` consecutive segments run in lockstep on the lane library (lane_library
         # False: the same segmentation, each segment on the scalar engine in its own worker)
         self.lane_library = bool(lane_library) and self.lanes > 1
@@ -241,7 +245,7 @@ class TimeParallelDrive(SegmentJoin):
     def layout(self) -> tuple[np.ndarray, np.ndarray]:
         """(segment boundary times (P+1), warm-up start times (P)) on the output-sample grid."""
         sample_dt = self.fine.K * self.settings.dt_s
-        n = int(np.floor(self.total_time_s / sample_dt + 1e-9))
+        n = self.fine.end.whole_samples
         P = self.segments
         # segment 0 starts at once, the others after the coarse run: segment 0 is longer by the coarse run's
         # estimated cost, in simulated seconds of the full model (it drives ceil(D_c / spacing) windows of
@@ -258,7 +262,7 @@ class TimeParallelDrive(SegmentJoin):
         tw = np.zeros(P)
         for k in range(1, P):
             s = float(self.fine.distance_at(t[k]))
-            lead = t[k] - self.coarse._time_at(max(s - self.warm_up_m, 0.0))
+            lead = t[k] - self.coarse.manifold.time_at(max(s - self.warm_up_m, 0.0))
             tw[k] = max(t[k] - np.ceil(lead / sample_dt - 1e-9) * sample_dt, 0.0)
         return t, tw
 
@@ -268,7 +272,7 @@ class TimeParallelDrive(SegmentJoin):
         c = copy.copy(self.coarse)
         t_end = float(max(times))
         c.settings = dataclasses.replace(self.settings, distance_m=float(self.fine.distance_at(t_end)))
-        c.total_time_s = t_end
+        c.end = c.end.at_sample(round(t_end / (c.K * self.settings.dt_s)))
         c.state_only = True                 # only the states are wanted: no error estimate of its own
         x0 = c.initial_state().x
         res = c.run(None)
@@ -279,56 +283,56 @@ class TimeParallelDrive(SegmentJoin):
                 out.append(res.state.x.copy())
                 continue
             for i, w in enumerate(log):
-                if w["t_start"] - 1e-9 <= t <= w["t_gap_end"] + 1e-9:
+                if w.t_start - 1e-9 <= t <= w.t_gap_end + 1e-9:
                     # inside a window: forward from the window before it (its model carried on past its gap; the
                     # drive's start for the first), not back from this window's end: e^{A tau} with tau < 0
                     # amplifies the fast slow modes (the oil's ~2 min) by up to e^(window / 10 s)
-                    base = w if t >= w["t_end"] - 1e-9 else (log[i - 1] if i else None)
-                    x = (base["x_end"] if base else x0).copy()
+                    base = w if t >= w.t_end - 1e-9 else (log[i - 1] if i else None)
+                    x = (base.x_end if base else x0).copy()
                     m = base or w
-                    tau = t - (base["t_end"] if base else 0.0)
-                    Phi, forced, _ = propagators(m["A"], m["b"], tau)
+                    tau = t - (base.t_end if base else 0.0)
+                    Phi, forced, _ = propagators(m.A, m.b, tau)
                     x[self.coarse.slow_index] = Phi @ x[self.coarse.slow_index] + forced
-                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + m["q_rate"] * tau
+                    x[self.coarse.ext_index] = x[self.coarse.ext_index] + m.q_rate * tau
                     out.append(x)
                     break
             else:
                 out.append(res.state.x.copy())
         return out
 
-    def _coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> list[Future]:
-        """G(x_b) - G(x_a) of the slow states at t1 (`_coarse_propagate` from each start at t0 over the same
+    def coarse_difference_submit(self, t0, t1, x_a, x_b, n_windows: int = None, pool=None) -> list[Future]:
+        """G(x_b) - G(x_a) of the slow states at t1 (`coarse_propagate` from each start at t0 over the same
         windows, whose road noise cancels in the difference), as its two propagations: futures of the pool, or,
-        without one, run here (completed futures). `_coarse_difference_result` takes the difference."""
+        without one, run here (completed futures). `coarse_difference_result` takes the difference."""
         if pool is None:
-            return [_done(self._coarse_propagate(t0, t1, x, n_windows)) for x in (x_a, x_b)]
-        S = self.coarse._slaving(np.asarray(x_a, float))
+            return [_done(self.coarse_propagate(t0, t1, x, n_windows)) for x in (x_a, x_b)]
+        S = self.coarse.manifold.slaving(np.asarray(x_a, float))
         return [pool.submit(_check_worker, t0, t1, np.asarray(x, float), n_windows, S) for x in (x_a, x_b)]
 
-    def _coarse_differences_submit(self, jobs: list[tuple], pool=None) -> list[list]:
-        """`_coarse_difference_submit` for every (t0, t1, x_a, x_b) of jobs; on the lane library, their propagations
+    def coarse_differences_submit(self, jobs: list[tuple], pool=None) -> list[list]:
+        """`coarse_difference_submit` for every (t0, t1, x_a, x_b) of jobs; on the lane library, their propagations
         in lockstep groups of `lanes` per pool task (bit for bit the same numbers)."""
         if pool is None or not self.lane_library or not jobs:
-            return [self._coarse_difference_submit(*j, pool=pool) for j in jobs]
-        S = self.coarse._slaving(np.asarray(jobs[0][2], float))
+            return [self.coarse_difference_submit(*j, pool=pool) for j in jobs]
+        S = self.coarse.manifold.slaving(np.asarray(jobs[0][2], float))
         runs = [(t0, t1, np.asarray(x, float)) for t0, t1, x_a, x_b in jobs for x in (x_a, x_b)]
         L = self.lanes
         futs = [pool.submit(_check_group_worker, runs[g:g + L], S, L) for g in range(0, len(runs), L)]
         picks = [_Pick(futs[i // L], i % L) for i in range(len(runs))]
         return [picks[2 * i: 2 * i + 2] for i in range(len(jobs))]
 
-    def _lane_check(self, t0, t1, x) -> np.ndarray:
-        """`_coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
+    def lane_check(self, make_solver, t0, t1, x) -> np.ndarray:
+        """`coarse_propagate` in a lane thread of `run_lockstep`: its windows step with the lane's solver."""
         c = copy.copy(self.coarse)
-        c.solver = current_full_solver()(self.settings.dt_s).bind(self.model, c.K, c.M)
-        return self._coarse_propagate(t0, t1, x, coarse=c)
+        c.solver = make_solver(self.settings.dt_s).bind(self.model, c.K, c.M)
+        return self.coarse_propagate(t0, t1, x, coarse=c)
 
     @staticmethod
-    def _coarse_difference_result(runs: list[Future]) -> np.ndarray:
+    def coarse_difference_result(runs: list[Future]) -> np.ndarray:
         a, b = (r.result() for r in runs)
         return b - a
 
-    def _coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
+    def coarse_propagate(self, t0, t1, x, n_windows: int = None, coarse: MultiscaleDrive | None = None) -> np.ndarray:
         """The slow states at t1 of the multiscale propagation from x at t0 over n_windows windows (one at the
         start of each equal stretch of [t0, t1]; default CHECK_WINDOWS, as many as fit), the linear slow model across
         the gaps (coarse: the multiscale drive that runs the windows, default the drive's own)."""
@@ -340,24 +344,24 @@ class TimeParallelDrive(SegmentJoin):
         starts = [s0 + (s1 - s0) * i / n_windows for i in range(n_windows)]
         x = np.asarray(x, float).copy()
         for i, s in enumerate(starts):
-            tw0 = c._time_at(s) if i else t0
-            t_end = min(c._time_at(min(s + span, s1)), t1)
-            t_warm = min(c._time_at(min(s + c.ms.warm_up_m, s1)), t_end)
-            x0 = c._rest_state(x)
-            w = c._window(c.integrate(c.solver, x0, tw0, t_end, t_warm), [0.0])
-            t_next = c._time_at(starts[i + 1]) if i + 1 < n_windows else t1
-            x = w["x_end"].copy()
-            Phi, forced, _ = propagators(w["A"], w["b"], max(t_next - w["t_end"], 0.0))
+            tw0 = c.manifold.time_at(s) if i else t0
+            t_end = min(c.manifold.time_at(min(s + span, s1)), t1)
+            t_warm = min(c.manifold.time_at(min(s + c.ms.warm_up_m, s1)), t_end)
+            x0 = c.manifold.rest_state(x)
+            w = c.window_record(c.integrate(c.solver, x0, tw0, t_end, t_warm))
+            t_next = c.manifold.time_at(starts[i + 1]) if i + 1 < n_windows else t1
+            x = w.x_end.copy()
+            Phi, forced, _ = propagators(w.A, w.b, max(t_next - w.t_end, 0.0))
             x[c.slow_index] = Phi @ x[c.slow_index] + forced
         return x[c.slow_index]
 
     # --- fine propagator (in a worker) -----------------------------------------------------------
-    def _lane_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> dict:
-        """`_fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
-        return self._fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
-                                  solver=current_full_solver()(self.settings.dt_s))
+    def lane_segment(self, make_solver, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None) -> SegmentRun:
+        """`fine_segment` in a lane thread of `run_lockstep`: its drive steps with the lane's solver."""
+        return self.fine_segment(k, t0, t1, t_warm, x_pred, t_mark, t_tail,
+                                  solver=make_solver(self.settings.dt_s))
 
-    def _fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> dict:
+    def fine_segment(self, k, t0, t1, t_warm, x_pred, t_mark=None, t_tail=None, solver=None) -> SegmentRun:
         """Segment k from t0 to t1 (warm-up from t_warm at the predicted state x_pred). The restart's effect (see
         _join): t_mark, a time shortly after t0 where the slow states are kept; t_tail: the segment goes on
         (not stored) to the next segment's t_mark and keeps its slow states there."""
@@ -368,16 +372,17 @@ class TimeParallelDrive(SegmentJoin):
             seg.solver = solver.bind(self.model, seg.K, seg.M)
         sample_dt = self.fine.K * S.dt_s
         n_seg = int(round((t1 - t0) / sample_dt))
-        last = t1 >= self._t_total() - 1e-9
+        last = k == self.segments - 1
         seg.close_last_interval = last      # an interval cut by the segment's end is closed by the next segment
+        seg.partial_last_sample = False     # whole intervals up to the last segment's main run
         rec = _SegmentRecorder(max(1, n_seg // JACOBIAN_SAMPLES), t_mark, self.coarse.slow_index)
         n = self.model.n
         if k == 0:
             st = seg.initial_state()
         else:
-            x0 = self.coarse._rest_state(np.asarray(x_pred, float))
+            x0 = self.coarse.manifold.rest_state(np.asarray(x_pred, float))
             x0[self.coarse.ext_index] = 0.0
-            seg.total_time_s = t0
+            seg.end = self.fine.end.at_sample(round(t0 / sample_dt))
             stw = DriveState(t_s=float(t_warm), s_m=float(self.fine.distance_at(t_warm)), x=x0, next_stats_m=np.inf,
                              last_stats={"t_s": float(t_warm), "q": x0[self.fine.quad_index].copy(), "gas_sum": np.zeros(n),
                                          "gas_n": 0},
@@ -394,14 +399,15 @@ class TimeParallelDrive(SegmentJoin):
                                            else np.zeros_like(self.fine.solver.get_state())))
         x_start = st.x.copy()
 
-        seg.total_time_s = self.total_time_s if last else t1
+        seg.end = self.fine.end if last else self.fine.end.at_sample(round(t1 / sample_dt))
+        seg.partial_last_sample = last      # the last segment ends where the drive does (its partial interval)
         if self.fine.error_estimate is not None:
             e = self.fine.error_estimate
             seg.error_estimate = StepDoublingEstimate(e.dt_s, e.tolerance, e.interval_s, e.n_struts, names=e.names)
         res = seg.run(None, st, observer=rec)
         tail = None
         if t_tail is not None and t_tail > t1:
-            seg.total_time_s = t_tail
+            seg.end = self.fine.end.at_sample(round(t_tail / sample_dt))
             seg.error_estimate, est = None, seg.error_estimate
             tail = seg.run(None, copy.deepcopy(res.state)).state.x[self.coarse.slow_index].copy()
             seg.error_estimate = est
@@ -409,19 +415,17 @@ class TimeParallelDrive(SegmentJoin):
         X_sub, M_sub, U_sub = (np.concatenate(a, axis=1) for a in (rec.Xs, rec.Ms, rec.Us))
         # the segment's slow-state Jacobian (whole, halves) here, in parallel, not in the join (the slaving S: the
         # drive's start's, cached, as the join's)
-        A = self._A_parts(X_sub, M_sub, U_sub, self.coarse._slaving(self.fine.initial_state().x))
-        return {"k": k, "t0": t0, "t1": t1, "x_start": x_start, "mark": rec.mark, "tail": tail,
-                "x_end": res.state.x.copy(), "state": res.state, "blocks": blocks, "rows": rec.rows,
-                "X_sub": X_sub, "M_sub": M_sub, "U_sub": U_sub, "A": A, "integration_s": res.integration_s,
-                "estimate": seg.error_estimate}
-
-    def _t_total(self) -> float:
-        sample_dt = self.fine.K * self.settings.dt_s
-        return float(np.floor(self.total_time_s / sample_dt + 1e-9) * sample_dt)
+        A = self.joiner.A_parts(X_sub, M_sub, U_sub, self.coarse.manifold.slaving(self.fine.initial_state().x))
+        return SegmentRun(k=k, t0=t0, t1=t1, x_start=x_start, mark=rec.mark, tail=tail, x_end=res.state.x.copy(),
+                          state=res.state, blocks=blocks, rows=rec.rows, X_sub=X_sub, M_sub=M_sub, U_sub=U_sub, A=A,
+                          integration_s=res.integration_s, estimate=seg.error_estimate)
 
     # --- the drive -------------------------------------------------------------------------------
     def run(self, sink=None, state: DriveState | None = None, progress=None, checkpoint_every_blocks: int = 6,
             cancel: CancelToken = NEVER):
+        """The segments in parallel and their join (module docstring), or serially the full drive (a resumed run,
+        one segment, no fork). The segments are not checkpointed: once `cancel` is requested, before the join, it
+        returns the start state having written nothing (the run is then started again or resumed serially)."""
         # serially: a resumed run, one segment, no fork, or inside a daemonic worker (which cannot start processes)
         if (state is not None and state.s_m > 0) or self.segments <= 1 or not can_fork():
             self.parareal = {}
@@ -440,7 +444,7 @@ class TimeParallelDrive(SegmentJoin):
                 futs.append(pool.submit(_segment_worker, 0, t[0], t[1], 0.0, None, None, tails[0]))
             c0 = time.perf_counter()
             cpu0 = time.process_time()
-            self.coarse._slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
+            self.coarse.manifold.slaving(self.fine.initial_state().x)       # once, shared by the coarse run and the join
             pred = [None] + (self.coarse_states(list(tw[1:])) if P > 1 else [])
             coarse_s = time.perf_counter() - c0
             coarse_cpu = time.process_time() - cpu0
@@ -453,11 +457,16 @@ class TimeParallelDrive(SegmentJoin):
             for f in futs:
                 r = f.result()
                 parts += r if isinstance(r, list) else [r]
+            if cancel.requested:            # nothing written yet: the drive's start is what it has
+                st = self.fine.initial_state()
+                return DriveResult(state=st, after=self.fine.initial_equilibrium(), wall_s=time.perf_counter() - wall0,
+                                   integration_s=float(sum(p.integration_s for p in parts)))
             # the join, with the pool's processes (free now) running its error checks
             j0, jw0 = time.process_time(), time.perf_counter()
-            res = self._join(parts, sink, progress, pool)
+            res = self.joiner.join(parts, sink, progress, pool)
+            self.parareal = self.joiner.parareal
             join_cpu, join_wall = time.process_time() - j0, time.perf_counter() - jw0
-        w = [p["cpu_s"] for p in parts]
+        w = [p.cpu_s for p in parts]
         # the error checks' CPU: the workers' (waited for when the pool closed) less their segments'
         check_cpu = max(_children_cpu() - children0 - sum(w), 0.0)
         # what the run takes with a core per worker: segment 0, or the coarse run then the slowest other worker; then
@@ -469,7 +478,7 @@ class TimeParallelDrive(SegmentJoin):
         self.parareal.update(coarse_s=coarse_s, coarse_cpu_s=coarse_cpu, worker_cpu_s=w, join_cpu_s=join_cpu,
                              check_cpu_s=check_cpu,
                              join_wall_s=join_wall, workers=len(groups), lanes=L, lane_library=self.lane_library,
-                             critical_cpu_s=critical, worker_wall_s=[p["wall_s"] for p in parts],
+                             critical_cpu_s=critical, worker_wall_s=[p.wall_s for p in parts],
                              boundaries_s=t.tolist())
         res.wall_s = time.perf_counter() - wall0
         return res

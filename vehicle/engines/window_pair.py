@@ -11,7 +11,8 @@ import numpy as np
 class WindowPair:
     """Windows integrated on threads (`integrate`), two at once: slot 0 a window from its true start, slot 1 the
     next one from a predicted start (`paired_windows`), each on a solver of its own (the same compiled step; its
-    integration leaves Python's lock). Where the drive's solver cannot be copied, each runs at once on it (the
+    integration leaves Python's lock). Where the drive's solver has no `refined_solver` (its
+    `capabilities.step_doubling` False: vehicle.numerics.contract), each runs at once on it (the
     numerics are the same either way: only the wall time differs)."""
 
     def __init__(self, drive):
@@ -21,7 +22,8 @@ class WindowPair:
 
     def submit(self, slot: int, x0: np.ndarray, t0: float, t_warm: float, t_end: float) -> Future:
         d = self.drive
-        if self.pool is None and hasattr(d.solver, "refined_solver"):
+        # a solver of its own: the same method at the same step (the solver contract's step_doubling capability)
+        if self.pool is None and d.solver.capabilities.step_doubling:
             self.solvers = [d.solver] + [d.solver.refined_solver(1).bind(d.model, d.K, d.M)]
             self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hpsim-window")
         if self.pool is None:

@@ -544,9 +544,9 @@ def test_the_stated_errors_student_factor_is_scipy_stats_t():
 
 
 def test_slaving_matrix_equals_finite_differences_over_every_slow_state():
-    """The slaving matrix S = dx/dx_slow of the standing vehicle (`_slaving`) solves equilibria only for the slow
+    """The slaving matrix S = dx/dx_slow of the standing vehicle (`SlowManifold.slaving`) solves equilibria only for the slow
     states the standing vehicle depends on (the oil's temperatures and volumes); its other columns, written as unit
-    columns, equal the finite differences of `_rest_state` over every slow state bit for bit; the oil temperature's
+    columns, equal the finite differences of `SlowManifold.rest_state` over every slow state bit for bit; the oil temperature's
     columns move the deflections (a warmer gas stands higher) and the gas temperatures."""
     from vehicle.scenario.schema import prepare
 
@@ -554,14 +554,14 @@ def test_slaving_matrix_equals_finite_differences_over_every_slow_state():
     _, drive = build_engine(prepare(read_scenario_text(yaml.safe_dump(data), "slaving test", ".")))
     x = drive.initial_state().x.copy()
     x[drive.T_oil_index] += np.linspace(1.0, 4.0, drive.model.n)
-    base = drive._rest_state(x)
+    base = drive.manifold.rest_state(x)
     expected = np.zeros((drive.model.nx, len(drive.slow_index)))
     for k, j in enumerate(drive.slow_index):
         h = 1e-4 * max(abs(x[j]), 1e-3)
         xp = x.copy()
         xp[j] += h
-        expected[:, k] = (drive._rest_state(xp) - base) / h
-    S = drive._slaving(x)
+        expected[:, k] = (drive.manifold.rest_state(xp) - base) / h
+    S = drive.manifold.slaving(x)
     np.testing.assert_array_equal(S, expected)
     k_oil = list(drive.slow_index).index(drive.T_oil_index[0])
     moved = np.flatnonzero(S[:, k_oil])

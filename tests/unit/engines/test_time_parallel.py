@@ -100,7 +100,7 @@ def test_the_correction_reduces_the_error(runs):
     T_serial = np.array([a["T_end_C"] for a in rs["axles"]])
     T_corr = np.array([a["T_end_C"] for a in rp["axles"]])
     x_raw = drive.parareal["uncorrected_final_x"]
-    W = drive._axle_matrix()
+    W = drive.joiner.axle_matrix()
     T_raw = W @ x_raw[drive.T_index] - 273.15
     err_corr = np.max(np.abs(T_corr - T_serial))
     err_raw = np.max(np.abs(T_raw - T_serial))
@@ -162,10 +162,10 @@ def test_the_error_check_gives_the_same_in_the_pool_as_here(runs):
     x_a = drive.initial_state().x
     names = [drive.model.layout.names[j] for j in drive.coarse.slow_index]
     delta = np.array([0.5 if nm.startswith("T_") else 0.0 for nm in names])      # every temperature 0.5 K warmer
-    x_b = x_a + drive.coarse._slaving(x_a) @ delta
-    here = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1))
+    x_b = x_a + drive.coarse.manifold.slaving(x_a) @ delta
+    here = drive.coarse_difference_result(drive.coarse_difference_submit(t[0], t[1], x_a, x_b, 1))
     with fork_pool(2, drive) as pool:
-        there = drive._coarse_difference_result(drive._coarse_difference_submit(t[0], t[1], x_a, x_b, 1, pool))
+        there = drive.coarse_difference_result(drive.coarse_difference_submit(t[0], t[1], x_a, x_b, 1, pool))
     assert np.any(np.abs(here) > 1e-3)
     np.testing.assert_allclose(there, here, rtol=1e-9, atol=1e-12)
 

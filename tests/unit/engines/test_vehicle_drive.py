@@ -206,22 +206,3 @@ def test_forced_convection_grows_with_speed():
     hs = [float(thermal.convection_coefficient(heat, v)) for v in (0.0, 2.0, 5.0, 10.0)]
     assert hs[0] == pytest.approx(heat.natural_convection + 0.3 * heat.air_conductivity / heat.diameter)
     assert all(b > a for a, b in zip(hs, hs[1:]))
-
-
-def test_a_drive_adds_no_partial_interval_for_the_rounding_of_its_time(drive_d):
-    """The drive ends at its distance with a partial last interval (issue 27), but the distance -> time map is
-    integrated in floating point: 106 km at 20 km/h came out at 19080.0000000226 s and added one 4 ms step and a
-    4 ms statistics row (its power and ride numbers a spike on the dashboard). A remainder of that relative size
-    (1.2e-12 of the drive, 0.13 um) is rounding: no tail; a real remainder of one step is one. On this 300 m drive the
-    106 km drive's 2.26e-8 s left (0.13 um, 4e-10 of the distance) is the same rounding."""
-    d = drive_d[0]
-    dt = d.settings.dt_s
-    t_whole = float(np.floor(d.total_time_s / (d.K * dt) + 1e-9) * d.K * dt)
-    total = d.total_time_s
-    try:
-        d.total_time_s = t_whole + 2.26e-8
-        assert d._tail_steps() == 0
-        d.total_time_s = t_whole + 0.6 * dt             # 0.6 of a step left: one step, the drive ends past it
-        assert d._tail_steps() == 1
-    finally:
-        d.total_time_s = total
