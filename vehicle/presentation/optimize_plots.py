@@ -29,7 +29,7 @@ def pareto_plot(summary: dict, out: str | Path) -> Path:
     goals = list(summary["goals"])
     front = {r["trial"] for r in summary["pareto"]}
     done = [r for r in rows if r["status"] == "done"]
-    fig, (ax, pc) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.3]})
+    fig, (ax, pc) = plt.subplots(1, 2, figsize=(12.5, 5), gridspec_kw={"width_ratios": [1, 1.3]})
 
     def xy(subset):
         if len(goals) > 1:
@@ -77,7 +77,8 @@ def pareto_plot(summary: dict, out: str | Path) -> Path:
     pc.set_xticks(x)
     pc.set_xticklabels([_short(p, summary["units"].get(p, ""), summary["bounds"][p]) for p in paths], fontsize=7)
     pc.set_ylim(-0.05, 1.05)
-    pc.set_ylabel("design value, fraction of its range (log ranges: of the logarithm)")
+    pc.set_xlim(-0.4, len(paths) - 0.6)
+    pc.set_ylabel("fraction of the range\n(log ranges: of the logarithm)")
     pc.set_title("designs: front coloured, other feasible trials grey", fontsize=10)
     pc.grid(alpha=0.3, axis="y")
     fig.suptitle(f"hpsim optimize {summary['study']}: {summary['trials']} trials", fontsize=11)

@@ -66,10 +66,11 @@ def write_text(path: Path, text: str) -> Path:
     return path
 
 
-def trial_rows(study: Study, ostudy) -> list[dict]:
-    """Every finished trial: number, status, design {path: value}, objectives, constraint margins, feasible, error."""
+def trial_rows(study: Study, trials) -> list[dict]:
+    """Every finished trial of `trials` (Optuna's FrozenTrials): number, status, design {path: value}, objectives,
+    constraint margins, feasible, error."""
     rows = []
-    for t in ostudy.get_trials(deepcopy=False):
+    for t in trials:
         if not t.state.is_finished():
             continue
         margins = json.loads(t.user_attrs.get("constraint_margins", "[]"))
@@ -124,10 +125,11 @@ def vehicle_file_text(study: Study, design: dict, trial: int) -> str | None:
     return "\n".join(head) + "\n" + yaml.safe_dump(data, sort_keys=False)
 
 
-def summarise(study: Study, ostudy, out_dir: Path) -> dict:
-    """Write trials.csv, pareto.csv, pareto/<trial>.yaml and optimize.json; return the summary."""
+def summarise(study: Study, trials, out_dir: Path) -> dict:
+    """Write trials.csv, pareto.csv, pareto/<trial>.yaml and optimize.json of `trials` (Optuna's FrozenTrials);
+    return the summary."""
     out_dir = Path(out_dir)
-    rows = trial_rows(study, ostudy)
+    rows = trial_rows(study, trials)
     front = front_of(study, rows)
     folder = out_dir / "pareto"
     folder.mkdir(exist_ok=True)

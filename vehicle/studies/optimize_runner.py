@@ -28,6 +28,7 @@ from vehicle.results.run import RunInterrupted, run_scenario
 from vehicle.scenario.schema import prepare
 from vehicle.studies.cost import format_duration
 from vehicle.studies.optimize_objectives import case_values
+from vehicle.studies.optimize_pareto import front_of, summarise, trial_rows
 from vehicle.studies.optimize_study import Study
 from vehicle.studies.study_folder import StudyLock, case_state
 from vehicle.studies.sweep import dask_client, execute
@@ -35,6 +36,7 @@ from vehicle.studies.sweep import dask_client, execute
 STUDY_DB = "study.db"
 STUDY_NAME = "hpsim-optimize"
 TRIALS_DIR = "trials"
+PROGRESS_FRONT_EVERY = 5         # the front's size in every 5th progress line: finding it reads every trial
 
 
 def optuna_module():
@@ -99,6 +101,22 @@ def distributions(study: Study) -> dict:
     return {d.path: optuna.distributions.FloatDistribution(d.low, d.high, log=d.log) for d in study.design}
 
 
+def fast_commits(engine) -> None:
+    """SQLite in write-ahead-log mode with synchronous=NORMAL on every connection: a commit no longer waits for the
+    disk (the study makes some twenty per trial); the file stays consistent when a process is killed, only a power
+    cut may lose the last commits, and a lost trial runs again."""
+    from sqlalchemy import event
+
+    def pragmas(connection, _record) -> None:
+        cursor = connection.cursor()
+        cursor.execute("PRAGMA journal_mode=WAL")
+        cursor.execute("PRAGMA synchronous=NORMAL")
+        cursor.close()
+
+    event.listen(engine, "connect", pragmas)
+    engine.dispose()                  # connections opened before the listener are closed; new ones get the pragmas
+
+
 @dataclass
 class StoredStudy:
     """An Optuna study and the storage it lives in (trial attributes are set through the storage's public API)."""
@@ -113,10 +131,22 @@ class StoredStudy:
         return optuna.trial.Trial(self.optuna, self.storage.get_trial_id_from_study_id_trial_number(study_id, number))
 
 
-def open_study(study: Study, out_dir: Path) -> StoredStudy:
-    """The Optuna study in `<out_dir>/study.db`, created or loaded; one made from another definition is refused."""
+def open_study(study: Study, out_dir: Path, storage: str | None = None) -> StoredStudy:
+    """The Optuna study in `storage` (default: SQLite in `<out_dir>/study.db`; an Optuna database URL shares a
+    study between processes or machines; "memory": in this process only, nothing resumes), created or loaded; one
+    made from another definition is refused."""
     optuna = optuna_module()
-    storage = optuna.storages.RDBStorage(f"sqlite:///{(out_dir / STUDY_DB).resolve()}")
+    if storage == "memory":
+        storage = optuna.storages.InMemoryStorage()
+    else:
+        url = storage or f"sqlite:///{(out_dir / STUDY_DB).resolve()}"
+        try:
+            storage = optuna.storages.RDBStorage(url)
+        except Exception as exc:            # SQLAlchemy's errors: a bad URL, a database that cannot be reached
+            raise UserInputError(f"--storage: cannot open the study database {url!r} ({type(exc).__name__}: "
+                                 f"{str(exc).splitlines()[0]})") from None
+        if url.startswith("sqlite:"):
+            fast_commits(storage.engine)
     directions = ["minimize" if o.goal == "min" else "maximize" for o in study.objectives]
     ostudy = optuna.create_study(study_name=STUDY_NAME, storage=storage, directions=directions, load_if_exists=True,
                                  sampler=make_sampler(study, 0))
@@ -158,16 +188,15 @@ def pending_trials(ostudy) -> list:
 
 def run_study(study: Study, out_dir: str | Path, *, evaluate: Callable[[int, dict], dict] | None = None,
               trials: int | None = None, workers: int | None = None, scheduler: str | None = None, client=None,
-              log: Callable[[str], None] | None = None, before_start: Callable[[int], None] | None = None) -> dict:
+              log: Callable[[str], None] | None = None, before_start: Callable[[int], None] | None = None,
+              storage: str | None = None) -> dict:
     """Run `study` until `trials` trials (default: the study's) have finished; returns the folder's state
     (vehicle.studies.optimize_pareto.summarise).
 
     evaluate: default DriveEvaluator; workers: local processes (1: in this process); scheduler or client: a Dask
-    cluster. before_start(trials to run) is called before any runs (the cost preview may stop it). Ctrl-C leaves
+    cluster. storage: where the Optuna study lives (open_study). before_start(trials to run) is called before any runs (the cost preview may stop it). Ctrl-C leaves
     the study resumable: run it again with the same folder.
     """
-    from vehicle.studies.optimize_pareto import summarise
-
     log = log or (lambda m: None)
     out_dir = Path(out_dir)
     budget = trials if trials is not None else study.trials
@@ -175,13 +204,13 @@ def run_study(study: Study, out_dir: str | Path, *, evaluate: Callable[[int, dic
         raise UserInputError(f"--trials: give the number of trials (>= 1), got {budget}")
     out_dir.mkdir(parents=True, exist_ok=True)
     with StudyLock(out_dir):
-        stored = open_study(study, out_dir)
+        stored = open_study(study, out_dir, storage)
         ostudy = stored.optuna
         evaluate = evaluate or DriveEvaluator(study, str(out_dir.resolve()))
         done_before = sum(t.state.is_finished() for t in ostudy.get_trials(deepcopy=False))
         todo = max(0, budget - done_before)
         log(f"{study.name}: {budget} trials of {len(study.cases)} case(s), {done_before} done before, "
-            f"{todo} to run in generations of {study.population}; study in {out_dir / STUDY_DB}")
+            f"{todo} to run in generations of {study.population}; study in {storage or out_dir / STUDY_DB}")
         if before_start is not None and todo:
             before_start(todo)
         own_client = client is None and scheduler is not None
@@ -196,7 +225,7 @@ def run_study(study: Study, out_dir: str | Path, *, evaluate: Callable[[int, dic
         finally:
             if own_client:
                 client.close()
-        return summarise(study, ostudy, out_dir)
+        return summarise(study, ostudy.get_trials(deepcopy=False), out_dir)
 
 
 def _generations(study, stored, evaluate, budget, workers, client, log, out_dir) -> None:
@@ -221,14 +250,15 @@ def _generations(study, stored, evaluate, budget, workers, client, log, out_dir)
             number = int(tag)
             if result.get("status") == "interrupted":
                 return
-            tell(study, stored, number, result)
+            error = tell(study, stored, number, result)
             n_run += 1
             n_done = sum(t.state.is_finished() for t in ostudy.get_trials(deepcopy=False))
             rate = (time.perf_counter() - t0) / n_run
-            front = len(front_numbers(study, ostudy))
-            what = "done" if result["status"] == "done" and "error" not in ostudy.trials[number].user_attrs else \
-                f"FAILED: {ostudy.trials[number].user_attrs.get('error', result.get('error'))}"
-            log(f"[{n_done}/{budget}] trial {number}: {what}; front {front} design(s); about "
+            front = len(front_of(study, trial_rows(study, ostudy.get_trials(deepcopy=False)))) \
+                if n_run % PROGRESS_FRONT_EVERY == 0 or n_done >= budget else None
+            what = f"FAILED: {error}" if error else "done"
+            size = "" if front is None else f"; front {front} design(s)"
+            log(f"[{n_done}/{budget}] trial {number}: {what}{size}; about "
                 f"{format_duration(rate * max(0, budget - n_done))} left")
 
         execute(evaluate, jobs, workers=workers, client=client, finished=finished,
@@ -237,8 +267,9 @@ def _generations(study, stored, evaluate, budget, workers, client, log, out_dir)
             raise KeyboardInterrupt        # a trial was interrupted: the generation stays resumable
 
 
-def tell(study: Study, stored: StoredStudy, number: int, result: dict) -> None:
-    """Record a trial's result: objectives and constraint margins, or the reason it failed."""
+def tell(study: Study, stored: StoredStudy, number: int, result: dict) -> str:
+    """Record a trial's result: objectives and constraint margins, or the reason it failed (returned; "" when
+    it did not)."""
     optuna = optuna_module()
     trial = stored.trial(number)
     trial.set_user_attr("seconds", float(result.get("seconds", 0.0)))
@@ -252,13 +283,8 @@ def tell(study: Study, stored: StoredStudy, number: int, result: dict) -> None:
             for k, margin in enumerate(margins.values()):
                 trial.set_constraint(f"c{k}", -margin)             # Optuna: feasible when <= 0
             stored.optuna.tell(number, [objectives[o.name] for o in study.objectives])
-            return
-    trial.set_user_attr("error", str(result.get("error") or "failed"))
+            return ""
+    error = str(result.get("error") or "failed")
+    trial.set_user_attr("error", error)
     stored.optuna.tell(number, state=optuna.trial.TrialState.FAIL)
-
-
-def front_numbers(study: Study, ostudy) -> list[int]:
-    """Trial numbers of the study's front so far (vehicle.studies.optimize_pareto.front_of)."""
-    from vehicle.studies.optimize_pareto import front_of, trial_rows
-
-    return [r["trial"] for r in front_of(study, trial_rows(study, ostudy))]
+    return error
