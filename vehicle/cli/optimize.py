@@ -27,6 +27,9 @@ def register(sub):
     p.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the trials on an existing Dask distributed cluster (needs the 'dask' extra)")
+    p.add_argument("--storage", default=None, metavar="URL",
+                   help="an Optuna database URL (e.g. postgresql://host/db) to share the study between processes or "
+                        "machines (default: SQLite in DIR/study.db)")
     p.add_argument("--yes", action="store_true",
                    help="start without asking (at a terminal a study estimated above 5 min asks first)")
     p.add_argument("--json", action="store_true", help="print the front as JSON only")
@@ -36,8 +39,7 @@ def register(sub):
 def cmd_optimize(args):
     from hpsim.tables import print_json
 
-    from vehicle.studies.optimize_runner import check_objectives, optuna_module, run_study
-    from vehicle.studies.optimize_study import load_study
+    from vehicle.api import optimize
 
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
@@ -45,17 +47,9 @@ def cmd_optimize(args):
         raise UserInputError(f"--trials: must be >= 1, got {args.trials}")
     out = args.output_dir if args.output_dir is not None else Path(args.study).stem
     check_output_dir(out, "-o/--output-dir" if args.output_dir is not None else "output folder (the study file's name)")
-    optuna_module()
-    study = load_study(args.study, trials=args.trials)
-    if study.trials is None:
-        raise UserInputError(f"--trials: give the number of trials (the study file {args.study} sets none)")
     log = (lambda m: None) if args.json else logging.getLogger("hpsim").info
-    check_objectives(study, log)
-    summary = run_study(study, out, workers=args.workers, scheduler=args.scheduler, log=log,
-                        before_start=lambda n: _preview(args, study, n))
-    from vehicle.presentation.optimize_plots import pareto_plot
-
-    summary["files"]["pareto_png"] = str(pareto_plot(summary, Path(out) / "pareto.png"))
+    summary = optimize(args.study, out, trials=args.trials, workers=args.workers, scheduler=args.scheduler,
+                       storage=args.storage, log=log, before_start=lambda n: _preview(args, n))
     public = {"trials": summary["trials"], "pareto": summary["pareto"], "failed": summary["failed"],
               "violated": summary["violated"], "units": summary["units"], "files": summary["files"]}
     if args.json:
@@ -65,12 +59,13 @@ def cmd_optimize(args):
     return 3 if summary["trials"] and len(summary["failed"]) == summary["trials"] else 0
 
 
-def _preview(args, study, n_trials: int) -> None:
+def _preview(args, n_trials: int) -> None:
     """The number of drives and the estimated wall time (vehicle.studies.cost); asks at a terminal when long."""
     from vehicle.scenario.schema import prepare
     from vehicle.studies import cost
+    from vehicle.studies.optimize_study import load_study
 
-    prepared = [prepare(c.source) for c in study.cases]
+    prepared = [prepare(c.source) for c in load_study(args.study, check=False).cases]
     cost.confirm(cost.estimate(prepared * n_trials, args.workers, cluster=bool(args.scheduler)), "hpsim optimize",
                  args.yes)
 
