@@ -177,7 +177,8 @@ def check_objectives(study: Study, log: Callable[[str], None] | None = None) -> 
         (log or (lambda m: None))(f"case {case.name}: checking the objectives on a {src.data['distance']:.0f} m "
                                   "drive of the middle design")
         sink = run_in_memory(src)
-        check_against(report_from(sink, src.name), study.objectives, study.constraints, case.name, study.name)
+        check_against(report_from(sink, src.name), study.objectives, study.constraints, case.name,
+                      study.file or study.name)
 
 
 def pending_trials(ostudy) -> list:

@@ -101,6 +101,7 @@ class Study:
     population: int = DEFAULT_POPULATION
     sampler: str = "nsga2"
     seed: int = 0
+    file: str = ""               # the study file, for messages
 
     def fingerprint(self) -> str:
         """A hash of the definition (not the budget): a study folder made from another definition is refused."""
@@ -292,7 +293,7 @@ def load_study(path: str | Path, *, trials: int | None = None, check: bool = Tru
         raise UserInputError(f"{path}: population: must be >= 2 trials per generation, got {population}")
     if spec.seed < 0:
         raise UserInputError(f"{path}: seed: must be >= 0, got {spec.seed}")
-    study = Study(path.stem, design, objectives, constraints, cases, budget, population, sampler, spec.seed)
+    study = Study(path.stem, design, objectives, constraints, cases, budget, population, sampler, spec.seed, str(path))
     if check:
         check_design(study, str(path))
     return study
