@@ -336,14 +336,10 @@ def sweep_document(folder: Path) -> Document:
 
 
 def document(path: str | Path) -> Document:
-    """The document of a results file, a UQ study folder (summary.json), a sweep folder (summary.csv) or an
-    optimisation study folder (optimize.json)."""
+    """The document of a results file, a UQ study folder (summary.json) or a sweep folder (summary.csv); an
+    optimisation study folder's is vehicle.presentation.optimize_report.optimize_document."""
     path = Path(path)
     if path.is_dir():
-        if (path / "optimize.json").exists():
-            from vehicle.presentation.optimize_report import optimize_document
-
-            return optimize_document(path)
         if (path / "summary.json").exists() and "bands" in json.loads((path / "summary.json").read_text()):
             return uq_document(path)
         if (path / "summary.csv").exists():

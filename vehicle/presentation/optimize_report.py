@@ -11,6 +11,11 @@ from vehicle.presentation.optimize_plots import pareto_plot
 MAX_FAILED_ROWS = 20
 
 
+def is_optimize_folder(path) -> bool:
+    """A folder written by `hpsim optimize` (it holds optimize.json)."""
+    return Path(path).is_dir() and (Path(path) / "optimize.json").exists()
+
+
 def optimize_document(folder: Path) -> Document:
     summary = json.loads((Path(folder) / "optimize.json").read_text())
     units, goals = summary.get("units", {}), summary.get("goals", {})
