@@ -66,8 +66,12 @@ def _preview(args, n_trials: int) -> None:
     from vehicle.studies.optimize_study import load_study
 
     prepared = [prepare(c.source) for c in load_study(args.study, check=False).cases]
-    cost.confirm(cost.estimate(prepared * n_trials, args.workers, cluster=bool(args.scheduler)), "hpsim optimize",
-                 args.yes)
+    try:
+        est = cost.estimate(prepared * n_trials, args.workers, cluster=bool(args.scheduler))
+    except UserInputError as exc:       # the rate probe cannot drive this case's mode on its short stretch
+        logging.getLogger("hpsim").info(f"hpsim optimize: no cost estimate ({exc})")
+        est = None
+    cost.confirm(est, "hpsim optimize", args.yes)
 
 
 def format_front(s: dict) -> str:

@@ -36,6 +36,7 @@ from vehicle.studies.sweep import dask_client, execute
 STUDY_DB = "study.db"
 STUDY_NAME = "hpsim-optimize"
 TRIALS_DIR = "trials"
+PROBE_SOLVER_KEYS = ("dt", "tolerance", "samples_per_block")   # kept for the objectives' probe drive (full mode)
 PROGRESS_FRONT_EVERY = 5         # the front's size in every 5th progress line: finding it reads every trial
 
 
@@ -161,8 +162,8 @@ def open_study(study: Study, out_dir: Path, storage: str | None = None) -> Store
 
 
 def check_objectives(study: Study, log: Callable[[str], None] | None = None) -> None:
-    """Every objective and constraint path found in the report of a short drive (PROBE_DISTANCE_M, in memory) of
-    its case at the middle of the design: a UserInputError naming the first that is not, before the study starts."""
+    """Every objective and constraint path found in the report of a short drive (PROBE_DISTANCE_M, in memory, full
+    mode) of its case at the middle of the design: a UserInputError naming the first that is not, before the study starts."""
     from vehicle.analysis.summary import report_from
     from vehicle.results.run import run_in_memory
     from vehicle.studies.cost import PROBE_DISTANCE_M
@@ -174,6 +175,9 @@ def check_objectives(study: Study, log: Callable[[str], None] | None = None) -> 
             continue
         src = study.trial_source(case, middle(study), 0)
         src.data["distance"] = min(PROBE_DISTANCE_M, float(prepare(src).scenario.distance))
+        # the full mode on the short stretch (a multiscale drive needs windows spread over a long one): the report
+        # holds the same keys
+        src.data["solver"] = {k: v for k, v in (src.data.get("solver") or {}).items() if k in PROBE_SOLVER_KEYS}
         (log or (lambda m: None))(f"case {case.name}: checking the objectives on a {src.data['distance']:.0f} m "
                                   "drive of the middle design")
         sink = run_in_memory(src)
