@@ -50,7 +50,7 @@ def pareto_plot(summary: dict, out: str | Path) -> Path:
     if len(goals) > 1:
         ax.set_xlabel(_objective_axis(summary, goals[0]))
         ax.set_ylabel(_objective_axis(summary, goals[1]))
-        extra = f"; objectives {', '.join(goals[2:])} not shown" if len(goals) > 2 else ""
+        extra = f"; not shown: {', '.join(goals[2:])}" if len(goals) > 2 else ""
         ax.set_title(f"objective space{extra}", fontsize=10)
     else:
         ax.set_xlabel("trial")
