@@ -7,12 +7,13 @@ Python API (`vehicle.api`, docs/python.md):
     res.report(); ds = res.to_xarray(); res.plot("dashboard.png")
     vehicle.open_results("x.h5")
     truck = vehicle.Vehicle.from_file("truck_6x6"); truck.check()   # docs/vehicles.md
+    vehicle.optimize("scenarios/optimize_strut.yaml", "strut_opt")     # docs/optimize.md
 
 Subpackages (one-way imports, tests/test_layers.py): physics <- numerics | runs <- presentation, cli.
 """
 from __future__ import annotations
 
-__all__ = ["Simulation", "Results", "open_results", "Vehicle"]
+__all__ = ["Simulation", "Results", "open_results", "Vehicle", "optimize"]
 
 
 def __getattr__(name):

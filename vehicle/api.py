@@ -7,6 +7,7 @@
     ds = res.to_xarray()            # DataTree: time/distance/station/axle/km coordinates, units in attrs
     res.plot("dashboard.png")       # the dashboard of `hpsim plot`
     vehicle.open_results("x.h5")    # any results file -> the same Results object
+    vehicle.optimize("scenarios/optimize_strut.yaml", "strut_opt", trials=24)   # `hpsim optimize`: the front
 
 Overrides are scenario key paths, as in sweeps (`vehicle.overrides.heat.capacity`,
 `road.iso_class`, `struts.all.overrides.valve.bleed_area`, ...). A parameter change reuses the
@@ -40,7 +41,7 @@ from vehicle.results.run import run_in_memory, run_scenario
 from vehicle.analysis.ride_metrics import summarise
 from vehicle.analysis.summary import report_from
 
-__all__ = ["Simulation", "Results", "open_results", "Vehicle", "UnknownName"]
+__all__ = ["Simulation", "Results", "open_results", "Vehicle", "UnknownName", "optimize"]
 
 
 class UnknownName(UserInputError, KeyError):
@@ -273,3 +274,32 @@ class Simulation:
 def open_results(path: str | Path) -> Results:
     """Any hpsim results file (also one written by an older hpsim, or a run that stopped) -> Results."""
     return Results(_open(path), Path(path))
+
+
+def optimize(study: str | Path, output_dir: str | Path | None = None, *, trials: int | None = None,
+             workers: int | None = None, scheduler: str | None = None, storage: str | None = None,
+             log=None, before_start=None) -> dict:
+    """Run an optimisation study file (`hpsim optimize`, docs/optimize.md) into `output_dir` (default: the study
+    file's name); returns the summary with its Pareto front.
+
+        s = vehicle.optimize("scenarios/optimize_strut.yaml", "strut_opt", trials=24)
+        s["pareto"][0]["design"], s["pareto"][0]["objectives"], s["pareto"][0]["vehicle_file"]
+
+    The study resumes from `output_dir` when run again (no finished trial runs twice). storage: an Optuna database
+    URL in place of `<output_dir>/study.db`. log: a function given each progress line. before_start(trials to run)
+    is called before any runs. Also writes pareto.png.
+    """
+    from vehicle.presentation.optimize_plots import pareto_plot
+    from vehicle.studies.optimize_runner import check_objectives, optuna_module, run_study
+    from vehicle.studies.optimize_study import load_study
+
+    optuna_module()
+    spec = load_study(study, trials=trials)
+    if spec.trials is None:
+        raise UserInputError(f"trials: give the number of trials (--trials, or trials: in the study file {study})")
+    check_objectives(spec, log)
+    out = Path(output_dir) if output_dir is not None else Path(Path(study).stem)
+    summary = run_study(spec, out, workers=workers, scheduler=scheduler, storage=storage, log=log,
+                        before_start=before_start)
+    summary["files"]["pareto_png"] = str(pareto_plot(summary, out / "pareto.png"))
+    return summary

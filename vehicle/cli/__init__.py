@@ -5,6 +5,7 @@
     hpsim road ...                                   road.py      (generate, psd, plot)
     hpsim vehicle ... / run / report / compare / sweep / plot   drives.py
     hpsim calibrate                                  calibrate.py
+    hpsim optimize                                   optimize.py
 
 User errors (bad argument, bad file) print one line and exit with code 2; SIGTERM ends a command with
 one line and exit code 143 after stopping what it started (compilers, study workers). -v / -q (before or after
@@ -49,11 +50,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     strut.register(sub)
     road.register(sub)
-    from . import calibrate, drives, export, uq, validate
+    from . import calibrate, drives, export, optimize, uq, validate
 
     drives.register(sub)
     calibrate.register(sub)
     uq.register(sub)
+    optimize.register(sub)
     export.register(sub)
     validate.register(sub)
     from . import examples

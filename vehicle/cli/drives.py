@@ -220,7 +220,9 @@ def _shareable_report(args):
                 raise UserInputError(f"{flag}: {value!r} must end in {' or '.join(suffix)}")
     if not Path(args.results).exists():
         raise UserInputError(f"{args.results}: no such results file or study folder")
-    doc = document(args.results)
+    from vehicle.presentation.optimize_report import is_optimize_folder, optimize_document
+
+    doc = optimize_document(Path(args.results)) if is_optimize_folder(args.results) else document(args.results)
     if args.html:
         print(f"wrote {write_html(doc, args.html)}")
     if args.pdf:

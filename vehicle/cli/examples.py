@@ -94,6 +94,10 @@ EXAMPLES = {
   hpsim uq scenarios/quick_demo.yaml --list --samples 16     # the priors; 833 drives and their estimated time
   hpsim uq scenarios/quick_demo.yaml --method lhs --samples 8 --parameters 'vehicle.tyre.*' --distance 1km -o uq_out
   hpsim uq scenarios/quick_demo.yaml --samples 16 --workers 2 -o uq_out --yes   # hours: starts without asking""",
+    "optimize": """\
+  hpsim optimize scenarios/optimize_strut.yaml -o strut_opt --workers 2          # resumes when run again
+  hpsim optimize scenarios/optimize_strut.yaml -o strut_opt --trials 48 --json   # continues to 48 trials
+  hpsim report strut_opt --html strut_opt.html                                   # the front as a report""",
 }
 
 

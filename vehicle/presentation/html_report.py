@@ -339,14 +339,15 @@ def sweep_document(folder: Path) -> Document:
 
 
 def document(path: str | Path) -> Document:
-    """The document of a results file, a UQ study folder (summary.json) or a sweep folder (summary.csv)."""
+    """The document of a results file, a UQ study folder (summary.json) or a sweep folder (summary.csv); an
+    optimisation study folder's is vehicle.presentation.optimize_report.optimize_document."""
     path = Path(path)
     if path.is_dir():
         if (path / "summary.json").exists() and "bands" in json.loads((path / "summary.json").read_text()):
             return uq_document(path)
         if (path / "summary.csv").exists():
             return sweep_document(path)
-        raise UserInputError(f"{path}: not a study folder (no summary.json of `hpsim uq`, no summary.csv of `hpsim sweep`)")
+        raise UserInputError(f"{path}: not a study folder (no summary.json of `hpsim uq`, no summary.csv of `hpsim sweep`, no optimize.json of `hpsim optimize`)")
     return drive_document(path)
 
 
