@@ -2,7 +2,7 @@
 reference line.
 
 The file is read and evaluated by the OpenCRG C library through its Python bindings `pycrg` (extra `crg`:
-pip install "hpsim[crg]"), with the file's own modifiers and options, as any OpenCRG tool sees it. The tracks
+pip install -e ".[crg]"), with the file's own modifiers and options, as any OpenCRG tool sees it. The tracks
 are the elevations z(u, v) at v = +track/2 (left; OpenCRG's v is positive to the left) and v = -track/2
 (right) for u from the start to the end of the reference line at the road's spacing (default: the file's u
 increment). The reference line's own elevation (slope) is part of z, so a grade in the file is a slow height
@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from hpsim.errors import UserInputError
+from hpsim.extras import install_hint
 
-EXTRA_MESSAGE = 'reading OpenCRG files needs the OpenCRG library\'s Python bindings: pip install "hpsim[crg]"'
+EXTRA_MESSAGE = f"reading OpenCRG files needs the OpenCRG library's Python bindings: {install_hint('crg')}"
 SUFFIXES = (".crg",)
 
 
