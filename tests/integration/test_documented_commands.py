@@ -40,7 +40,7 @@ WORKED_EXAMPLE = re.compile(r"<!-- worked-example: (\S+) -->\n```\w*\n(.*?)```",
 # 5.3 km spacing, the fewest the mode accepts)
 SHORT_DISTANCE = {"mileage_106km.yaml": "2 km", "mileage_106km_compensated.yaml": "2 km",
                   "mileage_106km_variable_speed.yaml": "2 km", "mileage_106km_multiscale.yaml": "16 km",
-                  "mileage_106km_uq.yaml": "16 km", "mileage_106km_time_parallel.yaml": "2 km"}
+                  "mileage_106km_uq.yaml": "16 km", "mileage_106km_time_parallel.yaml": "3 km"}
 SHORTENED = {
     # documented command (its start) -> (what runs instead, why)
     "hpsim calibrate scenarios/mileage_106km.yaml --target-rise 54K": (

@@ -3,8 +3,10 @@
 The estimate comes from this machine's drive rate in the study's solver mode (vehicle.numerics.drive_rate:
 integration steps per second of wall, and the set-up of a drive with the model cached), recorded by every
 completed run. Where nothing is recorded yet, a short probe drive of the study's own scenario measures it
-first (`_probe`, in memory). The probe runs in the study's mode, so it compiles what the drives will need
-and the study itself compiles nothing; the estimate says how long that compile took.
+first (`_probe`, in memory). The probe runs in the study's mode, so it compiles the model the drives need;
+a case whose model differs (a value drawn off a file's zero shapes the compiled model) is compiled before
+the study too (`compile_ahead`), once, instead of in every worker at once. The estimate says how long
+these compiles took.
 
     per drive  = build_s + (simulated time / dt) / steps_per_s
     wall       = drives x per drive / (workers x efficiency)
@@ -99,8 +101,7 @@ def _probe(prepared) -> dict:
     The probe compiles what the study's drives need (it runs in the same mode), so the study itself
     compiles nothing. A multiscale rate (steps of the whole drive per second) is the probe's rate on its
     windows times the share of the real drive that is windowed (`windowed_fraction`)."""
-    short = ScenarioSource(text=prepared.source.text, name=f"{prepared.source.name} (cost probe)",
-                           base_dir=prepared.source.base_dir, data=_probe_data(prepared))
+    short = _probe_source(prepared)
     short_prepared = prepare(short)
     LOG.info(f"measuring this machine's drive rate on {float(short_prepared.scenario.distance):.0f} m of the scenario "
              "(no drive recorded yet in this solver mode)")
@@ -118,6 +119,21 @@ def _probe(prepared) -> dict:
     return {**rate, "probe_compile_s": compile_s}
 
 
+def _probe_source(prepared) -> ScenarioSource:
+    return ScenarioSource(text=prepared.source.text, name=f"{prepared.source.name} (cost probe)",
+                          base_dir=prepared.source.base_dir, data=_probe_data(prepared))
+
+
+def compile_ahead(prepared) -> float:
+    """Build the engine of a short stretch of this scenario, so that its compiled model is in the cache before
+    the study's workers start (each would compile a missing one at once); the compiler's seconds it took."""
+    from vehicle.engines.build import build_engine
+
+    before = compile_time.compiled_s
+    build_engine(prepare(_probe_source(prepared)))
+    return compile_time.compiled_s - before
+
+
 def per_drive(prepared, *, probe: bool = True) -> tuple[float, str] | None:
     """(seconds, basis) of one drive of the prepared scenario (vehicle.scenario.schema.Prepared), set-up
     included; None when no rate is recorded in its solver mode and probe is False."""
@@ -130,7 +146,7 @@ def per_drive(prepared, *, probe: bool = True) -> tuple[float, str] | None:
         rate = _probe(prepared)
         basis += ", rate measured now on a probe drive"
         if rate["probe_compile_s"] > 0:
-            basis += f" (which compiled the model in {format_duration(rate['probe_compile_s'])}: the drives compile nothing)"
+            basis += f" (which compiled the model in {format_duration(rate['probe_compile_s'])})"
     simulated_s = prepared.settings().speed.statistics(float(prepared.scenario.distance))["duration_s"]
     steps = simulated_s / prepared.scenario.solver.dt
     basis += (f": {steps:.3g} steps at {float(rate['steps_per_s']):.3g} steps/s measured on this machine "
@@ -159,15 +175,19 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     if not prepared:
         return None
     known: dict[int, tuple[float, str]] = {}        # cases that share a scenario object are estimated once
-    total, basis = 0.0, ""
+    total, basis, compiled_s = 0.0, "", 0.0
     for p in prepared:
         if id(p) not in known:
             one = per_drive(p, probe=probe)
             if one is None:
                 return None
+            if known and probe:                       # another case's model: compiled now, if it is new
+                compiled_s += compile_ahead(p)
             known[id(p)] = one
         total += known[id(p)][0]
         basis = basis or known[id(p)][1]
+    if compiled_s > 0:
+        basis += f"; the drawn cases' model compiled now in {format_duration(compiled_s)}"
     n = len(prepared)
     if cluster:
         workers = 1

@@ -154,6 +154,10 @@ class Parameter:
         return 0.0 if self.latent == "common" else latent_nominal(self.prior)
 
 
+# the quantile of every prior that stands for a typical draw: off the median, which is exactly zero for a prior
+# symmetric about zero (no draw is)
+TYPICAL_QUANTILE = 0.6
+
 STANDARD_NORMAL = Prior(path="latent", kind="normal", args=(0.0, 1.0), value=0.0, unit="", si_unit="")
 
 
@@ -535,9 +539,9 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        scheduler: str | None = None, parameters: list[str] | None = None,
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
                        log: Callable[[str], None] | None = None,
-                       before_start: Callable[[object, int], None] | None = None, ensemble: int | None = None) -> dict:
-    """`hpsim uq`: the study of a scenario file's priors with the drive runner. before_start(the nominal case
-    prepared, drives to run) is called before any drive."""
+                       before_start: Callable[[list], None] | None = None, ensemble: int | None = None) -> dict:
+    """`hpsim uq`: the study of a scenario file's priors with the drive runner. before_start(cases) is called
+    before any drive, with one prepared scenario per drive to run: the nominal case, then a typical draw."""
     log = log or (lambda m: None)
     src = read_scenario(scenario)
     if distance is not None:
@@ -557,6 +561,11 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     # every check before any drive: the nominal case and the first draw must be valid scenarios
     nominal_case = prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
                            data=case_scenario(src.data, params, {p.name: p.nominal() for p in params}, distance)))
+    # a value that is zero in a file shapes the compiled model (hpsim.parameters): a draw off zero needs a model
+    # of its own, so the cost preview prepares a typical draw's too
+    typical = {p.name: float(p.design_prior().ppf(TYPICAL_QUANTILE)) for p in params}
+    typical_case = prepare(ScenarioSource(text="", name=f"{src.name} (a typical draw)", base_dir=src.base_dir,
+                           data=case_scenario(src.data, params, typical, distance)))
     # what the drives are made from: the resolved priors and the hashes of the files the scenario reads (a changed
     # road CSV is another study: its finished cases are not reused, vehicle.results.provenance); the scenario's own
     # content is in `resolved` (after --distance)
@@ -565,7 +574,8 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     model = hashlib.sha256(json.dumps([resolved, files], sort_keys=True, default=str).encode()).hexdigest()[:16]
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
-                        before_start=None if before_start is None else (lambda n: before_start(nominal_case, n)),
+                        before_start=None if before_start is None else (
+                            lambda n: before_start(([nominal_case] + [typical_case] * (n - 1)) if n else [])),
                         ensemble=ensemble)
     summary["scenario"] = str(scenario)
     summary["distance"] = distance

@@ -188,3 +188,26 @@ def test_a_multiscale_drive_integrates_its_windows_share_of_the_road():
     assert fraction("1140 m", window="350 m", spacing="380 m", warm_up="30 m") == pytest.approx(1.0)
     full = Scenario.model_validate({**base, "distance": "5 km"})
     assert cost.windowed_fraction(full) == 1.0
+
+
+def test_a_uq_preview_sees_the_nominal_case_and_a_typical_draw_whose_model_differs(tmp_path):
+    """The per-axle study's nominal drive has no wheel-bay heat source (0 W, a file's zero shapes the compiled
+    model) and every draw has one: the preview is given both, so the draws' model is compiled before the
+    workers start, once."""
+    from vehicle.studies.uq import run_scenario_study
+
+    seen = []
+
+    def stop(cases):
+        seen.extend(cases)
+        raise UserInputError("stopped after the preview")
+
+    with pytest.raises(UserInputError, match="stopped after the preview"):
+        run_scenario_study(ROOT / "scenarios" / "mileage_106km_uq.yaml", samples=3, method="lhs",
+                           output_dir=tmp_path / "uq", distance="16 km", before_start=stop)
+    assert len(seen) == 4 and seen[1] is not seen[0] and all(c is seen[1] for c in seen[2:])
+
+    def heat_source_W(case):
+        return [float((a.heat.heat_source if a.heat else None) or 0.0) for a in case.vehicle.axles]
+    assert heat_source_W(seen[0]) == [0.0] * 4
+    assert all(q > 0 for q in heat_source_W(seen[1]))
