@@ -17,10 +17,10 @@ axle: the same hardware); tied priors must be identical.
 
 `per: axle` (or `per: station`) inside `prior` draws the value once per axle (station) where the
 study knows a per-axle form of it (vehicle.studies.uq: a heat-environment key goes to
-`axles[k].heat`, a road pass factor to each following axle's pass, ...); the draws are independent,
-or with `correlation: r` (0 <= r < 1) equally rank-correlated between every pair of axles: a Gaussian
-copula whose normal correlation 2 sin(pi r / 6) gives the Spearman rank correlation r (Pearson r
-for uniform priors; Kruskal 1958), drawn through independent standard normals (one common, one
+`axles[k].heat`, a road pass factor to each following axle's pass, ...). The draws are independent,
+or with `correlation: r` (0 <= r < 1) equally rank-correlated between every pair of axles. That is a
+Gaussian copula whose normal correlation 2 sin(pi r / 6) gives the Spearman rank correlation r (Pearson r
+for uniform priors; Kruskal 1958). It is drawn through independent standard normals (one common, one
 per axle: `correlated_quantile`), so a Saltelli design and Sobol' indices by group stay valid.
 
 `collect_priors(data, source)` walks a loaded YAML mapping and returns every prior with its key
