@@ -37,6 +37,8 @@ LOG = logging.getLogger("hpsim")
 PROBE_DISTANCE_M = 200.0        # long enough for a few blocks of output, short enough to cost a few seconds
 #                                 (full and time-parallel modes; multiscale: `_probe_data`)
 PARALLEL_EFFICIENCY = 0.65      # per worker on 2 workers of a 2-core machine (benchmarks/sweep_scaling.py)
+SEGMENT_MARGIN = 1.25           # a time-parallel probe's segments: this much longer than the shortest allowed,
+#                                 as a varying speed makes some shorter than the mean
 CONFIRM_ABOVE_S = 300.0         # five minutes: longer than a user at a terminal waits without having been told
 
 
@@ -72,9 +74,9 @@ def _probe_data(prepared) -> dict:
     data = dict(prepared.source.data)
     segments = resolve_segments(S.solver.time_parallel)
     if segments > 1:            # each time-parallel segment at least MIN_SEGMENT_S of driving, with a margin
-        duration_s = prepared.duration_s()
-        mean_speed_m_s = float(S.distance) / duration_s
-        data["distance"] = min(max(PROBE_DISTANCE_M, 1.25 * segments * MIN_SEGMENT_S * mean_speed_m_s), float(S.distance))
+        mean_speed_m_s = float(S.distance) / prepared.duration_s()
+        segments_m = SEGMENT_MARGIN * segments * MIN_SEGMENT_S * mean_speed_m_s
+        data["distance"] = min(max(PROBE_DISTANCE_M, segments_m), float(S.distance))
         return data
     if drive_rate.mode_of(S) != "multiscale":
         data["distance"] = min(PROBE_DISTANCE_M, float(S.distance))
@@ -98,8 +100,7 @@ def windowed_fraction(scenario) -> float:
 def _probe(prepared) -> dict:
     """Measure the rate on a short drive of this scenario (in memory) and record it for its solver mode.
 
-    The probe compiles what the study's drives need (it runs in the same mode), so the study itself
-    compiles nothing. A multiscale rate (steps of the whole drive per second) is the probe's rate on its
+    The probe compiles the model the study's drives need (it runs in the same mode). A multiscale rate (steps of the whole drive per second) is the probe's rate on its
     windows times the share of the real drive that is windowed (`windowed_fraction`)."""
     short = _probe_source(prepared)
     short_prepared = prepare(short)
