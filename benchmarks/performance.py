@@ -78,7 +78,11 @@ def _summary(path: Path, cwd: Path, env: dict) -> dict:
 
 
 def _errors(run: dict, reference: dict) -> str:
-    """The largest per-axle difference against the full run: end surface temperature [K], load change [pp]."""
+    """The largest per-axle difference against the full run: end surface temperature [K], load change [pp];
+    none where the runs cover different distances (a shortened configuration)."""
+    if abs(run["distance_km"] - reference["distance_km"]) > 1e-6:
+        return (f"not compared: {run['distance_km']:g} km against the full run's {reference['distance_km']:g} km "
+                "(shortened)")
     dT = max(abs(a["T_surface_end_C"] - b["T_surface_end_C"]) for a, b in zip(run["axles"], reference["axles"]))
     dN = max(abs(a["dN_pct"] - b["dN_pct"]) for a, b in zip(run["axles"], reference["axles"]))
     return f"{dT:.3f} K, {dN:.3f} pp"
@@ -145,7 +149,8 @@ def measure(args) -> tuple[list[Case], dict]:
             _hpsim(f"hpsim run {scenario} -o {out}.warmup.h5", work, env)       # its own libraries compiled
             case = Case(name + ", cache warm", f"hpsim run {scenario} -o {out}")
             case.wall_s, _ = _hpsim(case.command, work, env)
-            case.note = "error against the full run: " + _errors(_summary(work / out, work, env), warm.summary)
+            errors = _errors(_summary(work / out, work, env), warm.summary)
+            case.note = errors if errors.startswith("not compared") else "error against the full run: " + errors
             cases.append(case)
         uq = Case(f"a {args.samples + 1}-drive study, 2 workers",
                   f"hpsim uq {UQ} --method lhs --samples {args.samples} --workers 2 --yes -o uq_study")
