@@ -38,6 +38,9 @@ from .errors import UserInputError
 from .units import parse_quantity, registry
 
 # distribution name -> names of its arguments
+TYPICAL_QUANTILE = 0.6        # `Prior.typical`: a quantile off the median
+
+
 DISTRIBUTIONS = {
     "uniform": ("low", "high"),
     "normal": ("mean", "standard deviation"),
@@ -96,6 +99,12 @@ class Prior:
             return self.args[0] * self.args[1] ** stats.norm.ppf(q)
         lo, mode, hi = self.args
         return stats.triang.ppf(q, (mode - lo) / (hi - lo), loc=lo, scale=hi - lo)
+
+    def typical(self) -> float:
+        """A value in SI typical of the draws: the TYPICAL_QUANTILE quantile, off the median, which is exactly
+        zero for a prior symmetric about zero (no draw is). A file's zero shapes a compiled model, a draw's
+        value does not (hpsim.parameters), so a typical value stands for the draws' model."""
+        return float(self.ppf(TYPICAL_QUANTILE))
 
     def cdf(self, x):
         """Cumulative distribution function at x [SI] (the inverse of `ppf`)."""
