@@ -228,8 +228,8 @@ def main(argv=None) -> int:
         if not m or float(m[1]) <= 0:
             ap.error(f"--distance: a positive distance in km (e.g. 2km), got {args.distance!r}")
         args.distance_km = float(m[1])
-    if args.samples < 1:
-        ap.error(f"--samples: at least 1, got {args.samples}")
+    if args.samples < 2:
+        ap.error(f"--samples: at least 2 (a Latin hypercube of one draw has no spread), got {args.samples}")
     cases, info = measure(args)
     args.output.write_text(table(cases, info, args))
     print(args.output.read_text())
