@@ -17,10 +17,10 @@ axle: the same hardware); tied priors must be identical.
 
 `per: axle` (or `per: station`) inside `prior` draws the value once per axle (station) where the
 study knows a per-axle form of it (vehicle.studies.uq: a heat-environment key goes to
-`axles[k].heat`, a road pass factor to each following axle's pass, ...); the draws are independent,
-or with `correlation: r` (0 <= r < 1) equally rank-correlated between every pair of axles: a Gaussian
-copula whose normal correlation 2 sin(pi r / 6) gives the Spearman rank correlation r (Pearson r
-for uniform priors; Kruskal 1958), drawn through independent standard normals (one common, one
+`axles[k].heat`, a road pass factor to each following axle's pass, ...). The draws are independent,
+or with `correlation: r` (0 <= r < 1) equally rank-correlated between every pair of axles. That is a
+Gaussian copula whose normal correlation 2 sin(pi r / 6) gives the Spearman rank correlation r (Pearson r
+for uniform priors; Kruskal 1958). It is drawn through independent standard normals (one common, one
 per axle: `correlated_quantile`), so a Saltelli design and Sobol' indices by group stay valid.
 
 `collect_priors(data, source)` walks a loaded YAML mapping and returns every prior with its key
@@ -38,6 +38,9 @@ from .errors import UserInputError
 from .units import parse_quantity, registry
 
 # distribution name -> names of its arguments
+TYPICAL_QUANTILE = 0.6        # `Prior.typical`: a quantile off the median
+
+
 DISTRIBUTIONS = {
     "uniform": ("low", "high"),
     "normal": ("mean", "standard deviation"),
@@ -96,6 +99,12 @@ class Prior:
             return self.args[0] * self.args[1] ** stats.norm.ppf(q)
         lo, mode, hi = self.args
         return stats.triang.ppf(q, (mode - lo) / (hi - lo), loc=lo, scale=hi - lo)
+
+    def typical(self) -> float:
+        """A value in SI typical of the draws: the TYPICAL_QUANTILE quantile, off the median, which is exactly
+        zero for a prior symmetric about zero (no draw is). A file's zero shapes a compiled model, a draw's
+        value does not (hpsim.parameters), so a typical value stands for the draws' model."""
+        return float(self.ppf(TYPICAL_QUANTILE))
 
     def cdf(self, x):
         """Cumulative distribution function at x [SI] (the inverse of `ppf`)."""

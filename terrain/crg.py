@@ -2,7 +2,7 @@
 reference line.
 
 The file is read and evaluated by the OpenCRG C library through its Python bindings `pycrg` (extra `crg`:
-pip install "hpsim[crg]"), with the file's own modifiers and options, as any OpenCRG tool sees it. The tracks
+pip install -e ".[crg]"), with the file's own modifiers and options, as any OpenCRG tool sees it. The tracks
 are the elevations z(u, v) at v = c + track/2 (left; OpenCRG's v is positive to the left of the reference line)
 and v = c - track/2 (right) for u from the start to the end of the reference line at the road's spacing
 (default: the file's u increment). c is the lateral offset of the vehicle's centre line (default 0: centred
@@ -29,8 +29,9 @@ from hpsim.files import kind_of
 from .plausibility import check_plausible_tracks
 
 from .profile_io import check_road_points
+from hpsim.extras import install_hint
 
-EXTRA_MESSAGE = 'reading OpenCRG files needs the OpenCRG library\'s Python bindings: pip install "hpsim[crg]"'
+EXTRA_MESSAGE = f"reading OpenCRG files needs the OpenCRG library's Python bindings: {install_hint('crg')}"
 SUFFIXES = (".crg",)
 LOG = logging.getLogger("hpsim.crg")
 # the C library's message levels (crgMsgPrint), as its own lines name them

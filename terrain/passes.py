@@ -10,10 +10,10 @@ Pass k's surface (`pass_profile`):
 
     z_k = level + factor_k * M_{L_k}(z - level)
 
-z the road profile, `level` its persistent changes of level (step and ramp events: a change of
-grade is not roughness and is not compacted away), M_L the moving average over smoothing_length L
-(the same exact discrete kernel as the tyre envelope, `terrain.envelope`; transfer function
-H(n) = sin(pi n L)/(pi n L) -> the PSD is multiplied by factor^2 H(n)^2, lowered above n ~ 1/L).
+z is the road profile and `level` its persistent changes of level (step and ramp events: a change of
+grade is not roughness and is not compacted away). M_L is the moving average over smoothing_length L,
+the same exact discrete kernel as the tyre envelope (`terrain.envelope`). Its transfer function is
+H(n) = sin(pi n L)/(pi n L): the PSD is multiplied by factor^2 H(n)^2, lowered above n ~ 1/L.
 A list of passes gives pass 0, 1, ...; passes beyond the list repeat its last entry. The default
 (no list, or factor 1 and no smoothing) leaves every pass on the same surface.
 """

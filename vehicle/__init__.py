@@ -9,7 +9,8 @@ Python API (`vehicle.api`, docs/python.md):
     truck = vehicle.Vehicle.from_file("truck_6x6"); truck.check()   # docs/vehicles.md
     vehicle.optimize("scenarios/optimize_strut.yaml", "strut_opt")     # docs/optimize.md
 
-Subpackages (one-way imports, tests/test_layers.py): physics <- numerics | runs <- presentation, cli.
+Subpackages (one-way imports, tests/test_layers.py): physics, numerics <- scenario <- engines <- results <-
+analysis <- studies <- presentation, fmu <- cli, api (README.md, "How the code is laid out").
 """
 from __future__ import annotations
 

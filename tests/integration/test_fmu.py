@@ -374,7 +374,7 @@ def test_export_command_line_errors(monkeypatch, capsys):
     monkeypatch.setattr(build.importlib.util, "find_spec", lambda name: None)
     assert main(["export", "fmu", "--strut", "apc", "-o", "x.fmu"]) == 2
     err = capsys.readouterr().err
-    assert 'pip install "hpsim[fmu]"' in err and len(err.strip().splitlines()) == 1
+    assert 'pip install -e ".[fmu]"' in err and len(err.strip().splitlines()) == 1
 
 
 # --- hostile use through FMI ---------------------------------------------------------------------------

@@ -188,7 +188,7 @@ def test_bad_report_targets_exit_2(drive, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "jinja2", None)          # the extra not installed: one line naming it
     monkeypatch.setattr(html_report, "document", lambda path: html_report.Document("t", [], [], []))
     assert cli.main(["report", str(drive), "--html", str(tmp_path / "r.html")]) == 2
-    assert 'pip install "hpsim[report]"' in capsys.readouterr().err
+    assert 'pip install -e ".[report]"' in capsys.readouterr().err
 
 
 def test_sweep_and_uq_folders_get_a_report(drive, tmp_path):

@@ -24,7 +24,7 @@ required); for a temperature it is a difference (K, not degC).
 
 Series are logged over time (x in s, min, h) or distance (m, km), from CSV (a UTF-8 file, BOM and CRLF
 tolerated, `#` comment lines skipped) or MDF4 (`mdf:`, through asammdf: the optional extra
-`pip install "hpsim[mdf]"`; x is the channel's time stamps unless `x: {channel: ...}` names a distance channel).
+`pip install -e ".[mdf]"`; x is the channel's time stamps unless `x: {channel: ...}` names a distance channel).
 
 `read_measurements(path)` returns a MeasurementFile; every error is a UserInputError naming the file, the
 key (`points[2].after`) and the allowed range.
@@ -44,6 +44,7 @@ import numpy as np
 from hpsim.config import load_yaml, read_text_file
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity, registry
+from hpsim.extras import install_hint
 
 
 @dataclass(frozen=True)
@@ -370,7 +371,7 @@ def read_mdf_channels(path: Path, y_channel: str, x_channel: str | None, where: 
     try:
         from asammdf import MDF
     except ImportError:
-        raise UserInputError(f'{where}.mdf: reading MDF4 needs asammdf: pip install "hpsim[mdf]"') from None
+        raise UserInputError(f'{where}.mdf: reading MDF4 needs asammdf: ' + install_hint("mdf")) from None
     if not path.is_file():
         raise UserInputError(f"{where}.mdf: {path}: file not found")
     try:

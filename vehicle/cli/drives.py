@@ -48,7 +48,7 @@ def register(sub):
                                        "of a sweep or UQ study folder)")
     pp.add_argument("results", help="HDF5 file written by `hpsim run`, or (with --html/--pdf) a sweep or UQ study folder")
     pp.add_argument("--html", default=None, metavar="FILE",
-                    help="one self-contained HTML file (figures embedded; needs jinja2: pip install \"hpsim[report]\")")
+                    help="one self-contained HTML file (figures embedded; needs jinja2: pip install -e \".[report]\")")
     pp.add_argument("--pdf", default=None, metavar="FILE", help="the same report as a PDF")
     pp.add_argument("--json", action="store_true", help="print JSON only")
     pp.add_argument("--psd", default=None, metavar="PNG",

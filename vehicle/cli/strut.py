@@ -22,6 +22,7 @@ from hpsim.tables import format_table, print_json
 from hpsim.errors import UserInputError
 from hpsim.outputs import check_figure_file, check_output_file
 from hpsim.units import MAX_LIST_ITEMS, parse_quantity
+from hpsim.extras import install_hint
 
 PROCESSES = ("polytropic", "isothermal")
 MODELS = ("file", "physical", "identified")
@@ -627,7 +628,7 @@ def cmd_gas(args):
     try:
         from CoolProp.CoolProp import PropsSI
     except ImportError:
-        raise UserInputError("strut gas: needs CoolProp (pip install -e '.[test]')") from None
+        raise UserInputError(f"strut gas: needs CoolProp ({install_hint('test')})") from None
     _check_outputs(args, table=None)
     temps = _quantity_list(args.temperatures, "K", "--temperatures", "200 K to 600 K")
     if any(not 200 <= T <= 600 for T in temps):

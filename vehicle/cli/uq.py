@@ -84,7 +84,7 @@ def cmd_uq(args):
                                  output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                                  parameters=patterns, distance=args.distance, groups=args.groups,
                                  per_axle_struts=args.per_axle_struts, log=log, ensemble=args.ensemble,
-                                 before_start=lambda nominal, n: _preview(args, nominal, n))
+                                 before_start=lambda cases: _preview(args, cases))
     from vehicle.presentation.uq_plots import study_plots
 
     summary["files"].update(study_plots(summary, Path(summary["study"])))
@@ -99,11 +99,12 @@ def cmd_uq(args):
     return 3 if summary["failed"] or not summary["nominal_done"] else 0
 
 
-def _preview(args, nominal_case, n: int, probe: bool = True):
-    """The number of drives and the estimated wall time (vehicle.studies.cost); asks at a terminal when long."""
+def _preview(args, cases: list, probe: bool = True):
+    """The number of drives and the estimated wall time of the prepared cases (vehicle.studies.cost); asks at a
+    terminal when long."""
     from vehicle.studies import cost
 
-    est = cost.estimate([nominal_case] * n, args.workers, cluster=bool(args.scheduler), probe=probe)
+    est = cost.estimate(cases, args.workers, cluster=bool(args.scheduler), probe=probe)
     cost.confirm(est, "hpsim uq", args.yes)
     return est
 

@@ -25,6 +25,7 @@ import casadi as ca
 
 from hpsim.errors import UserInputError
 from hpsim.outputs import atomic_output
+from hpsim.extras import install_hint
 from vehicle.fmu.description import model_description
 from vehicle.numerics import codegen
 from vehicle.numerics.codegen import compile_source
@@ -90,11 +91,11 @@ def fmi_headers() -> Path:
     """The folder with the FMI 2.0 headers of the FMPy package (its c-code folder)."""
     spec = importlib.util.find_spec("fmpy")
     if spec is None or not spec.origin:
-        raise UserInputError('hpsim export fmu: the FMI 2.0 headers come with FMPy: pip install "hpsim[fmu]"')
+        raise UserInputError(f"hpsim export fmu: the FMI 2.0 headers come with FMPy: {install_hint('fmu')}")
     folder = Path(spec.origin).parent / "c-code"
     if not all((folder / h).is_file() for h in FMI_HEADERS):
         raise UserInputError(f"hpsim export fmu: FMPy at {folder.parent} has no FMI 2.0 headers in c-code/; "
-                             'reinstall it: pip install "hpsim[fmu]"')
+                             f"reinstall it: {install_hint('fmu')}")
     return folder
 
 

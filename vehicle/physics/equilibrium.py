@@ -1,8 +1,8 @@
 """Static equilibrium of the hull on its struts and tyres, and charging of the gas springs.
 
-Standing still, each strut carries its gas force at the body temperature (the gas has had time
-to reach it: isothermal at the oil temperature (the heat network's oil node; the gas follows it at rest), or the seed-000 polytropic law if the strut file says so);
-valves carry nothing and seal friction is taken at the middle of its band (zero). The hull
+Standing still, each strut carries its gas force at the body temperature: the gas has had time
+to reach it. The law is isothermal at the oil temperature (the heat network's oil node, which the gas
+follows at rest), or the seed-000 polytropic law if the strut file says so. The valves carry nothing and seal friction is taken at the middle of its band (zero). The hull
 (3 DOF) on 8 supports is statically indeterminate: the strut and tyre compliances decide the
 load split, so the unknowns are heave, pitch, roll and the 8 wheel displacements, solved by
 Newton on the 11 force/moment balances.
@@ -45,7 +45,7 @@ class Equilibrium:
 
 
 def charge_gas_masses(model: VehicleModel) -> np.ndarray:
-    """Gas mass [kg] per strut by the vehicle's `charging.method` (issue 10 §5, REFERENCE §1, §3).
+    """Gas mass [kg] per strut by the vehicle's `charging.method` (REFERENCE §1, §3).
 
     load_and_height: the charging loads are carried at the charging deflection at the charging
         temperature with the standing gas law of the strut file (isothermal for `gas.process:

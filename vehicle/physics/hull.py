@@ -46,7 +46,7 @@ def axle_height_change(z, theta, a_m, a_cg_m):
     return z - theta * (a_m - a_cg_m)
 
 
-# --- longitudinal acceleration (issue 10 §3) ---------------------------------------------------------
+# --- longitudinal acceleration --------------------------------------------------------------------
 # The drive/brake forces X_i at the tyres accelerate the whole vehicle: sum X_i = m_total a_x (flat road,
 # rolling resistance and drag left out: they are part of the same tyre forces and small beside braking).
 # Each wheel passes X_i - m_u a_x to the hull through its linkage. In the reference linkage (no anti
@@ -77,9 +77,9 @@ def linkage_coefficients(shares, positions_m, anti_fraction):
     [N] on the hull at station i (the wheel gets -V_i) for tyre forces X_i = share_i m_total a_x.
 
     Each linkage force is proportional to its own tyre force, V_i = X_i tan(theta_i) (Gillespie 1992 §7),
-    with tan(theta_i) = f h_total (a_i - a_bar) / S: a_bar = sum share_i a_i and S = sum share_i (a_i - a_bar)^2,
-    so the forces add to no net lift and to the pitch moment -f M_theta about any point: the fraction f of
-    the pitch moment taken by the linkage instead of the struts (for f = 0 every c_i is the number 0).
+    with tan(theta_i) = f h_total (a_i - a_bar) / S, a_bar = sum share_i a_i, S = sum share_i (a_i - a_bar)^2.
+    The forces then add to no net lift and to the pitch moment -f M_theta about any point. f is the fraction
+    of the pitch moment taken by the linkage instead of the struts (for f = 0 every c_i is the number 0).
     """
     if isinstance(anti_fraction, (int, float)) and anti_fraction == 0:
         return [0.0] * len(shares)

@@ -12,10 +12,10 @@ the model are differentiated as they are: the valve is its laminar bleed (check 
 valves closed), and seal friction, smoothed over `friction.smoothing_velocity` (0.5 mm/s for the
 apc strut), is a very stiff damper at zero velocity: for amplitudes that small the struts stick and
 the vehicle rides on its tyres. `friction_velocity_m_s` gives the *equivalent linear* vehicle
-instead: the Coulomb friction replaced by its first-harmonic (describing-function) damping at
+instead. The Coulomb friction is replaced by its first-harmonic (describing-function) damping at
 that strut velocity amplitude V, c_eq = 2 (F_C,comp + F_C,reb) / (pi V) (4 F_C / (pi V) when
-symmetric; Gelb & Vander Velde 1968), done by widening the friction's smoothing to pi V / 4 (the
-smooth sign's slope at zero is then exactly c_eq) with the Stribeck peak and the seed-001
+symmetric; Gelb & Vander Velde 1968). This is done by widening the friction's smoothing to pi V / 4
+(the smooth sign's slope at zero is then exactly c_eq), with the Stribeck peak and the seed-001
 hysteresis band off.
 
 Modes come from the eigenvalues of A: natural frequency |lambda| / 2 pi, damping ratio

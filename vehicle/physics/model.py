@@ -24,7 +24,7 @@ Inputs u (time-varying), in this order (`INPUTS`; `input_index` gives the positi
   ambient        ambient temperature [K] (1)
   acceleration   longitudinal acceleration a_x [m/s^2] of the speed profile, + forward (1): drive and
                  brake forces at the tyres, the hull's pitch moment (load transfer), the linkage's
-                 anti-pitch forces (vehicle.physics.hull, issue 10 §3)
+                 anti-pitch forces (vehicle.physics.hull)
 Parameters p (constant during a run): the run parameters (gas mass per strut [kg], nominal
   deflection per strut [m], compensation on/off) followed by the parameter vector theta: every
   non-zero number of the vehicle and strut files (`hpsim.parameters`), so a sweep, a calibration
@@ -409,11 +409,12 @@ class VehicleModel:
         return ode, residuals, out
 
     def _ride_rates(self, X, hull_acc, out) -> dict:
-        """Rates of the ride states (vehicle.physics.ride): per seat the ISO 2631-1 Wk (vertical) and Wd
-        (lateral) filters and the absorbed-power filter driven by the hull accelerations at the seat,
-        and the quadratures of a_w^2, a_w^4, a_wl^2 and P_abs; per station int F, int F^2 of the tyre
-        load, time lifted off (F = 0: the tyre law is exactly zero there), time on an end stop and the
-        time above each inner travel-bin edge."""
+        """Rates of the ride states (vehicle.physics.ride).
+
+        Per seat: the ISO 2631-1 Wk (vertical) and Wd (lateral) filters and the absorbed-power filter
+        driven by the hull accelerations at the seat, and the quadratures of a_w^2, a_w^4, a_wl^2 and P_abs.
+        Per station: int F and int F^2 of the tyre load, the time lifted off (F = 0: the tyre law is exactly
+        zero there), the time on an end stop and the time above each inner travel-bin edge."""
         K = self.sym
         ddz, ddt, ddp = hull_acc
         rates = {}

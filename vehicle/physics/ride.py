@@ -58,8 +58,8 @@ class Section:
     def rates(self, x, u):
         """(state rates, output) of this section for states x (list) and input u.
 
-        Second order, with w = sqrt(a2): x0' = w x1, x1' = -w x0 - a1 x1 + w u, so that
-        X0 = a2 / D(s) U (unit DC gain: x0 is a low-passed u) and X1 = s X0 / w; the output
+        Second order, with w = sqrt(a2): x0' = w x1, x1' = -w x0 - a1 x1 + w u. Then
+        X0 = a2 / D(s) U (unit DC gain: x0 is a low-passed u) and X1 = s X0 / w, and the output is
         y = b0 u + ((b2 - b0 a2) x0 + (b1 - b0 a1) w x1) / a2.
         First order: x0' = a1 (u - x0), y = b0 u + (b1 - b0 a1) x0 / a1.
         """
@@ -189,10 +189,10 @@ def iso2631_weighting(weighting: str | Weighting, upper_band_limit: bool = True)
 def absorbed_power_filter() -> LinearFilter:
     """Vertical absorbed-power filter: seat acceleration [m/s^2] -> y [sqrt(W)], P_abs = y^2.
 
-    H(s) = 14.5 s (s + 44) / ((s + 63)(s^2 + 24 s + 750)) on the acceleration in ft/s^2: the
+    H(s) = 14.5 s (s + 44) / ((s + 63)(s^2 + 24 s + 750)) on the acceleration in ft/s^2. It is the
     continuous filter of the vertical absorbed-power method of Pradko & Lee (1966) as used by the
     NATO Reference Mobility Model (Lins 1972, "Human vibration response measurement", US Army
-    TACOM Technical Report 11551), here recovered exactly from the Tustin coefficients of Project
+    TACOM Technical Report 11551). It is recovered exactly from the Tustin coefficients of Project
     Chrono's `ChAbsorbed_Power_Vertical` (src/chrono/utils/ChFilters.cpp). Its peak is near 4.5 Hz
     (the seated body's vertical resonance); 6 W is the commonly used limit of tolerable ride.
     """

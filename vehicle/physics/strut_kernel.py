@@ -1,7 +1,7 @@
 """One station's strut part of the equations as one function of its own inputs: the "strut kernel".
 
 The stations of a vehicle are the same strut equations on different data. The ROS2 step computes this part of
-every station with one code over lanes of stations (`vehicle.numerics.split_step`, issue 26 "lanes across
+every station with one code over lanes of stations (`vehicle.numerics.split_step`; docs/engines.md, "Lanes across
 struts"), and the rest of the step (hull, tyres, wheels, energies, ride filters, the LU of W) around it.
 
 The kernel of station i (`kernel`), per stage of the step:

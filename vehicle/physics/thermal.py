@@ -1,4 +1,4 @@
-"""Strut heat: a thermal network per strut (issue 10 §1; docs/physics.md "Strut heat network").
+"""Strut heat: a thermal network per strut (docs/physics.md "Strut heat network").
 
 Nodes (states of the vehicle model, per station i):
   T_oil      the oil (capacity C_oil): heated by the damping valve and by the gas, whose own
@@ -77,7 +77,7 @@ def heat_loss(T_K, T_amb_K, h_conv, area_m2, emissivity, view_factor=1.0):
 
 
 def temperature_rate(T_K, P_dissipated_W, T_amb_K, h_conv, area_m2, emissivity, capacity_J_per_K):
-    """dT/dt [K/s] of a single lumped node (the model before issue 10; the network's limit when its
+    """dT/dt [K/s] of a single lumped node (the network's limit when its
     internal resistances vanish, tests/test_thermal_network.py)."""
     return (P_dissipated_W - heat_loss(T_K, T_amb_K, h_conv, area_m2, emissivity)) / capacity_J_per_K
 
@@ -104,7 +104,7 @@ def churchill_chu_h(dT_K, length_m, k, nu, alpha, beta, prandtl_shape=None):
     (a run constant: the factor is then computed once per run instead of twice per step and station;
     h differs from the exact factor's by at most 2.2 % over 20-100 degC, far inside the oil film
     prior; tests/test_thermal_network.py). Ra^(1/6) is computed as (Ra^2)^(1/12): |dT| smoothed
-    without a square root. Both save powers in the compiled step (6.3 vs 7.2 us/step measured)."""
+    without a square root. Both save powers in the compiled step."""
     Pr = nu / alpha if prandtl_shape is None else prandtl_shape
     Ra2 = (GRAVITY * beta * length_m ** 3 / (nu * alpha)) ** 2 * (dT_K * dT_K + DT_SMOOTHING_K ** 2)
     Nu = (0.825 + 0.387 * Ra2 ** (1.0 / 12.0) / (1.0 + (0.492 / Pr) ** (9.0 / 16.0)) ** (8.0 / 27.0)) ** 2

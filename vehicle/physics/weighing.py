@@ -1,13 +1,13 @@
-"""The weighing as a measurement: bands of standing wheel loads and heights under seal friction (issue 10 §4).
+"""The weighing as a measurement: bands of standing wheel loads and heights under seal friction.
 
 A standing strut is held by its seals anywhere inside a band around its frictionless force:
 
     F_i = F_gas,i(x_i) + f_i,    -F_reb,i(p_i) <= f_i <= F_comp,i(p_i)
 
-with the breakaway (static) levels of the strut file's friction law, F = K_brk (F0 + f_p p)
-(`static_friction_limits`: `struts.friction.coulomb_level` times the breakaway ratio K_brk, the
-zero-velocity limit of the Stribeck law of seed 001 eq. 2 / REFERENCE §7; for `model: lugre` the
-static level F_s = K_brk F_C of the mean F0, as `StrutBase.friction_force` uses it). p_i is the gas
+with the breakaway (static) levels of the strut file's friction law, F = K_brk (F0 + f_p p).
+`static_friction_limits` gives them: `struts.friction.coulomb_level` times the breakaway ratio K_brk, the
+zero-velocity limit of the Stribeck law of seed 001 eq. 2 / REFERENCE §7. For `model: lugre` it is the
+static level F_s = K_brk F_C of the mean F0, as `StrutBase.friction_force` uses it. p_i is the gas
 pressure at the strut's own deflection, so each band moves with the pose. Positive f resists
 compression (the sign convention of docs/CONTRIBUTING.md).
 
@@ -36,9 +36,9 @@ measures the vertical wheel load; the two weighings (before and after the drive)
 friction states, because the struts stroke tens of millimetres in between. The approach (slow roll
 onto the scale, stop) leaves each strut anywhere in its band: that is the default. If the struts
 cool while standing before the weighing (`temperatures_at_stop_K`), the gas force falls at a held
-deflection by dF_i and the seal takes it up: the band of strut i narrows to
-[-F_reb + dF_i, F_comp] (all of it at the compression edge once dF_i >= F_comp + F_reb), the
-redistribution of dF through the statically indeterminate hull neglected in this bound.
+deflection by dF_i and the seal takes it up. The band of strut i narrows to
+[-F_reb + dF_i, F_comp] (all of it at the compression edge once dF_i >= F_comp + F_reb); this bound
+neglects the redistribution of dF through the statically indeterminate hull.
 """
 from __future__ import annotations
 

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from hpsim.errors import UserInputError
 from hpsim.outputs import atomic_output
+from hpsim.extras import install_hint
 
 from vehicle.results.reader import open_results
 from vehicle.analysis.ride_metrics import axle_rows
@@ -368,7 +369,7 @@ def write_html(doc: Document, out: str | Path) -> Path:
     try:
         import jinja2
     except ImportError:
-        raise UserInputError('hpsim report --html needs jinja2: pip install "hpsim[report]"') from None
+        raise UserInputError(f"hpsim report --html needs jinja2: {install_hint('report')}") from None
     _encode_figures(doc)
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(Path(__file__).parent / "templates"),
                              autoescape=jinja2.select_autoescape(["html", "j2"]), keep_trailing_newline=True)

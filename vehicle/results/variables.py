@@ -3,6 +3,8 @@
 same layout as xarray datasets. The HDF5 sinks, the reader and `to_xarray()` all use it."""
 from __future__ import annotations
 
+from hpsim.extras import install_hint
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,5 +124,5 @@ def require_xarray():
     try:
         import xarray
     except ImportError:
-        raise ImportError("to_xarray() needs xarray and h5netcdf: pip install xarray h5netcdf") from None
+        raise ImportError(f"to_xarray() needs xarray and h5netcdf: {install_hint('xarray')}") from None
     return xarray

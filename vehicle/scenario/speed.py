@@ -387,10 +387,10 @@ def smooth_noise(n_points: int, spacing_m: float, correlation_length_m: float, s
 def random_profile(spec: RandomSpeedSpec, distance_m: float) -> SpeedProfile:
     """A smooth random speed with the requested trip average and spread over [0, distance_m].
 
-    v(s) = clip(mu + sigma g(s), min, max), g = `smooth_noise`; mu and sigma are solved so that over
+    v(s) = clip(mu + sigma g(s), min, max), g = `smooth_noise`. mu and sigma are solved so that over
     the drive the time average (distance / time, with the drive's own trapezoidal t(s)) equals `mean`
-    exactly and the time-weighted standard deviation equals `spread` (the realisation is scaled to the
-    request; clipping may make a spread unreachable, which is an error naming the bounds).
+    exactly and the time-weighted standard deviation equals `spread`: the realisation is scaled to the
+    request. Clipping may make a spread unreachable, which is an error naming the bounds.
     """
     from scipy.optimize import brentq
 

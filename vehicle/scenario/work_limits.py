@@ -26,8 +26,8 @@ MAX_STEPS = 5e9                        # solver steps of one drive (1000 km at 2
 MAX_RESULT_BYTES = 64 * 2**30          # uncompressed stored values of one results file (64 GiB)
 MAX_MEMORY_RESULT_BYTES = 4 * 2**30    # ... of a run kept in memory (the Python API's run_in_memory)
 ANNOUNCE_S = 30.0                      # a run expected to take longer is announced with its estimate
-# cost model (apc_8x8 on one core, measured: 1 km at 20 km/h, 4 ms: 0.9 us per station and step; 4 ms output:
-# 0.25 ms per stored sample with store: all, writing and statistics included)
+# cost model of one core (apc_8x8): microseconds per station and step, and per stored sample with store: all
+# (writing and statistics included); benchmarks/drive.py measures them
 US_PER_STATION_STEP = 0.9
 US_PER_SAMPLE = 250.0
 

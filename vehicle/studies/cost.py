@@ -1,23 +1,25 @@
-"""What a study will cost, said before it starts (issue 20): the number of drives and an estimated wall time.
+"""What a study will cost, said before it starts: the number of drives and an estimated wall time.
 
-The estimate comes from this machine's measured drive rate (vehicle.numerics.drive_rate: integration
-steps per second of wall and the set-up time of a drive with the model cached, recorded by every
-completed run in this solver mode). Where nothing is recorded yet, a short probe drive of the study's
-own scenario (PROBE_DISTANCE_M, in memory) measures it first; its compile is the one the study would
-need anyway.
+The estimate comes from this machine's drive rate in the study's solver mode (vehicle.numerics.drive_rate:
+integration steps per second of wall, and the set-up of a drive with the model cached), recorded by every
+completed run. Where nothing is recorded yet, a short probe drive of the study's own scenario measures it
+first (`_probe`, in memory). The probe runs in the study's mode, so it compiles the model the drives need;
+a case whose model differs (a value drawn off a file's zero shapes the compiled model) is compiled before
+the study too (`compile_ahead`), once, instead of in every worker at once. The estimate says how long
+these compiles took.
 
     per drive  = build_s + (simulated time / dt) / steps_per_s
     wall       = drives x per drive / (workers x efficiency)
 
-with the parallel efficiency measured for sweeps on the 2-core development machine (README: 0.65 per
-worker on 2 workers); one worker: 1. It leaves out the compile of a cold cache (announced when it
-happens) and process start-up. A rate measured at another machine load than now (a shared machine) is
-said beside the estimate, with the factor the CPU shares suggest. At a terminal (stdin a tty) a study estimated above CONFIRM_ABOVE_S asks
-before it starts; `--yes` skips the question, and a study started by a script never asks.
+PARALLEL_EFFICIENCY is the sweeps' efficiency per worker on 2 workers of a 2-core machine; one worker: 1.
+Process start-up is left out. A rate measured at another machine load than now is said beside the
+estimate, with the factor the CPU shares suggest. At a terminal a study estimated above CONFIRM_ABOVE_S
+asks before it starts; `--yes` skips the question, and a study started by a script never asks.
 """
 from __future__ import annotations
 
 import logging
+import math
 import os
 import sys
 import time
@@ -25,13 +27,18 @@ from dataclasses import dataclass
 
 from hpsim.errors import UserInputError
 
-from vehicle.numerics import drive_rate
-from vehicle.scenario.schema import ScenarioSource
+from vehicle.engines.time_parallel import MIN_SEGMENT_S
+from vehicle.numerics import compile_time, drive_rate
+from vehicle.scenario.schema import MULTISCALE_MIN_WINDOWS, MULTISCALE_RANGES_M, ScenarioSource, prepare
+from vehicle.scenario.settings import resolve_segments
 from vehicle.results.run import run_in_memory
 
 LOG = logging.getLogger("hpsim")
 PROBE_DISTANCE_M = 200.0        # long enough for a few blocks of output, short enough to cost a few seconds
-PARALLEL_EFFICIENCY = 0.65      # per worker on 2 workers (README "Sweeps"); measured for sweeps
+#                                 (full and time-parallel modes; multiscale: `_probe_data`)
+PARALLEL_EFFICIENCY = 0.65      # per worker on 2 workers of a 2-core machine (benchmarks/sweep_scaling.py)
+SEGMENT_MARGIN = 1.25           # a time-parallel probe's segments: this much longer than the shortest allowed,
+#                                 as a varying speed makes some shorter than the mean
 CONFIRM_ABOVE_S = 300.0         # five minutes: longer than a user at a terminal waits without having been told
 
 
@@ -59,22 +66,73 @@ def format_duration(seconds: float) -> str:
     return f"{h} h {m} min"
 
 
+def _probe_data(prepared) -> dict:
+    """The scenario data of the probe drive: PROBE_DISTANCE_M of the scenario. A time-parallel scenario gets
+    long enough segments; a multiscale one keeps its windows and warm-ups, back to back, MULTISCALE_MIN_WINDOWS
+    of them (the fewest the mode accepts)."""
+    S = prepared.scenario
+    data = dict(prepared.source.data)
+    segments = resolve_segments(S.solver.time_parallel)
+    if segments > 1:            # each time-parallel segment at least MIN_SEGMENT_S of driving, with a margin
+        mean_speed_m_s = float(S.distance) / prepared.duration_s()
+        segments_m = SEGMENT_MARGIN * segments * MIN_SEGMENT_S * mean_speed_m_s
+        data["distance"] = min(max(PROBE_DISTANCE_M, segments_m), float(S.distance))
+        return data
+    if drive_rate.mode_of(S) != "multiscale":
+        data["distance"] = min(PROBE_DISTANCE_M, float(S.distance))
+        return data
+    stride_m = S.solver.window_m + S.solver.warm_up_m
+    data["distance"] = min(MULTISCALE_MIN_WINDOWS * stride_m, float(S.distance))
+    data["solver"] = {**(data.get("solver") or {}), "spacing": f"{max(stride_m, MULTISCALE_RANGES_M['spacing'][0])} m"}
+    return data
+
+
+def windowed_fraction(scenario) -> float:
+    """The share of a drive's road the full model integrates: 1 in the full and time-parallel modes; in the
+    multiscale mode its windows with their warm-ups, ceil(distance / spacing) of them, over the distance."""
+    if drive_rate.mode_of(scenario) != "multiscale":
+        return 1.0
+    solver, distance = scenario.solver, float(scenario.distance)
+    windows = math.ceil(distance / solver.spacing_m - 1e-9)
+    return min(1.0, windows * (solver.window_m + solver.warm_up_m) / distance)
+
+
 def _probe(prepared) -> dict:
-    """Measure the rate on a short drive of this scenario (in memory; records it like any run)."""
-    src = prepared.source
-    short = ScenarioSource(text=src.text, name=f"{src.name} (cost probe)", base_dir=src.base_dir,
-                           data={**src.data, "distance": min(PROBE_DISTANCE_M, float(prepared.scenario.distance))})
-    LOG.info(f"measuring this machine's drive rate on {short.data['distance']:.0f} m of the scenario "
+    """Measure the rate on a short drive of this scenario (in memory) and record it for its solver mode.
+
+    The probe compiles the model the study's drives need (it runs in the same mode). A multiscale rate (steps of the whole drive per second) is the probe's rate on its
+    windows times the share of the real drive that is windowed (`windowed_fraction`)."""
+    short = _probe_source(prepared)
+    short_prepared = prepare(short)
+    LOG.info(f"measuring this machine's drive rate on {float(short_prepared.scenario.distance):.0f} m of the scenario "
              "(no drive recorded yet in this solver mode)")
     t0 = time.perf_counter()
+    compiled_before = compile_time.compiled_s
     S = run_in_memory(short).final["summary"]
+    compile_s = compile_time.compiled_s - compiled_before
     setup_s = time.perf_counter() - t0 - S["wall_s"]
-    mode = drive_rate.mode_of(prepared.scenario)
-    drive_rate.record(mode, prepared.scenario.solver.dt, S["simulated_s"], S["wall_s"], setup_s)
+    scale = windowed_fraction(short_prepared.scenario) / windowed_fraction(prepared.scenario)
+    mode, dt = drive_rate.mode_of(prepared.scenario), prepared.scenario.solver.dt
+    drive_rate.record(mode, dt, S["simulated_s"] * scale, S["wall_s"], setup_s)
     rate = drive_rate.read(mode)
     if rate is None:              # a cache that cannot be written: the probe's own numbers
-        rate = {"steps_per_s": S["simulated_s"] / prepared.scenario.solver.dt / S["wall_s"], "build_s": setup_s}
-    return rate
+        rate = {"steps_per_s": S["simulated_s"] * scale / dt / S["wall_s"], "build_s": max(setup_s - compile_s, 0.0)}
+    return {**rate, "probe_compile_s": compile_s}
+
+
+def _probe_source(prepared) -> ScenarioSource:
+    return ScenarioSource(text=prepared.source.text, name=f"{prepared.source.name} (cost probe)",
+                          base_dir=prepared.source.base_dir, data=_probe_data(prepared))
+
+
+def compile_ahead(prepared) -> float:
+    """Build the engine of a short stretch of this scenario, so that its compiled model is in the cache before
+    the study's workers start (each would compile a missing one at once); the compiler's seconds it took."""
+    from vehicle.engines.build import build_engine
+
+    before = compile_time.compiled_s
+    build_engine(prepare(_probe_source(prepared)))
+    return compile_time.compiled_s - before
 
 
 def per_drive(prepared, *, probe: bool = True) -> tuple[float, str] | None:
@@ -88,6 +146,8 @@ def per_drive(prepared, *, probe: bool = True) -> tuple[float, str] | None:
             return None
         rate = _probe(prepared)
         basis += ", rate measured now on a probe drive"
+        if rate["probe_compile_s"] > 0:
+            basis += f" (which compiled the model in {format_duration(rate['probe_compile_s'])})"
     simulated_s = prepared.settings().speed.statistics(float(prepared.scenario.distance))["duration_s"]
     steps = simulated_s / prepared.scenario.solver.dt
     basis += (f": {steps:.3g} steps at {float(rate['steps_per_s']):.3g} steps/s measured on this machine "
@@ -116,15 +176,19 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     if not prepared:
         return None
     known: dict[int, tuple[float, str]] = {}        # cases that share a scenario object are estimated once
-    total, basis = 0.0, ""
+    total, basis, compiled_s = 0.0, "", 0.0
     for p in prepared:
         if id(p) not in known:
             one = per_drive(p, probe=probe)
             if one is None:
                 return None
+            if known and probe:                       # another case's model: compiled now, if it is new
+                compiled_s += compile_ahead(p)
             known[id(p)] = one
         total += known[id(p)][0]
         basis = basis or known[id(p)][1]
+    if compiled_s > 0:
+        basis += f"; the drawn cases' model compiled now in {format_duration(compiled_s)}"
     n = len(prepared)
     if cluster:
         workers = 1

@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from hpsim.errors import SimulationError, UserInputError
+from hpsim.extras import install_hint
 
 from vehicle.analysis.summary import report
 from vehicle.results.run import RunInterrupted, run_scenario
@@ -45,8 +46,7 @@ def optuna_module():
     try:
         import optuna
     except ImportError:
-        raise UserInputError("hpsim optimize needs Optuna; install the optional extra: pip install 'hpsim[optimize]'") \
-            from None
+        raise UserInputError(f"hpsim optimize needs Optuna: {install_hint('optimize')}") from None
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     return optuna
 

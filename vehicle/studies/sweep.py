@@ -34,6 +34,7 @@ from hpsim.cancellation import CancelToken
 from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
 from hpsim.errors import SimulationError, Terminated, UserInputError
 from hpsim.outputs import atomic_output
+from hpsim.extras import install_hint
 
 from vehicle.scenario.schema import ScenarioSource, apply_overrides, prepare, read_scenario
 from vehicle.engines.pool import die_with_parent, stop_workers
@@ -170,7 +171,7 @@ def dask_client(address: str):
         from distributed import Client
     except ImportError:
         raise UserInputError("--scheduler: Dask distributed is not installed; install the optional extra: "
-                             "pip install 'hpsim[dask]' (or run without --scheduler for local processes)") from None
+                             f"{install_hint('dask')} (or run without --scheduler for local processes)") from None
     try:
         return Client(address, timeout="20s")
     except Exception as exc:

@@ -559,9 +559,8 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
                        scheduler: str | None = None, parameters: list[str] | None = None,
                        distance: str | None = None, groups: str = "none", per_axle_struts: bool = False,
                        log: Callable[[str], None] | None = None,
-                       before_start: Callable[[object, int], None] | None = None, ensemble: int | None = None) -> dict:
-    """`hpsim uq`: the study of a scenario file's priors with the drive runner. before_start(the nominal case
-    prepared, drives to run) is called before any drive."""
+                       before_start: Callable[[list], None] | None = None, ensemble: int | None = None) -> dict:
+    """`hpsim uq`: a scenario file's priors studied; before_start(a prepared scenario per drive) before any drive."""
     log = log or (lambda m: None)
     src = read_scenario(scenario)
     if distance is not None:
@@ -579,19 +578,21 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     out_dir = Path(output_dir) if output_dir else Path(f"{Path(scenario).stem}_uq")
     check_study_kind(out_dir, "uq")
     runner = DriveRunner(src.data, src.name, str(src.base_dir), params, str((out_dir / "cases").resolve()), distance)
-    # every check before any drive: the nominal case and the first draw must be valid scenarios
-    nominal_case = prepare(ScenarioSource(text="", name=f"{src.name} (nominal case)", base_dir=src.base_dir,
-                           data=case_scenario(src.data, params, {p.name: p.nominal() for p in params}, distance)))
+    # every check before any drive: the nominal case and a typical draw (its model, for the cost preview) are valid
+    nominal_case, typical_case = (prepare(ScenarioSource(text="", name=f"{src.name} ({k})", base_dir=src.base_dir,
+                                  data=case_scenario(src.data, params, {p.name: v(p) for p in params}, distance)))
+                                  for k, v in (("nominal case", Parameter.nominal),
+                                               ("a typical draw", lambda p: p.design_prior().typical())))
     # what the drives are made from: the resolved priors and the hashes of the files the scenario reads (a changed
     # road CSV is another study: its finished cases are not reused, vehicle.results.provenance); the scenario's own
     # content is in `resolved` (after --distance)
     files = provenance.fingerprint(prepare(src))["files"]
     files.pop("scenario", None)
     model = hashlib.sha256(json.dumps([resolved, files], sort_keys=True, default=str).encode()).hexdigest()[:16]
+    preview = None if before_start is None else (lambda n: before_start([nominal_case, *[typical_case] * (n - 1)][:n]))
     summary = run_study(out_dir, params, runner, method=method, samples=samples, seed=seed, groups=groups,
                         workers=workers, scheduler=scheduler, model=model, log=log, label=src.name,
-                        before_start=None if before_start is None else (lambda n: before_start(nominal_case, n)),
-                        ensemble=ensemble)
+                        before_start=preview, ensemble=ensemble)
     summary["scenario"] = str(scenario)
     summary["distance"] = distance
     summary["notes"] = notes

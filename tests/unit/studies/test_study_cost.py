@@ -140,3 +140,74 @@ def test_without_a_recorded_rate_a_short_probe_drive_measures_it(tmp_path, monke
     # 5 km at 20 km/h in steps of 4 ms, at the probe's rate, plus its set-up
     assert est.per_drive_s == pytest.approx(rate["build_s"] + 225000 / rate["steps_per_s"], rel=1e-9)
     assert est.wall_s == pytest.approx(3 * est.per_drive_s)
+
+
+# the solver modes a study can run in, as scenario overrides of the 5 km quick demo; the multiscale layout is the
+# per-axle UQ study's (350 m windows, 30 m warm-ups), its spacing giving the mode's minimum of windows over 5 km
+MODES = {"full": {},
+         "multiscale": {"solver": {"mode": "multiscale", "window": "350 m", "spacing": "1.6 km", "warm_up": "30 m"}},
+         "time_parallel/2": {"solver": {"time_parallel": 2}}}
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_the_preview_appears_in_every_solver_mode_with_no_rate_recorded(mode, tmp_path, monkeypatch, caplog):
+    """No drive recorded in the mode: the probe drive must be a valid scenario of that mode (enough multiscale
+    windows, long enough time-parallel segments) and the study's line is said. The compile cache is the
+    suite's (an empty one is the documented-commands test's)."""
+    import logging
+
+    from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario
+
+    monkeypatch.setattr(drive_rate, "_path", lambda: tmp_path / "drive_rate.json")
+    src = read_scenario(ROOT / "scenarios" / "quick_demo.yaml")
+    data = {**src.data, **{k: {**(src.data.get(k) or {}), **v} for k, v in MODES[mode].items()}}
+    prep = prepare(ScenarioSource(text=src.text, name=src.name, base_dir=src.base_dir, data=data))
+    assert drive_rate.mode_of(prep.scenario) == mode and drive_rate.read(mode) is None
+    with caplog.at_level(logging.INFO, logger="hpsim"):
+        est = cost.estimate([prep] * 3, 1)
+        cost.confirm(est, "hpsim uq", True)
+    assert est is not None and "rate measured now on a probe drive" in est.basis
+    assert re.search(rf"hpsim uq: 3 drives on 1 worker, estimated .* per drive, {re.escape(mode)} mode, rate measured now", caplog.text)
+    rate = drive_rate.read(mode)
+    assert rate is not None and rate["steps_per_s"] > 0
+    # one drive is the set-up plus its steps at the recorded rate: 5 km at 20 km/h in 4 ms steps
+    assert est.per_drive_s == pytest.approx(rate["build_s"] + 225000 / rate["steps_per_s"], rel=1e-9)
+
+
+def test_a_multiscale_drive_integrates_its_windows_share_of_the_road():
+    from vehicle.scenario.schema import Scenario
+
+    base = {"vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D"}, "speed": "20 km/h", "ambient_temperature": "25 degC"}
+
+    def fraction(distance, **solver):
+        return cost.windowed_fraction(Scenario.model_validate({**base, "distance": distance,
+                                                               "solver": {"mode": "multiscale", **solver}}))
+    # 106 km at 5.3 km spacing: 20 windows of 350 m after 30 m of warm-up, 7.6 km of 106 km
+    assert fraction("106 km", window="350 m", spacing="5.3 km", warm_up="30 m") == pytest.approx(20 * 380 / 106e3)
+    # windows back to back: the whole road
+    assert fraction("1140 m", window="350 m", spacing="380 m", warm_up="30 m") == pytest.approx(1.0)
+    full = Scenario.model_validate({**base, "distance": "5 km"})
+    assert cost.windowed_fraction(full) == 1.0
+
+
+def test_a_uq_preview_sees_the_nominal_case_and_a_typical_draw_whose_model_differs(tmp_path):
+    """The per-axle study's nominal drive has no wheel-bay heat source (0 W, a file's zero shapes the compiled
+    model) and every draw has one: the preview is given both, so the draws' model is compiled before the
+    workers start, once."""
+    from vehicle.studies.uq import run_scenario_study
+
+    seen = []
+
+    def stop(cases):
+        seen.extend(cases)
+        raise UserInputError("stopped after the preview")
+
+    with pytest.raises(UserInputError, match="stopped after the preview"):
+        run_scenario_study(ROOT / "scenarios" / "mileage_106km_uq.yaml", samples=3, method="lhs",
+                           output_dir=tmp_path / "uq", distance="16 km", before_start=stop)
+    assert len(seen) == 4 and seen[1] is not seen[0] and all(c is seen[1] for c in seen[2:])
+
+    def heat_source_W(case):
+        return [float((a.heat.heat_source if a.heat else None) or 0.0) for a in case.vehicle.axles]
+    assert heat_source_W(seen[0]) == [0.0] * 4
+    assert all(q > 0 for q in heat_source_W(seen[1]))

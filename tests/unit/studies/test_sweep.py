@@ -168,7 +168,7 @@ def test_scheduler_without_dask_is_a_clear_error(tmp_path, capsys, monkeypatch):
     code = cli.main(["sweep", str(tmp_path / "sweep.yaml"), "--scheduler", "tcp://127.0.0.1:8786",
                      "-o", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 2 and "hpsim[dask]" in err and "Traceback" not in err
+    assert code == 2 and 'pip install -e ".[dask]"' in err and "Traceback" not in err
 
 
 # --- interrupting a sweep -----------------------------------------------------------------------------

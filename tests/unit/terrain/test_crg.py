@@ -97,7 +97,7 @@ def test_import_and_scenario_use_the_same_tracks(crg_file, tmp_path, capsys):
 def test_without_the_library_the_message_names_the_extra(crg_file, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "pycrg", None)
     assert cli.main(["road", "import", str(crg_file[0]), "-o", str(tmp_path / "r.csv")]) == 2
-    assert 'pip install "hpsim[crg]"' in capsys.readouterr().err
+    assert 'pip install -e ".[crg]"' in capsys.readouterr().err
 
 
 # -- lateral placement: the vehicle's centre line at v = lateral_offset (OpenCRG's v positive to the left) --------
