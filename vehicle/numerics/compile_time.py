@@ -1,4 +1,4 @@
-"""How long compiling the vehicle model will take, said before it starts (issue 20).
+"""How long compiling the vehicle model will take, said before it starts.
 
 The compiler's time grows with the size of the generated C. Every batch of builds records its
 rate, bytes of C per second of one compiler, in the cache (`compile_rate.json` beside the
