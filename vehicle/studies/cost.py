@@ -1,4 +1,4 @@
-"""What a study will cost, said before it starts (issue 20): the number of drives and an estimated wall time.
+"""What a study will cost, said before it starts: the number of drives and an estimated wall time.
 
 The estimate comes from this machine's measured drive rate (vehicle.numerics.drive_rate: integration
 steps per second of wall and the set-up time of a drive with the model cached, recorded by every
@@ -9,10 +9,12 @@ need anyway.
     per drive  = build_s + (simulated time / dt) / steps_per_s
     wall       = drives x per drive / (workers x efficiency)
 
-with the parallel efficiency measured for sweeps on the 2-core development machine (README: 0.65 per
-worker on 2 workers); one worker: 1. It leaves out the compile of a cold cache (announced when it
+with the parallel efficiency of sweeps on 2 workers (PARALLEL_EFFICIENCY, from benchmarks/sweep_scaling.py);
+one worker: 1. It leaves out the compile of a cold cache (announced when it
 happens) and process start-up. A rate measured at another machine load than now (a shared machine) is
-said beside the estimate, with the factor the CPU shares suggest. At a terminal (stdin a tty) a study estimated above CONFIRM_ABOVE_S asks
+said beside the estimate, with the factor the CPU shares suggest.
+
+At a terminal (stdin a tty) a study estimated above CONFIRM_ABOVE_S asks
 before it starts; `--yes` skips the question, and a study started by a script never asks.
 """
 from __future__ import annotations
@@ -31,7 +33,7 @@ from vehicle.results.run import run_in_memory
 
 LOG = logging.getLogger("hpsim")
 PROBE_DISTANCE_M = 200.0        # long enough for a few blocks of output, short enough to cost a few seconds
-PARALLEL_EFFICIENCY = 0.65      # per worker on 2 workers (README "Sweeps"); measured for sweeps
+PARALLEL_EFFICIENCY = 0.65      # per worker on 2 workers: benchmarks/sweep_scaling.py on a 2-core machine
 CONFIRM_ABOVE_S = 300.0         # five minutes: longer than a user at a terminal waits without having been told
 
 
