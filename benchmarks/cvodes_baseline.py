@@ -1,7 +1,7 @@
 """The baseline a careful engineer writes first: the same vehicle model under SUNDIALS CVODES (variable-order
 BDF, Newton with the exact Jacobian by CasADi AD, right-hand side and Jacobian compiled to C by CasADi's
 JIT), against the production engine (compiled fixed-step ROS2, 4 ms), both checked against a tight
-reference (ROS2 at 1 ms), in one run (issue 11 §4).
+reference (ROS2 at 1 ms), in one run.
 
     python benchmarks/cvodes_baseline.py [--distance 200m] [--rtol 3e-3] [--atol 3e-5] [--json]
 

@@ -77,7 +77,7 @@ def main(argv=None):
 
     baseline = None
     if args.baseline:
-        # the engine as it was when issue 11 was filed, on the same model and road, serial, no sink (what a drive
+        # the baseline engine (Ros2(engine="baseline")), on the same model and road, serial, no sink (what a drive
         # costs without the results file: the serial and parallel runs below write into memory, a small difference)
         from vehicle.numerics.solvers import Ros2
         from vehicle.engines.full import Drive
