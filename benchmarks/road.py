@@ -10,7 +10,7 @@ Stages (class D, two isotropic-coherent tracks, 5 cm spacing, seed 7):
   statistics road_statistics (Welch, fits, coherence, IRI of both tracks)
   csv        Road.to_csv (optional, --csv)
   casadi     Road.casadi_function for one track (optional, --casadi)
-and the issue's targets for 106 km: generate + envelope < 3 s, evaluate(1e6) < 0.5 s.
+and the targets for 106 km: generate + envelope < 3 s, evaluate(1e6) < 0.5 s.
 
 Time is wall-clock (best of --repeat runs); peak memory is the tracemalloc peak of the stage
 (NumPy reports its buffers to tracemalloc) measured in a separate run, plus the process's
