@@ -1,4 +1,4 @@
-"""The whole `hpsim run` command, full against multiscale, end to end (issue 26: "the whole command, not only the
+"""The whole `hpsim run` command, full against multiscale, end to end ("the whole command, not only the
 integration").
 
     python benchmarks/command.py [--repeat 3] [--json]

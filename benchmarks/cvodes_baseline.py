@@ -1,15 +1,13 @@
 """The baseline a careful engineer writes first: the same vehicle model under SUNDIALS CVODES (variable-order
 BDF, Newton with the exact Jacobian by CasADi AD, right-hand side and Jacobian compiled to C by CasADi's
 JIT), against the production engine (compiled fixed-step ROS2, 4 ms), both checked against a tight
-reference (ROS2 at 1 ms), in one run (issue 11 §4).
+reference (ROS2 at 1 ms), in one run.
 
     python benchmarks/cvodes_baseline.py [--distance 200m] [--rtol 3e-3] [--atol 3e-5] [--json]
 
-Measured over 200 m (heat-network model, one run each, 4 ms engine: 0.0008 K, dissipated energy
-0.44 % off the reference): rtol 3e-3 (default) 36x the engine's integration time and slightly more
-accurate (0.0002 K, 0.30 %); rtol 1e-2 25x but 8.9 % off in dissipated energy; rtol 1e-3 44x.
-Equal accuracy lies between 3e-3 and 1e-2: 25-36x. The JIT compilation of the right-hand side and
-its Jacobian takes another ~50-110 s (not in the ratio).
+Printed: each solver's integration time, their ratio and the errors against the reference; the JIT
+compilation of the right-hand side and its Jacobian is timed apart (not in the ratio). The figures of the
+default rtol 3e-3 and of 1e-2, between which equal accuracy lies, are in docs/validation.md.
 
 The explicit-ODE form: the valve pressure drops are eliminated inside the right-hand side by the
 struts' bracketed Newton solve from a cold start (`valve_pressure_drop`, --newton iterations), because

@@ -1,20 +1,23 @@
-"""Today's engine against the engine of issue 11's filing, on the same model, in one run.
+"""The production engine against the baseline engine kept for comparison, on the same model, in one run.
 
     python benchmarks/engine.py [--distance 10km] [--jacobian-every 1,5] [--no-reference] [--json]
     python benchmarks/engine.py --distance 106km          # the mileage drive (minutes; the 1 ms reference too)
 
 The drive: the apc_8x8 on ISO class D (seed 0) at 20 km/h, 25 degC, output every 1 s, statistics every 1 km
-(the mileage scenario's settings; --distance 106km is the mileage drive). Engines, all `vehicle.numerics.solvers.Ros2`
+(the mileage scenario's settings; --distance 106km is the mileage drive).
+
+Engines, all `vehicle.numerics.solvers.Ros2`
 at --dt (4 ms) on the same model, road and settings:
-  baseline     Ros2(engine="baseline"): the engine as it was when issue 11 was filed (commit 18a58c4): the
-               parameter values baked into the code, no common-subexpression elimination, the steps of a sample
-               folded, the block outputs evaluated in CasADi's virtual machine;
-  current      Ros2(): the production engine (parameters as inputs, CSE, unrolled steps, compiled outputs);
-  current_jK   Ros2(jacobian_every=K) for each K > 1 of --jacobian-every: W and its LU made every K steps;
+  baseline     Ros2(engine="baseline"): the simplest compiled engine, kept as the yardstick. The
+               parameter values are baked into the code, with no common-subexpression elimination, the steps of a
+               sample folded, the block outputs evaluated in CasADi's virtual machine.
+  current      Ros2(): the production engine (parameters as inputs, CSE, unrolled steps, compiled outputs).
+  current_jK   Ros2(jacobian_every=K) for each K > 1 of --jacobian-every: W and its LU made every K steps.
   reference    Ros2() at --reference-dt (1 ms): the step error is second order, 16x below the 4 ms one.
+
 Per engine: the build (symbolic step, code generation, compilation; cold cache unless --warm-cache), the drive's
 wall time (Drive.run: integration plus the per-block work in Python; the engines' drives run block by block in
-turn, so that the machine's load weighs on all alike), the integration time alone, the cost of one
+turn, so that the machine's load weighs on all alike) and the integration time alone. Then the cost of one
 step (us/step: the compiled block function on one block of inputs, repeated --repeats times interleaved over the
 engines, minimum and median), and the accuracy against the reference: per axle (mean of left and right) the final
 strut surface temperature [K] and the standing wheel-load change before -> after the drive [pp], largest error over

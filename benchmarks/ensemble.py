@@ -1,4 +1,4 @@
-"""The ensemble engine (vector lanes across cases) against the scalar engine, side by side in one run (issue 26).
+"""The ensemble engine (vector lanes across cases) against the scalar engine, side by side in one run.
 
     python benchmarks/ensemble.py [--distance 2km] [--lanes 4] [--isa avx2] [--cases mileage] [--no-callgrind] [--json]
 
@@ -7,10 +7,12 @@ The drive: the mileage scenario's settings (apc_8x8, ISO class D, 4 ms step, out
 default) speed, 18-24 km/h; --cases mileage: all at the mileage test's 20 km/h, as the cases of a study of the
 mileage test are. With mixed speeds a lane whose drive ends first is masked until the slowest one ends (it costs
 as much as a used lane): the ensemble's figures then include that waste, as a study's group of unlike drives does.
-Printed, for the engine before vehicle.numerics.vector_math (`libm_block`: CasADi's C calling the C library's
-exp/log/pow/tanh, the engine of the issue's filing), today's scalar engine (`Ros2`, each case on its own, its calls
-batched into vector calls) and the ensemble (`vehicle.engines.ensemble`, the cases in lockstep through
-`vehicle.numerics.lanes`):
+
+Three engines are compared. `libm_block` is the scalar engine without vehicle.numerics.vector_math: CasADi's C
+calling the C library's exp/log/pow/tanh. `Ros2` is the production scalar engine (each case on its own, its calls
+batched into vector calls). The ensemble (`vehicle.engines.ensemble`) runs the cases in lockstep through
+`vehicle.numerics.lanes`. Printed for each:
+
   instructions per lane-step   callgrind's count of the block function alone on one block of 250 steps (the
                                scalar engine's block for one case, the lanes' block for all lanes, divided by the
                                lanes): independent of the machine's load (valgrind runs AVX2, not AVX-512);
@@ -79,8 +81,9 @@ def block_inputs(lanes: int):
 
 
 def libm_block(model, solver):
-    """The scalar block function as it was built before vehicle.numerics.vector_math: CasADi's C calling the C
-    library's exp, log, pow and tanh (the engine of the issue's filing, flags as today): (function, library)."""
+    """The scalar block function without vehicle.numerics.vector_math: (function, library).
+
+    CasADi's C calls the C library's exp, log, pow and tanh; the compiler flags are the production engine's."""
     import casadi as ca
 
     from vehicle.numerics.codegen import compile_c, generate_c

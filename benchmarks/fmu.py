@@ -1,5 +1,5 @@
 """The FMUs of `hpsim export fmu` (docs/fmu.md): their sizes, their speed against the same model in hpsim, and the
-strut's heat output over the issue's 10 min rig test.
+strut's heat output over a 10 min rig test.
 
     python benchmarks/fmu.py [--json] [--distance 1km] [--minutes 10]
 

@@ -10,7 +10,7 @@ Stages (class D, two isotropic-coherent tracks, 5 cm spacing, seed 7):
   statistics road_statistics (Welch, fits, coherence, IRI of both tracks)
   csv        Road.to_csv (optional, --csv)
   casadi     Road.casadi_function for one track (optional, --casadi)
-and the issue's targets for 106 km: generate + envelope < 3 s, evaluate(1e6) < 0.5 s.
+and the targets for 106 km: generate + envelope < 3 s, evaluate(1e6) < 0.5 s.
 
 Time is wall-clock (best of --repeat runs); peak memory is the tracemalloc peak of the stage
 (NumPy reports its buffers to tracemalloc) measured in a separate run, plus the process's
@@ -98,7 +98,7 @@ def run(length: str, repeat: int, with_csv: bool, with_casadi: bool) -> dict:
 
 
 def targets(repeat: int) -> dict:
-    """The issue's performance targets on 106 km."""
+    """Road generation and evaluation on 106 km against their targets: 3 s to generate and envelope, 0.5 s per 1e6 points."""
     spec = RoadSpec(iso_class="D", length="106 km", seed=7)
     best_gen = float("inf")
     for _ in range(repeat):

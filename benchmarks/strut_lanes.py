@@ -1,4 +1,4 @@
-"""Lanes across the struts of one drive (issue 26 item 2): the split step against the whole step, side by side.
+"""Lanes across the struts of one drive (docs/engines.md): the split step against the whole step, side by side.
 
     python benchmarks/strut_lanes.py [--steps 20000] [--repeats 5] [--vehicle apc_8x8]
 

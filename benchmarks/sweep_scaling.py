@@ -1,4 +1,4 @@
-"""Sweep scaling: the same cases run with 1 and with 2 workers (issue 11 §4).
+"""Sweep scaling: the same cases run with 1 and with 2 workers.
 
     python benchmarks/sweep_scaling.py [--cases 4] [--distance 2km] [--workers 2] [--json]
 

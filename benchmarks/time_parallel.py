@@ -14,7 +14,8 @@ Printed: drive wall time of each (the summary's wall_s: without building the mod
 their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
 temperature and wheel-load change differences (time-parallel - serial), without the correction for the
 temperatures, and the run's own a-posteriori estimate; with --reference-dt every run's largest per-axle error
-of the final strut temperature and the load change against the serial run at that step (the issue's 1 ms). On a machine shared with other work the wall ratio
+of the final strut temperature and the load change against the serial run at that step (e.g. 1 ms).
+On a machine shared with other work the wall ratio
 understates what P free cores give: the CPU sum says how much work was done.
 """
 from __future__ import annotations
@@ -77,7 +78,7 @@ def main(argv=None):
 
     baseline = None
     if args.baseline:
-        # the engine as it was when issue 11 was filed, on the same model and road, serial, no sink (what a drive
+        # the baseline engine (Ros2(engine="baseline")), on the same model and road, serial, no sink (what a drive
         # costs without the results file: the serial and parallel runs below write into memory, a small difference)
         from vehicle.numerics.solvers import Ros2
         from vehicle.engines.full import Drive

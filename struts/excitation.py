@@ -9,9 +9,9 @@ so the strut estimates one from its own motion with smooth states that a 4 ms st
 
   omega_eq^2 = (s_v + (omega_0 d_0)^2) / (s_x + d_0^2),   f_eq = omega_eq / (2 pi)
 
-For x = x_0 + A sin(omega t) the mean squares are A^2 omega^2 / 2 and A^2 / 2, so omega_eq = omega exactly
-(up to the filters' ripple at 2 omega, attenuated by (1 + (2 omega tau)^2) per stage: 0.6 % per stage at
-0.5 Hz with tau = 2 s, and the moving mean's ripple A / (2 omega tau)). On random motion omega_eq is the
+For x = x_0 + A sin(omega t) the mean squares are A^2 omega^2 / 2 and A^2 / 2, so omega_eq = omega exactly,
+up to the filters' ripple. That ripple is at 2 omega, attenuated by (1 + (2 omega tau)^2) per stage (0.6 % per
+stage at 0.5 Hz with tau = 2 s), plus the moving mean's ripple A / (2 omega tau). On random motion omega_eq is the
 "mean-square frequency" sqrt(int omega^2 S(omega) / int S(omega)) of the deflection's spectrum (for Gaussian
 motion 2 pi times Rice's rate of up-crossings of the mean), a smooth, bounded quantity. At rest (s_v, s_x << d_0^2) it reads omega_0
 (the lowest frequency of the strut's maps, `deflection_floor` d_0): small motions are keyed on the slowest

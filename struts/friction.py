@@ -83,8 +83,8 @@ def seal_friction(v, x, p, *, F0_comp, F0_reb, f_p, K_brk, v_s, f_v, eps, v_h_co
     Per stroke direction (seed 001 §5.2, Fig. 11b-c): K_brk and v_s are the compression values and K_brk_reb,
     v_s_reb (default: the same) the rebound ones. Reversal memory: stroke_dir (in [-1, 1], the state of
     `stroke_direction_rate`: +1 after a compression stroke, -1 after a rebound one) replaces sgn(x) as the
-    direction of the stroke before the reversal, so the band needs no centre and works on any motion; on a
-    sinusoid it is sgn(x) wherever the band is active (the old band exactly). eps_x is then not used.
+    direction of the stroke before the reversal, so the band needs no centre and works on any motion. On a
+    sinusoid it is sgn(x) wherever the band is active (the sgn(x) band exactly). eps_x is then not used.
     """
     K_reb = K_brk if K_brk_reb is None else K_brk_reb
     v_s_r = v_s if v_s_reb is None else v_s_reb

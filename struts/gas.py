@@ -76,7 +76,7 @@ def _source(entry) -> str:
 
 def load_gas(name: str = "nitrogen") -> GasProperties:
     """Load gas properties from the package file struts/data/<name>.yaml (read once per process: every strut of
-    every model built asks for them, and the YAML takes ~15 ms to parse; the properties are frozen)."""
+    every model built asks for them, and parsing YAML is slow next to a lookup; the properties are frozen)."""
     if isinstance(name, str) and name in _LOADED:
         return _LOADED[name]
     gas = _read_gas(name)

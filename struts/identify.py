@@ -8,9 +8,9 @@ F - p_c A_c + p_r (A_c - A_r), seed 001 eq. 1, which is how the paper obtained i
 
 1.-2. gas fraction gamma_0 and discharge coefficients C_b, C_v together (eq. 6, 8-12): the flow into the rod
    chamber, q = (rho_r/rho_m)(A_a v + V_r kappa_r dp_r/dt) by its continuity (eq. 6), against eq. 12 at the
-   loop's dp, least squares over the loop. gamma_0 acts through the compressibility kappa_r (eq. 11), i.e. through
+   loop's dp, least squares over the loop. The gas fraction gamma_0 acts through the compressibility kappa_r (eq. 11), i.e. through
    the pressure-difference hysteresis, as the paper identified it from the hysteresis at higher frequency. The gas
-   law is not used, so a strut whose gas does not follow eq. 4 is identified all the same; the loops must come from
+   law is not used, so a strut whose gas does not follow eq. 4 is identified all the same. The loops must come from
    chambers with their pressures as states (eq. 5-7 as written: `--chambers compressible`);
 3. friction (eq. 2-3): Coulomb and peak levels, Stribeck coefficients and transition velocities per stroke, least
    squares of `struts.friction.seal_friction` against f.

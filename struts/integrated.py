@@ -1,6 +1,7 @@
 """The integrated hydropneumatic strut of seed 001 (Yin et al. 2023): shared gas-oil chamber.
 
-Two chambers coupled by bleed orifices, check valves and leakage past the guide rings:
+Two chambers coupled by bleed orifices, check valves and leakage past the guide rings.
+
   c  piston-side chamber: free nitrogen on top of a gas-oil emulsion, pressure p_c
   r  annular rod-side chamber: emulsion only, pressure p_r
 Force (seed 001 eq. 1): F = p_c A_c - p_r (A_c - A_r) + f, with f the asymmetric seal friction
@@ -22,7 +23,7 @@ States (same interface as `struts.model.SeparatedStrut`):
 Internal parameters (seed 001 §5.2, `struts.maps`, `StrutBase.internal_parameters`): the gas fraction gamma_0,
 the bleed and check discharge coefficients and the friction's per-stroke Coulomb, peak, Stribeck and transition
 values are the file's constants or, with `internal_maps:`, functions of T_wall and the excitation frequency.
-A gas fraction that follows the excitation changes the emulsion's compressibility and density at once; the slow
+A gas fraction that follows the excitation changes the emulsion's compressibility and density at once. The slow
 change of the emulsion's volume it implies (N (gamma_1 - gamma_0) ((p0/p)^(1/n) - 1) / (1 + gamma): about 1 cm^3
 from 0.6 to 1.2 % at the rig's 2.4 MPa, 3 cm^3 at 20 MPa, against a free-gas volume of about 0.4 L) is not moved
 into the gas balance.
@@ -31,52 +32,53 @@ Both V_gas and p_r are stiff (time constants ~ 0.1-2 ms): `stiff_state_names`. W
 
 Emulsion (seed 001 eq. 8-10, `struts.oil`): the liquid in each chamber is oil with entrained gas
 of volume fraction gamma(p) (eq. 9) and density rho(p) = rho_h / ((1 - (p - p0)/beta_h)(1 + gamma))
-(eq. 10), i.e. a specific volume nu(p) = rho_h/rho = (1 - (p - p0)/beta_h) + gamma0 (p0/p)^(1/n)
-(the oil and gas volumes of eq. 8 per unit oil volume). The chamber compliance is V (-nu'/nu):
+(eq. 10). That is a specific volume nu(p) = rho_h/rho = (1 - (p - p0)/beta_h) + gamma0 (p0/p)^(1/n)
+(the oil and gas volumes of eq. 8 per unit oil volume). The chamber compliance is V (-nu'/nu),
 the exact derivative of the eq. 8 volumes, 1/beta = (1/beta_h + a gamma/(n p)) / (a (1 + gamma)),
 a = 1 - (p - p0)/beta_h. Seed 001 eq. 11 is the same with a -> 1 in the oil term (differs by
-(p - p0)/beta_h < 0.5 %); using the exact derivative makes the continuity equations conserve the
+(p - p0)/beta_h < 0.5 %). Using the exact derivative makes the continuity equations conserve the
 emulsion mass exactly, so the strut returns to the same static state after any motion and stores
 no energy over a closed cycle (eq. 11 would let the chamber pressures drift slowly over the
 ~1e5 cycles of a drive).
 
 Continuity (seed 001 eq. 5-7), mass flow m_dot = rho_mean q from c to r, q the volumetric flow of
 seed 001 eq. 12 at the mean emulsion density (bleed orifices, check valves opening for p_c > p_r,
-leakage; `struts.valves.valve_flow` with the check-valve area weighted by C_v/C_b):
+leakage; `struts.valves.valve_flow` with the check-valve area weighted by C_v/C_b).
+
   chamber c:  V_e = V_c0 + V_gas,0 - A_c x - V_gas (emulsion volume), V_e/beta_c dp_c/dt + dV_e/dt = -m_dot/rho_c
   chamber r:  V_r = V_r0 + (A_c - A_r) x,                   V_r/beta_r dp_r/dt + dV_r/dt = +m_dot/rho_r
 with dp_c/dt = b dV_g/dt + a_th along the gas process (polytropic: b = -n p_c/V_g, a_th = 0;
 energy: b = ((dp/dv)_T - T (dp/dT)_v^2/c_v)/m, a_th = (dp/dT)_v (T_w - T)/tau).
 
 Energy: power_valve = dp q (bleed + check + leakage), power_friction = f v, power_end_stop = end
-stop damping force times v, heat_gas = heat flow gas -> wall (0 for the polytropic gas),
-gas_work_rate = mechanical power into the compressible contents (free gas and emulsion of both
+stop damping force times v, heat_gas = heat flow gas -> wall (0 for the polytropic gas). The
+gas_work_rate is the mechanical power into the compressible contents (free gas and emulsion of both
 chambers) = (p_c A_c - p_r (A_c - A_r)) v + p_c r_ext - power_valve, where r_ext is the oil volume
 pushed into chamber c by thermal expansion and levelling. So force x velocity = power_valve +
-power_friction + gas_work_rate + end stop power at every instant; over a periodic cycle the
+power_friction + gas_work_rate + end stop power at every instant. Over a periodic cycle the
 gas_work_rate integrates to the gas heat loss (0 for the polytropic gas, up to the O((dp/beta)^2)
 difference between dp q and the exact flow dissipation).
 
 Quasi-steady chambers (valve.oil_model: quasi_steady, the yin2023 default). The pressure difference
 p_c - p_r relaxes through the valves with the time constant tau = C_eff / (dq/d dp) (`chamber_time_constant`;
-C_eff ~ C_r = V_r kappa, the rod chamber's emulsion compliance, in series with chamber c's gas and emulsion),
-0.1-2 ms for this strut (longest at large rebound flows, where the orifice conductance dq/d dp = q/(2 dp) is
-smallest). With a small parameter eps = C_r (singular perturbation) the fast variable is dp = p_c - p_r; at
+C_eff ~ C_r = V_r kappa, the rod chamber's emulsion compliance, in series with chamber c's gas and emulsion).
+It is 0.1-2 ms for this strut (longest at large rebound flows, where the orifice conductance dq/d dp = q/(2 dp) is
+smallest). With a small parameter eps = C_r (singular perturbation) the fast variable is dp = p_c - p_r. At
 leading order its rate term C_r d(dp)/dt is dropped while the common-mode storage is kept, i.e. the emulsion of
 both chambers is compressed at p_c:
   dV_gas/dt = (A_r v + C b r_ext - C a_th) / (C b - 1),   C = (V_e + V_r) kappa(p_c)
 (chamber c's equation with both chambers' compliance and no valve flow: the strut is one chamber for its
-volume), and the valves pass what chamber r takes in,
+volume). The valves pass what chamber r takes in,
   q = (A_c - A_r) v + C_r dp_c/dt,   dp_c/dt = b (dV_gas/dt - r_ext) + a_th,
 with dp the algebraic variable of valve_flow(dp) = q (seed 001 eq. 12 at the emulsion density at p_c) and
 p_r = p_c - dp. States: V_gas (and T_gas, z_bristle); dp_valve algebraic, eliminated by warm Newton on the
 vehicle as the separated strut's is (`valve_demand`). Properties: the slow manifold is the static curve (dV_gas/dx
-is the slope of the static V_g(x), so no pumping, the gas and emulsion store reversibly); the dissipation is
+is the slope of the static V_g(x), so no pumping, the gas and emulsion store reversibly). The dissipation is
 power_valve = dp (A_c - A_r) v (force work minus that reversible storage: the energy balance of the reduced model
-closes exactly), which differs from the orifice's dp q by the chamber-r compression flow, a fraction
+closes exactly). It differs from the orifice's dp q by the chamber-r compression flow, a fraction
 C_r |b| A_r / ((A_c - A_r)(1 + C |b|)) of it (0.3 % at the rig's 3 MPa, 2 % at 22 MPa). Validity: omega tau << 1
-at the frequencies of the motion; the rig loops agree with the compressible chambers within 0.3 % in energy and
-1.5 % of the force range at 10 mm up to 8 Hz (omega tau <= 0.05); at 20 mm and 8 Hz (omega tau 0.1, peak flow
+at the frequencies of the motion. The rig loops agree with the compressible chambers within 0.3 % in energy and
+1.5 % of the force range at 10 mm up to 8 Hz (omega tau <= 0.05). At 20 mm and 8 Hz (omega tau 0.1, peak flow
 1 m/s) the force differs by 15 % of its range around the reversals. Lost: the emulsion's pressure-difference
 hysteresis of seed 001 §5.1, an O(omega tau) effect. Why it exists: a 4 ms vehicle step cannot follow a
 0.1-2 ms relaxation; the compressible chambers' ROS2 stages overshoot it and the drive leaves physics

@@ -140,7 +140,7 @@ def valve_flow(dp_Pa, *, cd, rho, p_crit, bleed_area, check_area_max, check_dp_c
 
     Bleed orifice (always open) + check valve (opens for dp > 0, compression) + one relief
     (blow-off) valve per direction: the areas add and the sum passes through `orifice_flow`
-    (cd, rho [kg/m^3], p_crit [Pa]); plus laminar leakage k_leak [m^3/(Pa s)] (seed 001 eq. 12,
+    (cd, rho [kg/m^3], p_crit [Pa]). Laminar leakage k_leak [m^3/(Pa s)] is added (seed 001 eq. 12,
     REFERENCE §7). check_p_crit [Pa]: the check valve's own laminar-turbulent transition
     (`struts.orifice`), its area then passing through its own orifice law. Odd-like and strictly
     increasing in dp (for bleed_area > 0).

@@ -123,10 +123,11 @@ class Results:
         return text
 
     def ride(self) -> dict:
-        """Ride and road holding over the drive (what `hpsim report` tables and `--json` "ride" hold): per seat
-        the ISO 2631-1 weighted RMS accelerations (Wk vertical, Wd lateral), comfort band, VDV and absorbed
+        """Ride and road holding over the drive (what `hpsim report` tables and `--json` "ride" hold).
+
+        Per seat: the ISO 2631-1 weighted RMS accelerations (Wk vertical, Wd lateral), comfort band, VDV and absorbed
         power, and from series stored densely enough the crest factor, MTVV and ISO 2631-5 spinal dose (Sed, per
-        drive and per day; vehicle.physics.shocks); per station the dynamic load coefficient, lift-off share, end-stop time and energy, strut
+        drive and per day; vehicle.physics.shocks). Per station: the dynamic load coefficient, lift-off share, end-stop time and energy, strut
         travel min/max/percentiles and histogram (vehicle.analysis.ride_metrics)."""
         return summarise(self.view)
 
@@ -219,11 +220,19 @@ class Vehicle:
 class Simulation:
     """A scenario (file or mapping) with overrides, validated at construction.
 
-    scenario: a path to a scenario file, or a mapping of scenario keys (copied now: changing it later does not change
-    this Simulation). overrides: a mapping of scenario key paths to values. base_dir: the folder relative file paths
-    of a mapping refer to (road and speed CSVs, vehicle and strut files; default: the working directory now); a
-    file's paths refer to its own folder. vehicle: a Vehicle, a built-in name or a vehicle file, replacing the
-    scenario's vehicle (keeping its vehicle overrides); a mapping may also hold a Vehicle as its `vehicle`."""
+    Parameters
+    ----------
+    scenario
+        A path to a scenario file, or a mapping of scenario keys (copied now: changing it later does not change
+        this Simulation).
+    overrides
+        A mapping of scenario key paths to values.
+    base_dir
+        The folder relative file paths of a mapping refer to (road and speed CSVs, vehicle and strut files;
+        default: the working directory now). A file's paths refer to its own folder.
+    vehicle
+        A Vehicle, a built-in name or a vehicle file, replacing the scenario's vehicle (keeping its vehicle
+        overrides). A mapping may also hold a Vehicle as its `vehicle`."""
 
     def __init__(self, scenario: str | Path | Mapping, overrides: Mapping[str, Any] | None = None, *,
                  base_dir: str | Path | None = None, vehicle: "Vehicle | str | Path | None" = None):

@@ -1,4 +1,4 @@
-"""How the struts' damping and friction moved with temperature over a drive (issue 21; seed 001 §5.2).
+"""How the struts' damping and friction moved with temperature over a drive (seed 001 §5.2).
 
 Per axle (mean of left and right), for the first and the last statistics interval of the drive:
   T_oil_C             the oil node's mean temperature [degC] (the strut's body temperature of the maps)

@@ -17,9 +17,9 @@ filter states and quadratures, vehicle.physics.ride), under these drive keys:
     rms_strut_velocity_m_per_s, rms_hull_acceleration   (as before)
 
 Over the drive: a_w = sqrt(sum T_i a_w,i^2 / T) (ISO 2631-1 eq. 1 over the whole time); VDV =
-(sum VDV_i^4)^(1/4) (ISO 2631-1 §6.3.2); P = sum T_i P_i / T; DLC = sqrt(sum T_i DLC_i^2 / T),
-exact when the mean tyre load is the same in every interval (it is the static load);
-shares time-weighted; end-stop time and energy summed; travel min/max over the rows and travel
+(sum VDV_i^4)^(1/4) (ISO 2631-1 §6.3.2); P = sum T_i P_i / T; DLC = sqrt(sum T_i DLC_i^2 / T).
+The DLC is exact when the mean tyre load is the same in every interval (it is the static load). Shares are
+time-weighted; end-stop time and energy summed; travel min/max over the rows and travel
 percentiles from the summed histogram. Rows or keys a run did not store are left out.
 """
 from __future__ import annotations

@@ -7,7 +7,7 @@
     hpsim calibrate                                  calibrate.py
     hpsim optimize                                   optimize.py
 
-User errors (bad argument, bad file) print one line and exit with code 2; SIGTERM ends a command with
+User errors (bad argument, bad file) print one line and exit with code 2. SIGTERM ends a command with
 one line and exit code 143 after stopping what it started (compilers, study workers). -v / -q (before or after
 the command) set how much is logged to stderr (`logging`, logger "hpsim"): -q only warnings and
 errors, no progress bar; -v also debug details. Output cut short by its reader (`hpsim report x.h5
@@ -152,9 +152,9 @@ def entry() -> None:
     """The `hpsim` command (the console script, `python -m vehicle.cli`): `main`, then the process ends without
     Python's teardown of every module and object. What must happen at exit still does: the output streams are
     flushed and the atexit handlers run (logging, temporary folders, multiprocessing's children, a private compile
-    cache); freeing the objects of numpy, SciPy, CasADi, h5py and hpsim one by one, which the operating system does
-    at once when the process ends, is skipped: it took 0.12-0.2 s of every command (the same reason as Instagram's
-    `atexit.register(os._exit, 0)`). An error that `main` does not handle (a bug) ends as Python ends: traceback,
+    cache). Freeing the objects of numpy, SciPy, CasADi, h5py and hpsim one by one, which the operating system does
+    at once when the process ends, is skipped: it is a noticeable part of a short command's time (the same reason
+    as Instagram's `atexit.register(os._exit, 0)`). An error that `main` does not handle (a bug) ends as Python ends: traceback,
     exit code 1. The BLAS library is asked for one thread (`hpsim.threads.one_blas_thread`)."""
     one_blas_thread()
     try:

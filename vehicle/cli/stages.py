@@ -1,4 +1,4 @@
-"""The command's own wall time, for the line `hpsim run` ends with (issue 20: the time printed is the command's).
+"""The command's own wall time, for the line `hpsim run` ends with: the time printed is the command's.
 
 `command_wall_s()` counts from the process start (Linux: /proc/self/stat, so the imports count too),
 else from the first import of the command line package.

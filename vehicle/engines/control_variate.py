@@ -44,9 +44,9 @@ def station_patterns(position_m: np.ndarray, side: np.ndarray) -> np.ndarray:
     and the side difference (+1 left, -1 right) in turn, the polynomials 1, x, x^2, ... in the station's
     longitudinal position x (Gram-Schmidt, the vehicle's mean first), as many as there are distinct positions.
     The first is the vehicle's mean (heave-like), the second linear in x (pitch-like), the side difference
-    roll-like; the higher ones are the patterns a rigid hull cannot follow, the ones the standing vehicle's
-    wheel loads respond to (106 km test: the load sensitivity to a uniform or a linear oil temperature pattern is
-    1-3 % of that to a single strut's). The identity if the stations do not give n independent patterns."""
+    roll-like. The higher ones are the patterns a rigid hull cannot follow, the ones the standing vehicle's
+    wheel loads respond to: its loads hardly change with a uniform or a linear oil temperature pattern
+    (docs/engines.md, "Control variate"). The identity if the stations do not give n independent patterns."""
     x = np.asarray(position_m, float)
     x = x - x.mean()
     n = x.size
@@ -72,8 +72,9 @@ def stratified_error_covariance(Q: np.ndarray, own: np.ndarray, Cb: np.ndarray, 
     covariance of one window's forcing. Stratum k's estimate takes the window's value for the stretch's,
     error e_w,k - e_s,k. With the control variate (Mb (ns, ns): how the final state moves with the slopes,
     `WindowEstimator.control_variate`; H (ns, nw): slope_j = H_j . y_j) each stratum also carries
-    beta_hat - beta = sum_k H_k o e_w,k, so window k's own residual enters twice, in its stratum and in the
+    beta_hat - beta = sum_k H_k o e_w,k. So window k's own residual enters twice, in its stratum and in the
     slope (R_k = Mb diag(H_k)):
+
         error = sum_k (Q_k + R_k) e_w,k - Q_k e_s,k
         Cov   = sum_k own_k Q_k Cb Q_k^T + (Q_k + R_k) Cb (Q_k + R_k)^T
     = the strata's own terms (1 + L/tu) Q Cb Q^T, the slope's error Mb (Cb o H H^T) Mb^T, and the covariance of
@@ -120,7 +121,7 @@ def road_spectrum(roads: np.ndarray) -> tuple:
 def strut_velocity_from_spectrum(H_of_f, spectrum: tuple, rate_hz: float, n_frequencies: int) -> np.ndarray:
     """Each station's strut velocity [m/s] (n, N) of the linear vehicle under the road heights under each tyre
     whose `road_spectrum` is given (sampled at rate_hz; their delays, the wheelbase and the two tracks, are in the
-    signals): V_i(f) = sum_j H_ij(f) R_j(f), H on n_frequencies points up to rate_hz / 2 (H_of_f(f) -> (n_f, n, n),
+    signals). V_i(f) = sum_j H_ij(f) R_j(f), H on n_frequencies points up to rate_hz / 2 (H_of_f(f) -> (n_f, n, n),
     `linear.strut_velocity_response`) and linearly interpolated between them. Within each interval [f_k, f_k+1] of
     that grid H = H_k + w dH_k, so V = H_k R + w (dH_k R): two (n, n) matrix products per interval over all its FFT
     lines. The signals are taken periodic: the caller pads them (the vehicle's memory: seconds). Parseval: the

@@ -16,8 +16,8 @@ from vehicle.engines.control_variate import on_grid_array, road_spectrum, strut_
 
 class LinearProxy:
     """The proxy set up in three parts, so that each runs where a core would otherwise idle (`MultiscaleDrive`:
-    before and beside the first window, beside its slaving matrix, beside the windows that run alone at the end):
-    `prepare` (what does not depend on the seal friction's velocity amplitude V: the road under each tyre on the
+    before and beside the first window, beside its slaving matrix, beside the windows that run alone at the end).
+    They are `prepare` (what does not depend on the seal friction's velocity amplitude V: the road under each tyre on the
     proxy's time grid and its spectrum, the linearisation's Jacobians), `match` (V matched to the first window)
     and `finish` (the velocities over the whole road, their cumulative). They read the model, the road and the
     drive's time grid only, so they can run on a thread beside the windows.

@@ -1,7 +1,7 @@
 """The block recorder: what an engine does with each block of samples it integrated, whatever integrated it.
 
 It checks the samples against physics (non-finite states, struts beyond their end stops, temperatures outside
-any physical range: a SimulationError naming the strut and what to change), evaluates the output table's time
+any physical range: a SimulationError naming the strut and what to change). It evaluates the output table's time
 series at them, cuts the statistics intervals they end (closing the last at the drive's distance when the block
 ends the drive), makes the statistics rows, and hands all of it to the observer, the sink (samples, rows,
 checkpoints) and the progress callback. Used by the full drive's blocks and its end, the multiscale windows, the

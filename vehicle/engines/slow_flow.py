@@ -89,8 +89,8 @@ def warm_up_correction(flow, b: np.ndarray, x_start: np.ndarray, x_warm_end: np.
                        L: float) -> np.ndarray:
     """What to add to a window's simulated end state (slow states) so that its warm-up counts as crossed by the
     window's averaged model x' = b + A x (`flow`: A) instead of as simulated: the modelled state at the warm-up's
-    end, e^{A tw} x_start + int_0^tw e^{A s} ds b, less the simulated one x_warm_end, carried through the averaged
-    stretch of duration L by e^{A L} (the simulated stretch started from x_warm_end; for the linear model exactly
+    end, e^{A tw} x_start + int_0^tw e^{A s} ds b, less the simulated one x_warm_end. That difference is carried
+    through the averaged stretch of duration L by e^{A L} (the simulated stretch started from x_warm_end; for the linear model exactly
     x_end(x_warm_end + d) = x_end(x_warm_end) + e^{A L} d)."""
     d = flow.phi(tw) @ x_start + flow.gamma(tw) @ b - x_warm_end
     return flow.phi(L) @ d

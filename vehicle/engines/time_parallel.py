@@ -1,5 +1,5 @@
 """Parallel in time (`solver: {time_parallel: P}`): one drive split into P segments run at full resolution in
-P processes at once, with a correction of the slow states (issue 11 §1).
+P processes at once, with a correction of the slow states (docs/engines.md, "Time-parallel mode").
 
 Parareal with a cheap coarse propagator (Lions, Maday, Turinici 2001; Gander & Vandewalle 2007, SIAM J.
 Sci. Comput. 29(2)), one correction sweep:
@@ -24,8 +24,8 @@ Sci. Comput. 29(2)), one correction sweep:
    (energies, RMS, ride integrals) only accumulate: each segment starts them at zero and they are offset by
    the totals before it; a statistics interval cut by a segment boundary is joined from both sides.
 4. A-posteriori error: what the linear correction leaves out, per segment, propagated to the end with the
-   following segments' e^{A T}: (a) the change of A with the slow states, A(x + S delta) - A(x) (second order in
-   delta), (b) the change of A along the segment (A of its first half against its second half), (c) the restart:
+   following segments' e^{A T}. It has four parts: (a) the change of A with the slow states, A(x + S delta) - A(x) (second order in
+   delta); (b) the change of A along the segment (A of its first half against its second half). (c) The restart:
    segment k-1 runs on past the join for one warm-up length (not stored) and the difference between its
    slow-state change there and segment k's is what segment k's different fast start does after the join.
    (d) A has the fast states slaved as the standing vehicle's: how the dissipation responds to the mismatch
@@ -250,7 +250,7 @@ class TimeParallelDrive:
         # segment 0 starts at once, the others after the coarse run: segment 0 is longer by the coarse run's
         # estimated cost, in simulated seconds of the full model (it drives ceil(D_c / spacing) windows of
         # warm-up + window over the D_c = (P-1)/P of the road before the last segment start; plus its per-window
-        # work: COARSE_COST times the windows' own time, measured ~1.5 on the 106 km test)
+        # work: COARSE_COST times the windows' own time)
         lead = 0.0
         if P > 1 and self.lanes == 1:       # lane groups all start after the coarse run: no lead
             D = self.settings.distance_m

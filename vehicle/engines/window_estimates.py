@@ -78,18 +78,18 @@ class WindowEstimator:
 
     def control_variate(self, records, t_end: float) -> dict:
         """The regression estimate (`control_variate`) of every stratum's forcing, as a correction of the final
-        state: the slow states' forcings b_k (`window_forcings`) and the dissipated energies' rates, each regressed
-        on its station's road proxy over the window; the slope times the proxy's difference between the stretch
+        state. The slow states' forcings b_k (`window_forcings`) and the dissipated energies' rates are each
+        regressed on its station's road proxy over the window. The slope times the proxy's difference between the stretch
         the window stands for (warm-up, gap) and the window is added to that stretch's forcing and carried to
         the end of the drive by the linear slow model (the gaps' response is linear in their forcing).
 
         The slow states' forcings are regressed pattern by pattern (`cv_basis`, `station_patterns`): each pattern
         of a kind of slow state over the stations (the vehicle's mean, linear in position, ...) on the same pattern
-        of the proxy. The regression estimate holds for any linear combination of the strata (Cochran 1977 ch. 7);
-        per station, the windows' large common part (the whole vehicle's dissipation, and the state dependence's
-        remainder shared by all struts, +0.8 K/min in the cold first window of the 106 km test) is fitted with a
-        slope per station and leaks into the differences between the stations, which the after-drive loads follow;
-        per pattern it stays in the mean. Returned in that basis: `residuals`, `H`, `beta`, and `M_beta` (final
+        of the proxy. The regression estimate holds for any linear combination of the strata (Cochran 1977 ch. 7).
+        Per station, the windows' large common part (the whole vehicle's dissipation, and the state dependence's
+        remainder shared by all struts, large in a cold first window) is fitted with a slope per station. It then
+        leaks into the differences between the stations, which the after-drive loads follow; per pattern it stays
+        in the mean. Returned in that basis: `residuals`, `H`, `beta`, and `M_beta` (final
         slow states per pattern slope); `basis` maps the slow states to the patterns."""
         A_mean = np.mean([w.A for w in records], axis=0)
         flow = LinearFlow(A_mean)

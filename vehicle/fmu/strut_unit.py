@@ -5,7 +5,7 @@ wall and surface nodes, the gas coupled to the oil) assembled as the vehicle ass
 (`vehicle.physics.model.VehicleModel.equations`), with the deflection, its rate, the ambient temperature and the
 air speed over the strut as inputs instead of the hull and the wheel. It offers what the compiled ROS2 solver
 (`vehicle.numerics.solvers.Ros2`) needs of a model (nx, nu, np, n_memory, n_stiff, structure, ode_function,
-jacobian_function, indicator_quadrature_indices), so the FMU steps with the same compiled step as a drive: the
+jacobian_function, indicator_quadrature_indices). So the FMU steps with the same compiled step as a drive: the
 valve pressure drop eliminated by one warm Newton step per stage from the previous step's value (the solver's
 memory), the stiff strut states (compressible valve chamber, LuGre bristles) linearly implicit, the gas and heat
 nodes and the energy quadratures by the explicit trapezoid.

@@ -1,11 +1,10 @@
-"""How long compiling the vehicle model will take, said before it starts (issue 20).
+"""How long compiling the vehicle model will take, said before it starts.
 
 The compiler's time grows with the size of the generated C. Every batch of builds records its
 rate, bytes of C per second of one compiler, in the cache (`compile_rate.json` beside the
 libraries); the next estimate divides the C to build by that rate and by the compilers that run at
-once. Before any record: DEFAULT_BYTES_PER_S, from the 2-core development machine (idle: the main
-job's three libraries compiled together in 7.7 s, README; 0.99 MB of C, 0.54 MB on the longer of the
-two compilers).
+once. Before any record: DEFAULT_BYTES_PER_S, the rate of the idle 2-core development machine compiling
+the main job's three libraries together.
 """
 from __future__ import annotations
 

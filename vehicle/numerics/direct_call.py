@@ -1,8 +1,8 @@
 """A compiled CasADi function called on NumPy arrays through its C interface (ctypes), without CasADi's conversions.
 
-`casadi.external(name, library)` called with NumPy arrays converts every argument to a DM first: 0.18 ms for a
-(371, 10) state block, most of the cost of a drive's block outputs (`vehicle.numerics.solvers.compiled_outputs`,
-~6 µs per sample of compiled code). `DirectFunction` calls the same library's entry point, CasADi's generated C
+`casadi.external(name, library)` called with NumPy arrays converts every argument to a DM first, which
+costs more than the compiled code itself on a drive's block outputs (`vehicle.numerics.solvers.compiled_outputs`;
+figures in docs/engines.md). `DirectFunction` calls the same library's entry point, CasADi's generated C
 interface (CasADi's code generation guide, "Calling generated code"):
 
     int f(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem)

@@ -3,10 +3,10 @@ study can say what it will cost before it starts (vehicle.studies.cost).
 
 Every completed `hpsim run` (and so every sweep and UQ case) records, per solver mode, the integration
 steps per second of wall time of its drive (simulated time / dt / the drive's wall, writing the results
-included) and the rest of a run in a fresh process with the model compiled (`build_s`: reading, checks,
-road, model, build, file, summary; taken from the first run of a process only, as later ones reuse the
-model built in memory, and without the compiler's time, vehicle.numerics.compile_time). A new process's
-imports (~2 s) are not in it.
+included). It also records the rest of a run in a fresh process with the model compiled (`build_s`: reading,
+checks, road, model, build, file, summary). That is taken from the first run of a process only, as later ones
+reuse the model built in memory, and without the compiler's time (vehicle.numerics.compile_time). A new
+process's imports are not in it.
 """
 from __future__ import annotations
 

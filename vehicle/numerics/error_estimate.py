@@ -2,8 +2,8 @@
 
 The drive integrates in blocks of output samples. At the start of its second block and then every
 `every` blocks (a block counted as at least ERROR_WINDOW_S of drive), a window of ERROR_WINDOW_S (W steps of dt,
-whatever the output interval) is integrated a second time from the same start state and solver
-memory with half the step (a second compiled function: 2W steps of dt/2); the run at dt over the window
+whatever the output interval) is integrated a second time. That run starts from the same state and solver
+memory with half the step (a second compiled function: 2W steps of dt/2). The run at dt over the window
 is the block's own samples when the window ends on one of them, else a third run of W steps of dt. ROS2 is of order q = 2, so by Richardson extrapolation the error of the dt result is
 
     y_dt - y  ~  (y_dt - y_dt/2) * 2^q / (2^q - 1) = 4/3 (y_dt - y_dt/2)
@@ -23,8 +23,8 @@ the estimates say meets the tolerance (dt/2 when its own estimate does, else the
 extrapolation from dt/2), rounded down to a step that divides the output interval.
 
 Cost: 2W half steps (plus W steps when the window is not a sample) per `every` blocks (of at least one
-window), i.e. 2 % for the default 1 s output at 4 ms (W = K, M = 10, every 10th block), plus the dt/4 windows (4/(M * every)) only in a run
-that fails its tolerance; the half-step function is compiled once per structure (cached on disk).
+window), i.e. 2 % for the default 1 s output at 4 ms (W = K, M = 10, every 10th block). The dt/4 windows
+(4/(M * every)) are added only in a run that fails its tolerance. The half-step function is compiled once per structure (cached on disk).
 Beyond the asymptotic range (a step that under-resolves a fast relaxation) the 4/3 factor is not
 exact, but the difference of the two runs still measures the error of the coarse one as long as the
 fine one is much better, which the dt/4 level checks.
@@ -37,8 +37,8 @@ import numpy as np
 
 ORDER = 2
 RICHARDSON = 2 ** ORDER / (2 ** ORDER - 1)          # 4/3 for order 2
-# the window integrated again: this much drive, whatever the output interval (a window of one 4 ms output sample
-# measured the error of a single step against its own tiny heat: 0.16 where a 1 s window says 0.005), started every
+# the window integrated again: this much drive, whatever the output interval (a window of one output sample
+# would weigh a single step's error against its own tiny heat and overstate it), started every
 # error_check_every blocks, a block counted as at least one window long
 ERROR_WINDOW_S = 1.0
 

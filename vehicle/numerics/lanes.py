@@ -1,14 +1,16 @@
-"""The compiled ROS2 step over many cases at once: one instruction, several lanes (issue 26, "lanes across cases").
+"""The compiled ROS2 step over many cases at once: one instruction, several lanes (docs/engines.md).
 
 `Ros2.step_functions` gives the step as an SX function, the straight-line list of operations CasADi's C
 generator walks to write one statement per operation (``a5=(a3*a4);``). This module walks the same list and
 writes the same statements over a lane type `V` instead of `double`:
 
 - with GCC or Clang, `V` is a vector of NL doubles (``__attribute__((vector_size(8 * NL)))``, structure of
-  arrays: work variable a5 holds lane l's value in a5[l]); + - * / and the comparisons are the vector
-  extension's element-wise operations, sqrt a per-lane loop (one `sqrtpd`), exp, log, tanh and pow
+  arrays: work variable a5 holds lane l's value in a5[l]). The operators + - * / and the comparisons are the
+  vector extension's element-wise operations, sqrt a per-lane loop (one `sqrtpd`). The functions exp, log,
+  tanh and pow are
   `vehicle.numerics.vector_math`'s functions over the lane type (the scalar engine calls the same code on one
-  lane: the same bits), the other C library functions lane by lane, CasADi's conditionals (`c ? b : 0`, `x <= y` as 1.0 / 0.0) bit masks. Every lane computes
+  lane: the same bits), the other C library functions run lane by lane, and CasADi's conditionals (`c ? b : 0`,
+  `x <= y` as 1.0 / 0.0) are bit masks. Every lane computes
   every operation: the step has no branch (the sparse LU of W is symbolic, without pivoting, and the
   valves' Newton iterations are a fixed count), so nothing needs masking inside it: a lane gone non-finite
   stays in its own lane;
@@ -24,7 +26,7 @@ writes the same statements over a lane type `V` instead of `double`:
 fmin/fmax are written as the C library computes them (glibc 2.36: a NaN operand gives the other one, of
 +0 and -0 the minimum is -0), so that lanes equal the scalar engine bit for bit. The library is compiled
 with the scalar engine's flags (`codegen.COMPILER_FLAGS`: no value-changing flag, -ffp-contract=off: no
-fused multiply-add even where the instruction set has one); the divisions GCC's -freciprocal-math used to
+fused multiply-add even where the instruction set has one); the divisions GCC's -freciprocal-math would
 rewrite are rewritten in the graph (`step_graph.explicit_reciprocals`), the same for scalar and lanes.
 
 `LaneStepper` is the block function over NL lanes: (z0 (nz, NL), U (K M + 1, nu, NL), P (np, NL)) ->
@@ -301,7 +303,7 @@ def emit_batched(fn: ca.Function, cname: str, width: int) -> str:
     one vector call of vehicle.numerics.vector_math (lane-count independent: the same bits as one call each).
 
     Each value gets its own variable (w<k>: instruction k) and the instructions are reordered by their depth in
-    calls (d = the most calls on a path from an input): for d = 0, 1, ...: the calls at depth d (their arguments
+    calls (d = the most calls on a path from an input). For d = 0, 1, ...: the calls at depth d (their arguments
     are of lower depth), gathered by function into vectors, then the other instructions at depth d in their
     original order. Every instruction reads only values computed before it, as in the original order, and each
     is the same IEEE operation, so the results are those of `emit_function`'s code bit for bit; the ROS2 step's
@@ -360,7 +362,7 @@ _MACRO_NAMES = re.compile(r"\b(" + "|".join(OPERATION_MACROS) + r")\(")
 def emit_kernel(fn: ca.Function, cname: str, copies: int = 1) -> str:
     """C of the strut kernel (`vehicle.numerics.split_step`): `fn`'s statements over the kernel's lane type K_T
     with the K_ operations, its inputs and outputs read and written through K_LOAD / K_STORE (value q of station
-    s at q NSP + s: `_SPLIT`); `copies` lane vectors per call, from stations s0_, s0_ + KSTEP, ..., each statement
+    s at q NSP + s: `_SPLIT`). `copies` lane vectors per call, from stations s0_, s0_ + KSTEP, ..., each statement
     written for each in turn (their own registers: the same operations per station). Dense inputs and outputs."""
     _dense(fn, "emit_kernel", outputs=True)
     args = [f"const V* restrict i{k}" for k in range(fn.n_in())] + [f"V* restrict o{k}" for k in range(fn.n_out())]
@@ -423,7 +425,7 @@ NOIPA static void step(const V* restrict i0, const V* restrict i1, const V* rest
 }
 """
 
-# stations per kernel call over the ensemble's lanes (docs/engines.md, "Lanes across struts": two measured fastest)
+# stations per kernel call over the ensemble's lanes (docs/engines.md, "Lanes across struts": the fastest there)
 STATIONS_PER_CALL = 2
 
 
@@ -483,7 +485,7 @@ def lanes_source(step, parametric: ca.Function, lanes: int, name: str, batch: in
 
 def default_isa() -> str:
     """The instruction set for the lane library: $HPSIM_LANES_ISA, else the widest the processor has (AVX-512,
-    AVX2, SSE2): one hardware vector of lanes has measured fastest per lane-step (docs/engines.md, "Vector
+    AVX2, SSE2): one hardware vector of lanes is the fastest per lane-step (docs/engines.md, "Vector
     lanes"). Valgrind cannot run AVX-512: HPSIM_LANES_ISA=avx2 for instruction counts."""
     asked = os.environ.get(ISA_ENV, "").strip().lower()
     if asked:

@@ -1,14 +1,14 @@
-"""The ROS2 step split around the struts: lanes across struts (issue 26 item 2, docs/engines.md).
+"""The ROS2 step split around the struts: lanes across struts (docs/engines.md).
 
 The stations of a vehicle are one strut's equations on different data. Split that way, the step
 (`Ros2.step_functions`) is five functions, each put through the step's graph rewrites (`step_graph`):
 
-  A         the kernel inputs of the first stage from the state (hull kinematics, levelling flow);
+  A         the kernel inputs of the first stage from the state (hull kinematics, levelling flow).
   kernel 1  the strut kernel (`vehicle.physics.strut_kernel`) of every station at the first stage, with its
-            stiffness and damping for W;
+            stiffness and damping for W.
   B         the rest of f(x, u0) and J from the kernels' outputs (hull, tyres, wheels, energies, ride filters), the
-            sparse LU of W, k1, and the kernel inputs of the second stage at x + h k1;
-  kernel 2  the strut kernel of every station at the second stage;
+            sparse LU of W, k1, and the kernel inputs of the second stage at x + h k1.
+  kernel 2  the strut kernel of every station at the second stage.
   C         the rest of f(x + h k1, u1), k2 and z_next.
 
 The compiled step (`vehicle.numerics.lanes`, `split_step_source`) runs a kernel over all stations at once: one

@@ -1,8 +1,8 @@
 """exp, log, pow and tanh as C over any number of lanes: the same operations in the scalar engine and in the vector
-lanes, so both give the same bits and a vector of lanes costs about what one lane does (issue 26).
+lanes, so both give the same bits and a vector of lanes costs about what one lane does.
 
-The C library's functions are scalar: in the lane code (vehicle.numerics.lanes) each one ran lane after lane and
-made up 11.7k of the 19.3k instructions of a lane-step. A vector math library (libmvec, SLEEF) rounds differently
+The C library's functions are scalar: in the lane code (vehicle.numerics.lanes) each one runs lane after lane and
+would make up most of a lane-step's instructions (docs/engines.md, "Vector math and batched calls"). A vector math library (libmvec, SLEEF) rounds differently
 from the scalar libm, so the lanes would no longer equal the scalar engine. Here the four functions the model uses
 are written out once, branch-free, in GCC/Clang vector-extension C over a lane type; the scalar engine's CasADi C
 calls the same code through a one-lane vector (`scalar_header`), so scalar and lanes round alike by construction.
@@ -12,12 +12,12 @@ in IEEE floating-point arithmetic", ACM TOMS 15(2), 1989; and of the logarithm, 
 Muller, "Elementary Functions", 3rd ed., 2016, ch. 11), short Taylor polynomials evaluated by Estrin's scheme:
 
 - exp(x) = 2^m 2^(j/N) exp(r): n = round(x N / ln 2) = N m + j, r = x - n (ln 2 / N)_hi - n (ln 2 / N)_lo (the hi
-  part has its low 32 bits zero, so n times it is exact), |r| <= ln 2 / (2N); exp(r) - 1 = r + r^2 Q(r) to r^5
-  (truncation < 2^-60); 2^(j/N) from a table as hi + lo. 2^m is applied as two exact power-of-two factors, so a
+  part has its low 32 bits zero, so n times it is exact), |r| <= ln 2 / (2N). Then exp(r) - 1 = r + r^2 Q(r) to r^5
+  (truncation < 2^-60), and 2^(j/N) from a table as hi + lo. 2^m is applied as two exact power-of-two factors, so a
   subnormal result rounds once. x is clamped to [EXP_MIN_ARG, EXP_MAX_ARG], beyond which the result is 0 or +inf.
 - log(x) = k ln 2 + log(c) + log1p(r): x = 2^k z with z in [sqrt(2)/2, sqrt(2)), c = 1 + i / N the grid point
-  nearest z, r = z / c - 1 computed as z_hi (1/c)' - 1 + z_lo (1/c)' with (1/c)' = 1/c rounded to 21 bits (z_hi:
-  z's top 32 bits, so the product is exact), log(c) from a table as -log((1/c)') hi + lo; log1p(r) = r + r^2 Q(r)
+  nearest z. The reduced argument r = z / c - 1 is computed as z_hi (1/c)' - 1 + z_lo (1/c)' with (1/c)' = 1/c rounded to 21 bits (z_hi:
+  z's top 32 bits, so the product is exact). log(c) comes from a table as -log((1/c)') hi + lo. The polynomial log1p(r) = r + r^2 Q(r)
   to r^8 (|r| < 2^-7.4, truncation < 2^-60). The grid point 1 has (1/c)' = 1: near x = 1 the result is log1p(x-1)
   itself, without cancellation. Subnormal x is scaled by 2^54 first.
 - pow(x, y) = exp(y log|x|), with the sign of a negative base for an odd integer y and NaN for a non-integer y.
@@ -29,7 +29,7 @@ Muller, "Elementary Functions", 3rd ed., 2016, ch. 11), short Taylor polynomials
 Every operation is correctly rounded IEEE arithmetic (the code is compiled without fused multiply-add and without
 value-changing flags: vehicle.numerics.codegen.COMPILER_FLAGS) and the table lookups are exact, so a lane gives the
 bits of the scalar function whatever the vector width. Special values follow C99 Annex F where the model can meet
-them (NaN in gives NaN out, log(0) = -inf, log(x < 0) = NaN, exp(+-inf) = inf, 0, pow(x, 0) = 1). The measured
+them (NaN in gives NaN out, log(0) = -inf, log(x < 0) = NaN, exp(+-inf) = inf, 0, pow(x, 0) = 1). The
 accuracy against the C library is tested in tests/unit/numerics/test_vector_math.py. Without the vector extension
 (a compiler other than GCC or Clang) both the scalar engine and the lanes use the C library.
 """

@@ -1,14 +1,14 @@
 """`hpsim animate RESULTS -o drive.mp4|.gif [--from 10km --to 10.2km]`: a side view of the vehicle driving
 over its road, drawn from the stored series.
 
-Each frame: the left track of the road around the vehicle (rebuilt from the scenario, terrain.build_road), the
-hull (a box through the axle stations) heaving and pitching (heave and pitch series; pitch + nose up, so a
-point x behind the CG moves by -pitch x, vehicle.physics.hull), the wheels on the road and the struts between
-wheel and hull, each coloured by its strut's surface temperature; below, the road over the whole span with a
+Each frame draws the left track of the road around the vehicle (rebuilt from the scenario, terrain.build_road)
+and the hull (a box through the axle stations) heaving and pitching. The heave and pitch series move it (pitch +
+nose up, so a point x behind the CG moves by -pitch x, vehicle.physics.hull). Then come the wheels on the road and the struts between
+wheel and hull, each coloured by its strut's surface temperature. Below, the road over the whole span with a
 cursor at the vehicle and the time and distance. The geometry is a drawing, not the vehicle's: the hull box
 sits a fixed height above the axles at the first frame and moves with the stored heave and pitch from there
-(vehicle.physics.hull.station_displacement); each wheel stands on the road under its axle (the tyre's
-deflection is not drawn) and the strut joins it to the hull, so its length shows the suspension working; with
+(vehicle.physics.hull.station_displacement). Each wheel stands on the road under its axle (the tyre's
+deflection is not drawn) and the strut joins it to the hull, so its length shows the suspension working. With
 equal axes: sizes at true scale, the road's heights and every motion MOTION_SCALE times larger (centimetres
 would not show on a 10 m vehicle).
 

@@ -319,11 +319,12 @@ def dashboard_figure(path):
 
 
 def dashboard(path, out: str | Path) -> Path:
-    """The dashboard of one run, a panel for each thing the run stored: strut temperatures per axle
-    vs distance (with the ambient), hull height change per axle, the change of the static wheel
-    loads over the drive with the weighing bands, dissipated power by mechanism, and, when the drive's
-    statistics rows carry them, ride comfort at the seats and the strut travel per axle against the stroke, and
-    the hull's response PSDs when the series are stored densely enough (output.interval <= 1/30 s). `path`: a
+    """The dashboard of one run, a panel for each thing the run stored.
+
+    The panels: strut temperatures per axle vs distance (with the ambient), hull height change per axle, the
+    change of the static wheel loads over the drive with the weighing bands, and dissipated power by mechanism.
+    When the drive's statistics rows carry them, ride comfort at the seats and the strut travel per axle against
+    the stroke follow, and the hull's response PSDs when the series are stored densely enough (output.interval <= 1/30 s). `path`: a
     results file or any `vehicle.results.reader.ResultsView` (e.g. in-memory results)."""
     return save_figure(dashboard_figure(path), out)
 

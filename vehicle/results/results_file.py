@@ -94,8 +94,8 @@ class DriveFile:
 
     def status_to_resume(self) -> tuple[str, int]:
         """`status` of a file to be resumed. A file whose writer found no room (a full disk, the file-size limit) can
-        be shorter than the end its HDF5 superblock records: the bytes never written are restored as zeros (a hole)
-        before the check, which verifies every chunk's checksum; if the check still fails, the file is cut back to
+        be shorter than the end its HDF5 superblock records. The bytes never written are restored as zeros (a hole)
+        before the check, which verifies every chunk's checksum. If the check still fails, the file is cut back to
         its size and left as it was."""
         size = self.path.stat().st_size
         end = recorded_end(self.path)

@@ -41,8 +41,8 @@ class H5Sink:
         self.n_samples = n_samples          # rows written (and covered by the last checkpoint)
         self.n_stats = n_stats
         self.plan: dict[str, list[FileVariable]] = {}
-        # open dataset handles by (group, name): h5py looks a name up in its group anew on every access (0.2 ms
-        # each; a flush appends to some 50 datasets)
+        # open dataset handles by (group, name): h5py looks a name up in its group anew on every access, and a
+        # flush appends to some 50 datasets
         self.datasets: dict[tuple[str, str], h5py.Dataset] = {}
         self.buffer: dict[str, list] = {}
         self.n_buffered = 0

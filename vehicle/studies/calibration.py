@@ -11,9 +11,9 @@ compare it with the rise of the heat network's outer SURFACE node (vehicle.physi
 
 Each evaluation is a full run of the scenario. The first guess uses the steady-state
 relation dT ~ P / (h A): the total coefficient needed is h_now * rise_now / target, and the
-forced-convection part is inverted for the air speed; then steps on a least-squares line through the
+forced-convection part is inverted for the air speed. Then it steps on a least-squares line through the
 evaluations (rise against the log of the ratio), not secants: below a few millikelvin the rise is noise
-(seal stick-slip; a change of the ratio by 1e-12 moves the 1.5 km rise by ~3 mK, docs/validation.md
+(seal stick-slip; a change of the ratio by 1e-12 moves the 1.5 km rise by millikelvins, docs/validation.md
 "Calibration"). At the first point near the answer the noise is measured (vehicle.numerics.noisy_root:
 runs at rounding-level changes of the ratio) and a tolerance below it is refused (exit 2, the floor in
 the message): such a tolerance could only be met by luck.

@@ -1,4 +1,4 @@
-"""How far a study's sensitivity ranking can be trusted (issue 20): an interval for each index and "not
+"""How far a study's sensitivity ranking can be trusted: an interval for each index and "not
 resolved" where it does not exclude zero.
 
 The intervals hold for all d parameters at once at 95 % (Bonferroni: each at 1 - 0.05 / d): a ranking
@@ -8,9 +8,9 @@ cases about 0.8), so a per-parameter 95 % interval would "resolve" noise.
 - Sobol' total indices (SALib): ST +- ST_conf, SALib's bootstrap half-width at 95 % (1.96 standard
   deviations) widened to the Bonferroni quantile; resolved when its lower end is above 0.
 - Rank correlations of a Latin hypercube (n cases, d parameters): an interval through Fisher's
-  z = atanh(r), whose standard error is sqrt(1.06 / (n - 3)) for Spearman's rho (Fieller, Hartley &
+  z = atanh(r). Its standard error is sqrt(1.06 / (n - 3)) for Spearman's rho (Fieller, Hartley &
   Pearson, Biometrika 44, 1957) and 1 / sqrt(n - 3 - (d - 1)) for a partial correlation that removes
-  d - 1 other ranks (Fisher 1924); resolved when the interval excludes 0. The line also gives the
+  d - 1 other ranks (Fisher 1924). Resolved when the interval excludes 0. The line also gives the
   sample-to-parameter ratio n / d: with n not much above d a ranking is mostly noise.
 """
 from __future__ import annotations

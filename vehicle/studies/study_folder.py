@@ -27,7 +27,7 @@ from vehicle.results.run import OutputLock
 from vehicle.scenario.schema import prepare
 
 MAX_NAME_CHARS = 120
-MAX_CASES = 2000            # cases of one study (validated up front: ~10 ms each)
+MAX_CASES = 2000            # cases of one study (each validated up front)
 
 
 class StudyLock(OutputLock):
