@@ -578,7 +578,7 @@ def compile_function(fn: ca.Function | Library, *, opt_level: str = "-O2", verbo
     flags, code, code_sha, d, stem = _plan(fn, cc, opt_level)
     lib, record = d / f"{stem}.so", d / f"{stem}.json"
     if not _verified(lib, record, code_sha):
-        error = _compile_announced(fn.name(), (cc, flags, code, code_sha, d, stem), verbose)
+        error = _compile_announced(fn.name(), BuildJob(cc, flags, code, code_sha, d, stem), verbose)
         if error is not None:
             return fn
         if not _verified(lib, record, code_sha):     # replaced by someone else in between
