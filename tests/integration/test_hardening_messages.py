@@ -165,7 +165,7 @@ def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
     try:
         timer.start()
         with pytest.raises(Terminated):
-            run_lockstep(lambda: compile_in_lane(), [("case", ())], lanes=2)
+            run_lockstep(lambda make_solver: compile_in_lane(), [("case", ())], lanes=2)
     finally:
         timer.cancel()
         signal.signal(signal.SIGTERM, old)
