@@ -475,6 +475,22 @@ class _ProgressBar:
             self.bar = None
 
 
+def _held_until_cancelled(progress, sink, cancel: CancelToken):
+    """The drive's progress callback; test hook: HPSIM_FAULT=hold_until_cancelled writes the rows so far and their
+    checkpoint after the first block, then holds the drive there until `cancel` is requested, so that a test
+    interrupts a drive certain to be running."""
+    if os.environ.get("HPSIM_FAULT") != "hold_until_cancelled":
+        return progress
+
+    def held(s_m, v, t_s):
+        if progress is not None:
+            progress(s_m, v, t_s)
+        sink.flush()
+        while not cancel.requested:
+            time.sleep(0.02)
+    return held
+
+
 def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, log, checkpoint_every_blocks,
            cancel: CancelToken) -> dict:
     out = results.path
@@ -497,7 +513,8 @@ def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, 
             sink = results.open_sink(point)
         with _room_for(out, lambda: f"at {km_done():.3f} km (the results up to the last checkpoint are kept)", then), \
                 _ctrl_c_requests(cancel):
-            res = timed("drive", drive.run, sink, state=state, progress=bar.callback(),
+            progress_cb = _held_until_cancelled(bar.callback(), sink, cancel)
+            res = timed("drive", drive.run, sink, state=state, progress=progress_cb,
                         checkpoint_every_blocks=checkpoint_every_blocks, cancel=cancel)
             where, wall = km_done(), wall_s()
             results.close_sink()
