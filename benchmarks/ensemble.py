@@ -186,7 +186,6 @@ def drives(distance: str, lanes: int, isa: str, folder: Path, cases: str = "mixe
     """The cases on the engine before vehicle.numerics.vector_math (C library calls), on today's scalar engine, one
     after the other, then in one ensemble: CPU and wall seconds, per-case results, the largest relative difference
     of the files (ensemble against today's scalar engine)."""
-    from vehicle.engines.ensemble import full_drive_solver
     from vehicle.engines.ensemble import run_lockstep
     from vehicle.studies.sweep import run_case
 
@@ -196,8 +195,7 @@ def drives(distance: str, lanes: int, isa: str, folder: Path, cases: str = "mixe
     out = {}
     libm = libm_solver_class()
     c0, w0 = time.process_time(), time.perf_counter()
-    with full_drive_solver(lambda dt: libm(dt)):
-        res = [run_case(*args) for _, args in items["m"]]
+    res = [run_case(*args, make_solver=libm) for _, args in items["m"]]
     out["libm"] = {"cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - w0,
                    "status": [r["status"] for r in res]}
     c0, w0 = time.process_time(), time.perf_counter()

@@ -153,9 +153,9 @@ def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
     started = []
 
     def compile_in_lane():
-        proc, job = codegen._start_build(str(script), [], b"int x;", "sha", tmp_path, "lib")
-        started.append(proc)
-        return {"status": "done", "error": codegen._finish_build(proc, job)}
+        build = codegen._start_build(codegen.BuildJob(str(script), [], b"int x;", "sha", tmp_path, "lib"))
+        started.append(build.proc)
+        return {"status": "done", "error": codegen._finish_build(build)}
 
     def raise_terminated(signum, frame):
         raise Terminated
@@ -165,7 +165,7 @@ def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
     try:
         timer.start()
         with pytest.raises(Terminated):
-            run_lockstep(lambda: compile_in_lane(), [("case", ())], lanes=2)
+            run_lockstep(lambda make_solver: compile_in_lane(), [("case", ())], lanes=2)
     finally:
         timer.cancel()
         signal.signal(signal.SIGTERM, old)

@@ -3,6 +3,8 @@
 settings. A new engine is one module and one line in ENGINES (docs/CONTRIBUTING.md)."""
 from __future__ import annotations
 
+from typing import Callable
+
 from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
@@ -10,19 +12,17 @@ from vehicle.scenario.settings import resolve_segments, resolve_time_parallel_la
 from vehicle.scenario.work_limits import segments_for
 from vehicle.engines.choice import engine_for
 from vehicle.engines.contract import Engine
-from vehicle.engines.ensemble import current_full_solver
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
 from vehicle.engines.time_parallel import MIN_SEGMENT_S, TimeParallelDrive
 
 
-def _full(model, road, prepared) -> Engine:
+def _full(model, road, prepared, make_solver=None) -> Engine:
     settings = prepared.settings()
-    make_solver = current_full_solver()
     return Drive(model, road, settings, solver=None if make_solver is None else make_solver(settings.dt_s))
 
 
-def _multiscale(model, road, prepared) -> Engine:
+def _multiscale(model, road, prepared, make_solver=None) -> Engine:
     return MultiscaleDrive(model, road, prepared.settings(), prepared.scenario.solver.multiscale_settings())
 
 
@@ -33,14 +33,15 @@ def _segments(prepared) -> int:
     return segments_for(resolve_segments(tp), tp == "auto", prepared.duration_s(), MIN_SEGMENT_S)
 
 
-def _time_parallel(model, road, prepared) -> Engine:
+def _time_parallel(model, road, prepared, make_solver=None) -> Engine:
     workers = _segments(prepared)
     lanes = resolve_time_parallel_lanes(prepared.scenario.solver.time_parallel_lanes, workers, prepared.duration_s(),
                                         MIN_SEGMENT_S)
     return TimeParallelDrive(model, road, prepared.settings(), workers * lanes, lanes=lanes)
 
 
-# engine name -> builder(model, road, prepared)
+# engine name -> builder(model, road, prepared, make_solver); only the full drive steps with make_solver (an ensemble
+# lane's solver), the others build their own
 ENGINES = {"full": _full, "multiscale": _multiscale, "time_parallel": _time_parallel}
 
 
@@ -50,14 +51,18 @@ def engine_name(prepared) -> str:
     return engine_for(prepared.scenario.solver.mode, _segments(prepared))
 
 
-def build_engine(prepared) -> tuple[object, Engine]:
+def build_engine(prepared, make_solver: Callable[[float], object] | None = None) -> tuple[object, Engine]:
     """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run: its work size checked
-    first (refused beyond the limits, before anything is compiled)."""
+    first (refused beyond the limits, before anything is compiled).
+
+    make_solver(dt): the solver a full drive steps with (a solver of vehicle.numerics.contract, e.g. an ensemble
+    lane's); None: the compiled ROS2."""
     prepared.check_work()
     model = timed("build: model", prepared.model)
     prepared.check_vehicle(model)          # the quiet `hpsim vehicle check`: warnings logged, errors refuse the drive
     road = timed("road", prepared.road)
     try:
-        return model, timed("build: drive (the compile included)", ENGINES[engine_name(prepared)], model, road, prepared)
+        builder = ENGINES[engine_name(prepared)]
+        return model, timed("build: drive (the compile included)", builder, model, road, prepared, make_solver)
     except UserInputError as exc:
         raise UserInputError(f"{prepared.source.name}: {exc}") from None

@@ -16,18 +16,17 @@ them all, and each drive goes on with its own states (outputs, statistics, check
   (same thread, not in lockstep), as does each drive's step-doubling error probe.
 - Only plain full-fidelity drives join (solver.mode full, no time-parallel segments): `eligible`.
 
-`run_lockstep(fn, items, lanes)` runs fn(*args) for each (tag, args) in one group (the per-case function of
-`hpsim sweep` / `hpsim uq`); `grouped_jobs` turns a study's job list into such groups.
+`run_lockstep(fn, items, lanes)` runs fn(*args, make_solver=...) for each (tag, args) in one group (the per-case
+function of `hpsim sweep` / `hpsim uq`, which passes the lane's solver factory down to `build_engine`);
+`grouped_jobs` turns a study's job list into such groups.
 """
 from __future__ import annotations
 
-import contextvars
 import signal
 import threading
 import time
 import traceback
 import warnings
-from contextlib import contextmanager
 from typing import Callable
 
 import numpy as np
@@ -39,28 +38,6 @@ from vehicle.numerics.lanes import ISAS, LaneStepper, default_lanes
 from vehicle.scenario.settings import resolve_segments
 from vehicle.engines.choice import engine_for
 from vehicle.numerics.solvers import Ros2
-
-# the solver of full drives built in this thread (None: the compiled ROS2): a lane of an ensemble or of a
-# time-parallel worker steps with its group; a context variable, so each lane thread has its own
-_FULL_SOLVER: contextvars.ContextVar = contextvars.ContextVar("hpsim_full_solver", default=None)
-
-
-@contextmanager
-def full_drive_solver(make_solver: Callable[[float], object]):
-    """Within this block, in this thread, full drives built by `vehicle.engines.build.build_engine` (and the
-    segments of a time-parallel worker's lanes) step with make_solver(dt) (a solver of vehicle.numerics.contract),
-    as each lane of an ensemble does."""
-    token = _FULL_SOLVER.set(make_solver)
-    try:
-        yield
-    finally:
-        _FULL_SOLVER.reset(token)
-
-
-def current_full_solver() -> Callable[[float], object] | None:
-    """The solver factory of `full_drive_solver` in force in this thread, or None."""
-    return _FULL_SOLVER.get()
-
 
 _STEPPERS: dict = {}         # compiled lane block functions of this process by (structure, dt, lanes, isa)
 _STEPPERS_LOCK = threading.Lock()
@@ -219,16 +196,10 @@ class LaneSolver(Ros2):
         return Z[: self.nx]
 
 
-def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple, out: dict, tag: str,
-          solver_argument: bool) -> None:
+def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple, out: dict, tag: str) -> None:
     LANE_LOCK.acquire()
     try:
-        make_solver = lambda dt: LaneSolver(dt, group, slot)      # noqa: E731 (one lane's solver at step dt)
-        if solver_argument:
-            out[tag] = fn(make_solver, *args)
-        else:
-            with full_drive_solver(make_solver):
-                out[tag] = fn(*args)
+        out[tag] = fn(*args, make_solver=lambda dt: LaneSolver(dt, group, slot))
     except KeyboardInterrupt:
         out[tag] = {"status": "interrupted", "error": "interrupted", "seconds": 0.0}
     except BaseException as exc:     # fn is meant not to raise; a bug fails this case only
@@ -240,13 +211,12 @@ def _lane(group: LockstepGroup, slot: int, fn: Callable[..., dict], args: tuple,
 
 
 def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes: int | None = None,
-                 isa: str | None = None, solver_argument: bool = False) -> dict:
-    """Run fn(*args) for every (tag, args) of `items` (at most `lanes`), each in a thread whose drive is a lane of
-    one `LockstepGroup`. Returns {"status": "done", "cases": {tag: fn's result}, "lanes", "calls", "lane_blocks"}.
-    A Ctrl-C (in the main thread) stops every lane at its next block (their files stay resumable).
-
-    solver_argument True: fn(make_solver, *args), make_solver(dt) the lane's solver, for a caller that builds its
-    drives itself; False: the drives `build_engine` makes in fn step with it (`full_drive_solver`)."""
+                 isa: str | None = None) -> dict:
+    """Run fn(*args, make_solver=...) for every (tag, args) of `items` (at most `lanes`), each in a thread whose
+    drive is a lane of one `LockstepGroup`: make_solver(dt) is the lane's solver, which fn hands to the drives it
+    builds (`build_engine(prepared, make_solver)`). Returns {"status": "done", "cases": {tag: fn's result},
+    "lanes", "calls", "lane_blocks"}. A Ctrl-C (in the main thread) stops every lane at its next block (their
+    files stay resumable)."""
     lanes = int(lanes or default_lanes(isa))
     if len(items) > lanes:
         raise ValueError(f"run_lockstep: {len(items)} cases for {lanes} lanes")
@@ -254,7 +224,7 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
     for slot in range(len(items), lanes):
         group.present.discard(slot)
     out: dict = {}
-    threads = [threading.Thread(target=_lane, args=(group, slot, fn, args, out, tag, solver_argument), daemon=True,
+    threads = [threading.Thread(target=_lane, args=(group, slot, fn, args, out, tag), daemon=True,
                                 name=f"hpsim-lane-{slot}") for slot, (tag, args) in enumerate(items)]
     old = None
     if threading.current_thread() is threading.main_thread():

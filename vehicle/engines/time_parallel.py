@@ -91,8 +91,8 @@ def _segment_worker(k, t0, t1, t_warm, x_pred, t_mark, t_tail):
 def _in_lockstep(fn, items: list[tuple], lanes: int, what: str) -> list:
     """fn(make_solver, *item) for every item, each in a lane thread of one `LockstepGroup` (engines.ensemble): their
     drives step together on the lane library, bit for bit what the scalar engine gives each. Results in order."""
-    r = run_lockstep(lambda *a: ("ok", fn(*a)), [(str(i), it) for i, it in enumerate(items)], lanes,
-                     solver_argument=True)
+    r = run_lockstep(lambda *a, make_solver: ("ok", fn(make_solver, *a)), [(str(i), it) for i, it in enumerate(items)],
+                     lanes)
     out = []
     for i in range(len(items)):
         v = r["cases"].get(str(i))

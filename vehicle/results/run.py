@@ -300,13 +300,15 @@ def results_status(path: str | Path) -> str | None:
 
 def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, *, resume: bool = False,
                  overwrite: bool = False, progress: bool = True, log: Callable[[str], None] | None = None,
-                 checkpoint_every_blocks: int = 1, cancel: CancelToken | None = None) -> dict:
+                 checkpoint_every_blocks: int = 1, cancel: CancelToken | None = None,
+                 make_solver: Callable[[float], object] | None = None) -> dict:
     """Run a scenario into an HDF5 file; returns the summary attributes.
 
     cancel: a token whose request stops the drive at its next checkpoint (a study's scheduler, a worker whose
     parent died); Ctrl-C requests it too. Raises UserInputError (bad scenario, file exists, damaged, locked, cannot
     resume), SimulationError (solver failure after writing status 'failed'; no room on the disk) or RunInterrupted
-    (a stop requested, status 'interrupted').
+    (a stop requested, status 'interrupted'). make_solver(dt): the solver of a full drive (an ensemble lane's,
+    `vehicle.engines.build.build_engine`); None: the compiled ROS2.
     """
     log = log or (lambda msg: None)
     cancel = cancel if cancel is not None else CancelToken()
@@ -331,7 +333,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                 if status != "complete" and version < FORMAT_VERSION:
                     raise UserInputError(f"{out}: written by an older hpsim (results format {version}); it can be "
                                          "read (report, plot, compare) but not resumed: run it again with --overwrite")
-                return _resume(results, src, progress, log, checkpoint_every_blocks, cancel)
+                return _resume(results, src, progress, log, checkpoint_every_blocks, cancel, make_solver)
             hint = "--resume to continue it or " if status != "complete" else ""
             raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o "
                                  "another file")
@@ -340,7 +342,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         if resume:
             log(f"{out}: nothing to resume, starting")
         prep = timed("scenario checks", prepare, src)  # every check before any work
-        model, drive = build_engine(prep)
+        model, drive = build_engine(prep, make_solver)
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
         if prep.work.get("announce"):
@@ -368,7 +370,7 @@ def _check_output(out: Path, src: ScenarioSource | None) -> None:
 
 
 def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, checkpoint_every_blocks,
-            cancel: CancelToken) -> dict:
+            cancel: CancelToken, make_solver: Callable[[float], object] | None) -> dict:
     out = results.path
     stored_run = results.stored_run()
     sc = stored_run.scenario_attrs
@@ -392,7 +394,7 @@ def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, check
     point = stored_run.resume_point
     with _room_for(out, "while preparing the resume (the file was not changed)", "resume again"):
         results.truncate_for_resume(point)      # first: a full disk is found before the model is built
-    model, drive = build_engine(prep)
+    model, drive = build_engine(prep, make_solver)
     state = None if point.state is None else DriveState.from_dict(point.state)
     if state is not None and state.x.size != model.nx:
         raise UserInputError(f"{out}: its checkpoint holds {state.x.size} states, this hpsim's model has {model.nx} "
@@ -473,6 +475,22 @@ class _ProgressBar:
             self.bar = None
 
 
+def _held_until_cancelled(progress, sink, cancel: CancelToken):
+    """The drive's progress callback; test hook: HPSIM_FAULT=hold_until_cancelled writes the rows so far and their
+    checkpoint after the first block, then holds the drive there until `cancel` is requested, so that a test
+    interrupts a drive certain to be running."""
+    if os.environ.get("HPSIM_FAULT") != "hold_until_cancelled":
+        return progress
+
+    def held(s_m, v, t_s):
+        if progress is not None:
+            progress(s_m, v, t_s)
+        sink.flush()
+        while not cancel.requested:
+            time.sleep(0.02)
+    return held
+
+
 def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, log, checkpoint_every_blocks,
            cancel: CancelToken) -> dict:
     out = results.path
@@ -495,7 +513,8 @@ def _drive(drive, results: DriveFile, point: ResumePoint, prep, progress: bool, 
             sink = results.open_sink(point)
         with _room_for(out, lambda: f"at {km_done():.3f} km (the results up to the last checkpoint are kept)", then), \
                 _ctrl_c_requests(cancel):
-            res = timed("drive", drive.run, sink, state=state, progress=bar.callback(),
+            progress_cb = _held_until_cancelled(bar.callback(), sink, cancel)
+            res = timed("drive", drive.run, sink, state=state, progress=progress_cb,
                         checkpoint_every_blocks=checkpoint_every_blocks, cancel=cancel)
             where, wall = km_done(), wall_s()
             results.close_sink()

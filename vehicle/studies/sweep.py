@@ -147,13 +147,16 @@ def stop_when_orphaned(cancel: CancelToken):
         watcher.join()
 
 
-def run_case(text: str, name: str, base_dir: str, out: str, overwrite: bool = False) -> dict:
-    """One case in a worker process: never raises, returns status and message (overwrite: start it again)."""
+def run_case(text: str, name: str, base_dir: str, out: str, overwrite: bool = False,
+             make_solver: Callable[[float], object] | None = None) -> dict:
+    """One case in a worker process: never raises, returns status and message (overwrite: start it again;
+    make_solver: the solver factory of an ensemble lane, `vehicle.engines.ensemble.run_lockstep`)."""
     t0 = time.perf_counter()
     try:
         src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=parse_yaml(text, name))
         with stop_when_orphaned(CancelToken()) as cancel:
-            summary = run_scenario(src, out, resume=not overwrite, overwrite=overwrite, progress=False, cancel=cancel)
+            summary = run_scenario(src, out, resume=not overwrite, overwrite=overwrite, progress=False, cancel=cancel,
+                                   make_solver=make_solver)
         return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
         return {"status": "failed", "error": str(exc), "seconds": time.perf_counter() - t0}

@@ -380,11 +380,14 @@ def _read_records(path: Path) -> dict[str, dict]:
 
 
 # --- running cases -----------------------------------------------------------------------------
-def run_one(runner: Callable[[str, dict], dict], name: str, values: dict) -> dict:
-    """One case in a worker: never raises (except Ctrl-C); returns status, outputs, error, seconds."""
+def run_one(runner: Callable[[str, dict], dict], name: str, values: dict,
+            make_solver: Callable[[float], object] | None = None) -> dict:
+    """One case in a worker: never raises (except Ctrl-C); returns status, outputs, error, seconds.
+    make_solver: an ensemble lane's solver factory (`vehicle.engines.ensemble.run_lockstep`), handed to the runner
+    as runner(name, values, make_solver=...); only a `DriveRunner` joins a lane group."""
     t0 = time.perf_counter()
     try:
-        outputs = runner(name, values)
+        outputs = runner(name, values) if make_solver is None else runner(name, values, make_solver=make_solver)
         return {"status": "done", "outputs": {k: float(v) for k, v in outputs.items()}, "error": "",
                 "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
@@ -439,10 +442,11 @@ class DriveRunner:
         data = case_scenario(self.base, self.params, values, self.distance)
         return f"# case {case} of an hpsim uq study of {self.name}\n" + yaml.safe_dump(data, sort_keys=False)
 
-    def __call__(self, case: str, values: dict) -> dict:
+    def __call__(self, case: str, values: dict, make_solver: Callable[[float], object] | None = None) -> dict:
         out = Path(self.cases_dir) / f"{case}.h5"
         if results_status(out) != "complete":
-            r = run_case(self.scenario_text(case, values), f"{self.name} case {case}", self.base_dir, str(out))
+            r = run_case(self.scenario_text(case, values), f"{self.name} case {case}", self.base_dir, str(out),
+                         make_solver=make_solver)
             if r["status"] != "done":
                 if r["status"] == "interrupted" or r.get("error") == "interrupted":
                     raise KeyboardInterrupt     # Ctrl-C: stop the study; the drive's file stays resumable

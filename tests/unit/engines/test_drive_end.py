@@ -69,9 +69,9 @@ def test_the_multiscale_drive_carries_its_slow_states_to_its_distance():
 
 
 def test_an_ensemble_lane_ends_at_its_distance():
-    def lane(speed):
+    def lane(speed, make_solver):
         prep = prepare(_source(speed))
-        model, drive = build_engine(prep)
+        model, drive = build_engine(prep, make_solver)
         sink = MemorySink("lane")
         sink.start(run_info(prep.source, prep, model, drive, drive.initial_equilibrium()))
         res = drive.run(sink)

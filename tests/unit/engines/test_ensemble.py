@@ -19,7 +19,6 @@ from vehicle.engines.ensemble import eligible, group_size, grouped_jobs, run_loc
 from vehicle.numerics.codegen import compile_function
 from vehicle.numerics.lanes import LaneStepper, default_lanes
 from tests.helpers import REPO as HELPERS_REPO
-from vehicle.engines.ensemble import current_full_solver, full_drive_solver
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import run_case
 
@@ -102,13 +101,13 @@ def test_four_lanes_equal_four_single_runs(singles, tmp_path):
     assert min(abs(T[i][0] - T[j][0]) for i in range(4) for j in range(i)) > 1.0        # K
 
 
-def _poisoned(*args, after_s: float = 3.0, action: str = "nan"):
+def _poisoned(*args, make_solver, after_s: float = 3.0, action: str = "nan"):
     """run_case with this lane's road inputs made NaN (or Ctrl-C pressed) once the drive passes `after_s`: the lane's
-    solver (vehicle.engines.build.full_drive_solver) sees the inputs of each block before it steps them."""
-    lane = current_full_solver()
+    solver (make_solver, handed down to vehicle.engines.build.build_engine) sees the inputs of each block before it
+    steps them."""
 
     def poisoned(dt):
-        solver = lane(dt)
+        solver = make_solver(dt)
         advance, t = solver.advance, [0.0]
 
         def advance_poisoned(x0, U, p):
@@ -123,8 +122,7 @@ def _poisoned(*args, after_s: float = 3.0, action: str = "nan"):
         solver.advance = advance_poisoned
         return solver
 
-    with full_drive_solver(poisoned):
-        return run_case(*args)
+    return run_case(*args, make_solver=poisoned)
 
 
 def test_a_lane_gone_non_finite_fails_alone(singles, tmp_path):
@@ -133,7 +131,7 @@ def test_a_lane_gone_non_finite_fails_alone(singles, tmp_path):
     items = _items(tmp_path, "e")
     items[1] = (items[1][0], (_poisoned, *items[1][1]))
     items = [(tag, args if tag == "e1" else (run_case, *args)) for tag, args in items]
-    r = run_lockstep(lambda fn, *a: fn(*a), items, 4)
+    r = run_lockstep(lambda fn, *a, make_solver: fn(*a, make_solver=make_solver), items, 4)
     cases = r["cases"]
     assert cases["e1"]["status"] == "failed" and "non-finite" in cases["e1"]["error"]
     with h5py.File(tmp_path / "e1.h5", "r") as f:
@@ -149,7 +147,8 @@ def test_an_interrupted_ensemble_resumes_to_the_single_runs(singles, tmp_path):
     runs' series bit for bit."""
     items = _items(tmp_path, "e")
     first = [(tag, (_poisoned if tag == "e2" else run_case, *args)) for tag, args in items]
-    r = run_lockstep(lambda fn, *a: fn(*a, after_s=4.0, action="stop") if fn is _poisoned else fn(*a), first, 4)
+    r = run_lockstep(lambda fn, *a, make_solver: fn(*a, make_solver=make_solver, after_s=4.0, action="stop")
+                     if fn is _poisoned else fn(*a, make_solver=make_solver), first, 4)
     assert {v["status"] for v in r["cases"].values()} == {"interrupted"}
     for i in range(4):
         with h5py.File(tmp_path / f"e{i}.h5", "r") as f:
@@ -212,6 +211,11 @@ def test_lane_code_compiles_and_equals_casadi(compiler, scalar):
             assert np.array_equal(got[~nan], ref[~nan]) and np.array_equal(np.signbit(got[~nan]), np.signbit(ref[~nan]))
 
 
+def _done(i, make_solver=None) -> dict:
+    """A case function for grouping: in a group it is handed the lane's solver factory, which it does not need."""
+    return {"status": "done", "i": i}
+
+
 def test_groups_and_eligibility():
     """Only plain full-fidelity drives join; groups: K given, else one vector's lanes when there are more drives
     than workers (groups as full as the cases allow with every worker busy), else off."""
@@ -223,7 +227,7 @@ def test_groups_and_eligibility():
     assert group_size(None, 64, 2) == (L, L)
     assert group_size(3, 2, 2) == (3, 3)
     jobs = [(f"c{i}", (i,)) for i in range(6)]
-    fn, grouped, unpack = grouped_jobs(lambda i: {"status": "done", "i": i}, jobs, 4, [True] * 5 + [False])
+    fn, grouped, unpack = grouped_jobs(_done, jobs, 4, [True] * 5 + [False])
     assert [len(args[1]) for _, args in grouped] == [4, 1, 1]
     results = {tag: fn(*args) for tag, args in grouped}
     cases = dict(pair for tag in results for pair in unpack(tag, results[tag]))
@@ -232,7 +236,7 @@ def test_groups_and_eligibility():
     # a long one): eight cases at two speeds in two groups of four, each of one speed
     durations = [100.0, 50.0] * 4
     jobs = [(f"d{i}", (i,)) for i in range(8)]
-    fn, grouped, unpack = grouped_jobs(lambda i: {"status": "done", "i": i}, jobs, 4, [True] * 8,
+    fn, grouped, unpack = grouped_jobs(_done, jobs, 4, [True] * 8,
                                        durations=durations)
     members = [[t for t, _ in args[1]] for _, args in grouped]
     assert [sorted({durations[int(t[1:])] for t in group}) for group in members] == [[50.0], [100.0]]

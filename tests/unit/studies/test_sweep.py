@@ -172,21 +172,19 @@ def test_scheduler_without_dask_is_a_clear_error(tmp_path, capsys, monkeypatch):
 
 
 # --- interrupting a sweep -----------------------------------------------------------------------------
-# long enough that both cases are still driving when the test interrupts them (a 6 km case took ~5 s once the
-# drive and its set-up got faster: the sweep sometimes finished first)
-LONG_BASE = BASE.replace("distance: 1.5 km", "distance: 15 km")
-
-
 def _start_sweep(tmp_path):
+    """A two-case sweep in a child process whose drives hold after their first checkpoint until they are asked to
+    stop (HPSIM_FAULT=hold_until_cancelled): both are certain to be running when the test interrupts them."""
     import subprocess
 
     from tests.helpers import hpsim_subprocess
 
-    (tmp_path / "base.yaml").write_text(LONG_BASE)
+    (tmp_path / "base.yaml").write_text(BASE)
     (tmp_path / "sweep.yaml").write_text("base: base.yaml\ngrid:\n  road.seed: [3, 4]\n")
     out = tmp_path / "out"
     p = hpsim_subprocess(["sweep", tmp_path / "sweep.yaml", "--workers", "2", "-o", out], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         env={"HPSIM_FAULT": "hold_until_cancelled"})
     return p, out
 
 
