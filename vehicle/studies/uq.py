@@ -45,6 +45,7 @@ import yaml
 
 from hpsim.config import deep_update, load_yaml
 from hpsim.errors import SimulationError, UserInputError
+from hpsim.outputs import atomic_output
 from hpsim.priors import Prior, collect_priors, correlated_quantile, tie_shared
 from struts.params import strut_file
 
@@ -550,8 +551,14 @@ def _run_study(plan: StudyPlan) -> dict:
     summary = analyse(out_dir, params, rows, records, method=method, samples=samples, seed=seed, groups=groups)
     summary["wall_s"] = time.perf_counter() - t0
     summary["ran_now"] = done
-    (out_dir / "summary.json").write_text(json.dumps(json_safe(summary), indent=1) + "\n")
+    write_summary(out_dir, summary)
     return summary
+
+
+def write_summary(out_dir: Path, summary: dict) -> None:
+    """DIR/summary.json, written whole or not at all (an interrupted write keeps the previous summary)."""
+    with atomic_output(out_dir / "summary.json") as tmp:
+        tmp.write_text(json.dumps(json_safe(summary), indent=1) + "\n")
 
 
 def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sobol", seed: int = 0,
@@ -595,7 +602,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     summary["scenario"] = str(scenario)
     summary["distance"] = distance
     summary["notes"] = notes
-    (out_dir / "summary.json").write_text(json.dumps(json_safe(summary), indent=1) + "\n")
+    write_summary(out_dir, summary)
     return summary
 
 
