@@ -53,9 +53,9 @@ def draw_psd(ax, stats: dict):
     keep = psd_drawn(f)
     lo, hi = iso8608.DEFAULT_BAND_CYCLE_PER_M
     draw_class_bands(ax)
-    where = f"{lo:g}-{hi:g} cycle/m"
-    ax.loglog(f[keep], stats["psd_left_m3"][keep], lw=0.7, label=f"left (Welch, ISO 8608 band {where})")
-    ax.loglog(f[keep], stats["psd_right_m3"][keep], lw=0.7, alpha=0.7, label=f"right (Welch, ISO 8608 band {where})")
+    where = f"{lo:g}-{hi:g} cycle/m"       # the ISO band: the legend says the estimate stops at its edges
+    ax.loglog(f[keep], stats["psd_left_m3"][keep], lw=0.7, label=f"left (Welch, {where})")
+    ax.loglog(f[keep], stats["psd_right_m3"][keep], lw=0.7, alpha=0.7, label=f"right (Welch, {where})")
     bands = stats["bands"]
     if len(bands["centre_cycle_per_m"]):
         ax.loglog(bands["centre_cycle_per_m"], bands["psd_m3"], "ko", ms=3, label="1/3-octave mean")
@@ -70,7 +70,8 @@ def draw_psd(ax, stats: dict):
     if pos.size:  # the class bands and the drawn PSD decide the scale
         g_min = iso8608.displacement_psd(hi, iso8608.class_limits(iso8608.ISO_CLASSES[0])[0])
         ax.set_ylim(min(pos.min(), g_min) / 3.0, pos.max() * 10)
-    ax.set_xlim(lo / 1.2, hi * 1.8)      # the band, and room for the class labels at its right
+    # the drawn estimate, and room for the class labels right of the band
+    ax.set_xlim((f[keep][0] if keep.any() else lo) / 1.2, hi * 1.8)
     ax.set_xlabel("spatial frequency n [cycle/m]")
     ax.set_ylabel("Gd(n) [m³]")
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)
