@@ -352,7 +352,7 @@ def test_strut_outputs_are_replaced_whole_with_overwrite(tmp_path, capsys):
 def test_uq_summary_stopped_midway_keeps_the_old_summary(tmp_path, monkeypatch, stop):
     import json
 
-    from vehicle.studies.uq import write_summary
+    from vehicle.studies.uq_tables import write_summary
 
     (tmp_path / "summary.json").write_bytes(OLD)
     write_text = Path.write_text
@@ -370,3 +370,19 @@ def test_uq_summary_stopped_midway_keeps_the_old_summary(tmp_path, monkeypatch, 
     write_summary(tmp_path, {"samples": 8, "wall_s": float("nan")})
     assert json.loads((tmp_path / "summary.json").read_text())["samples"] == 8
     assert _leftovers(tmp_path) == []
+
+
+def test_uq_table_failing_midway_keeps_the_old_table(tmp_path):
+    from vehicle.studies.uq_tables import write_bands
+
+    out = tmp_path / "bands.csv"
+    out.write_bytes(OLD)
+    band = {c: 1.0 for c in ("p5", "p50", "p95", "nominal", "mean", "sd", "min", "max")} | {"n": 8}
+    summary = {"units": {}, "bands": {"axle1.rise_K": band, "axle2.rise_K": band | {"p5": "not a number"}}}
+    with pytest.raises(ValueError):
+        write_bands(out, summary)
+    assert out.read_bytes() == OLD
+    assert _leftovers(tmp_path) == []
+    del summary["bands"]["axle2.rise_K"]
+    write_bands(out, summary)
+    assert out.read_text().splitlines()[1].startswith("axle1.rise_K,1,rise_K,")

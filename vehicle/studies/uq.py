@@ -45,7 +45,6 @@ import yaml
 
 from hpsim.config import deep_update, load_yaml
 from hpsim.errors import SimulationError, UserInputError
-from hpsim.outputs import atomic_output
 from hpsim.priors import Prior, collect_priors, correlated_quantile, tie_shared
 from struts.params import strut_file
 
@@ -53,7 +52,7 @@ from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, vali
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import dask_client, execute, run_case
-from vehicle.studies.uq_tables import json_safe, write_bands, write_ranking, write_sobol
+from vehicle.studies.uq_tables import json_safe, write_bands, write_ranking, write_sobol, write_summary
 from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
 from vehicle.engines.ensemble import eligible, grouped_jobs
 
@@ -553,12 +552,6 @@ def _run_study(plan: StudyPlan) -> dict:
     summary["ran_now"] = done
     write_summary(out_dir, summary)
     return summary
-
-
-def write_summary(out_dir: Path, summary: dict) -> None:
-    """DIR/summary.json, written whole or not at all (an interrupted write keeps the previous summary)."""
-    with atomic_output(out_dir / "summary.json") as tmp:
-        tmp.write_text(json.dumps(json_safe(summary), indent=1) + "\n")
 
 
 def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sobol", seed: int = 0,
