@@ -16,7 +16,6 @@ import itertools
 import logging
 import re
 import sys
-from pathlib import Path
 
 from hpsim.tables import format_table, print_json
 from hpsim.errors import UserInputError

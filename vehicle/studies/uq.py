@@ -52,7 +52,7 @@ from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, vali
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import dask_client, execute, run_case
-from vehicle.studies.uq_tables import json_safe, write_bands, write_ranking, write_sobol, write_summary
+from vehicle.studies.uq_tables import write_bands, write_ranking, write_sobol, write_summary
 from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
 from vehicle.engines.ensemble import eligible, grouped_jobs
 
