@@ -12,6 +12,9 @@ from . import iso8608
 PROFILE_MAX_POINTS = 20000  # profile overview is drawn as a min/max envelope beyond this
 OVERVIEW_CHUNKS = 100       # a long profile's overview: range and RMS over this many chunks
 DETAIL_LENGTH_M = 200.0  # length of the zoomed profile panel
+# half-width of the Hann window's main lobe in Welch bins (Harris 1978): a bin this close to a band edge mixes
+# the power on both sides of it
+HANN_MAIN_LOBE_BINS = 2.0
 
 
 def _pyplot():
@@ -35,33 +38,40 @@ def draw_class_bands(ax, n_range=iso8608.DEFAULT_BAND_CYCLE_PER_M):
                 name, va="center", fontsize=8, color="0.35")
 
 
+def psd_drawn(f: np.ndarray, band=iso8608.DEFAULT_BAND_CYCLE_PER_M) -> np.ndarray:
+    """Mask of the Welch bins `f` [cycle/m] whose estimate is drawn: inside the ISO 8608 band, where its classes
+    are defined, and at least HANN_MAIN_LOBE_BINS bins from its edges (a bin nearer mixes in the power beyond
+    the edge: a generated road has none there, so the estimate falls away)."""
+    df = f[1] - f[0] if f.size > 1 else 0.0
+    margin = HANN_MAIN_LOBE_BINS * df
+    return (f >= band[0] + margin) & (f <= band[1] - margin)
+
+
 def draw_psd(ax, stats: dict):
+    """The Welch PSD of both tracks over the ISO 8608 band, its 1/3-octave means and fit, on the class bands."""
     f = stats["frequency_cycle_per_m"]
-    keep = f > 0
+    keep = psd_drawn(f)
+    lo, hi = iso8608.DEFAULT_BAND_CYCLE_PER_M
     draw_class_bands(ax)
-    ax.loglog(f[keep], stats["psd_left_m3"][keep], lw=0.7, label="left (Welch)")
-    ax.loglog(f[keep], stats["psd_right_m3"][keep], lw=0.7, alpha=0.7, label="right (Welch)")
+    where = f"{lo:g}-{hi:g} cycle/m"       # the ISO band: the legend says the estimate stops at its edges
+    ax.loglog(f[keep], stats["psd_left_m3"][keep], lw=0.7, label=f"left (Welch, {where})")
+    ax.loglog(f[keep], stats["psd_right_m3"][keep], lw=0.7, alpha=0.7, label=f"right (Welch, {where})")
     bands = stats["bands"]
     if len(bands["centre_cycle_per_m"]):
         ax.loglog(bands["centre_cycle_per_m"], bands["psd_m3"], "ko", ms=3, label="1/3-octave mean")
     if stats["gd_n0_m3"]:
-        lo, hi = stats["fit_band_cycle_per_m"]
-        n = np.geomspace(lo, hi, 20)
+        fit_lo, fit_hi = stats["fit_band_cycle_per_m"]
+        n = np.geomspace(fit_lo, fit_hi, 20)
         ax.loglog(n, iso8608.displacement_psd(n, stats["gd_n0_m3"], stats["waviness"]), "r--",
                   label=f"fit: Gd(n0)={stats['gd_n0_m3'] * 1e6:.4g}e-6 m³, w={stats['waviness']:.3f} "
                         f"(class {stats['iso_class']})")
-    lo, hi = iso8608.DEFAULT_BAND_CYCLE_PER_M
-    inband = (f >= lo) & (f <= hi)
-    pos = np.concatenate([stats["psd_left_m3"][inband], stats["psd_right_m3"][inband]])
+    pos = np.concatenate([stats["psd_left_m3"][keep], stats["psd_right_m3"][keep]])
     pos = pos[pos > 0]
-    if pos.size:  # the class bands and the in-band PSD decide the scale, not the empty bins beyond the band
+    if pos.size:  # the class bands and the drawn PSD decide the scale
         g_min = iso8608.displacement_psd(hi, iso8608.class_limits(iso8608.ISO_CLASSES[0])[0])
-        bottom = min(pos.min(), g_min) / 3.0
-        ax.set_ylim(bottom, pos.max() * 10)
-        # the x-axis over the frequencies whose PSD shows on this scale (and the class bands' labels)
-        shown = keep & (np.maximum(stats["psd_left_m3"], stats["psd_right_m3"]) >= bottom)
-        if shown.any():
-            ax.set_xlim(min(f[shown][0], lo) / 1.2, max(f[shown][-1], hi) * 1.8)
+        ax.set_ylim(min(pos.min(), g_min) / 3.0, pos.max() * 10)
+    # the drawn estimate, and room for the class labels right of the band
+    ax.set_xlim((f[keep][0] if keep.any() else lo) / 1.2, hi * 1.8)
     ax.set_xlabel("spatial frequency n [cycle/m]")
     ax.set_ylabel("Gd(n) [m³]")
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)

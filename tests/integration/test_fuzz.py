@@ -1,12 +1,13 @@
 """Fuzz families of issue 13: malformed input, output paths and a tampered compile cache.
 
 Every generated case runs `hpsim ...` (vehicle.cli.main) in a forked child process, so a hang is
-killed at a timeout and a crash (bus error, abort) is seen as such instead of taking pytest down.
+killed at a limit of CPU time and a crash (bus error, abort) is seen as such instead of taking pytest down.
+The limit is of CPU time, not wall time, so a machine loaded by other work does not fail a case.
 Each case must
 
 - exit with code 2 (user error) or 3 (simulation stopped), or 0 where the input is fine,
 - print no traceback and a short message (never the whole offending input),
-- finish within CASE_TIMEOUT_S,
+- finish within CASE_TIMEOUT_S of CPU time,
 - write nothing outside the output path it names (the case's folder is compared before/after).
 
 Families: long quantity strings, YAML alias bombs, encodings, deep nesting, duplicate keys, output
@@ -37,7 +38,9 @@ STRUT_FILE = REPO / "struts" / "data" / "apc.yaml"
 RIG_CSV = REPO / "struts" / "data" / "apc_rig_energy.csv"
 ROAD_SPEC = REPO / "terrain" / "data" / "example_road.yaml"
 
-CASE_TIMEOUT_S = 30.0
+CASE_TIMEOUT_S = 30.0                 # CPU seconds a case may use (RLIMIT_CPU of its child process)
+WALL_BACKSTOP_FACTOR = 6.0            # a case blocked without using CPU (a FIFO, a lock) is killed after this many
+                                      # times its CPU limit in wall time
 MEMORY_LIMIT_BYTES = 3 << 30          # a child allocating more than this fails instead of swapping the machine
 MAX_MESSAGE_CHARS = 2000              # an error message is a line or two, never the input echoed back
 
@@ -65,18 +68,29 @@ ROAD_CSV = "distance_m,left_m,right_m\n" + "".join(f"{0.05 * i:.2f},0.0,0.0\n" f
 # --- the runner ------------------------------------------------------------------------------------
 @dataclass
 class Outcome:
-    code: int | None          # exit code; None: killed at the timeout or crashed
+    code: int | None          # exit code; None: killed at the CPU or wall limit or crashed
     out: str
     err: str
     timed_out: bool = False
     signal: int = 0           # the signal that ended the child (a crash), 0 if none
     value: object = None      # what a run_forked target returned
+    cpu_s: float = 0.0        # the child's CPU time (user + system)
 
 
-def _child(target, cwd, env, w):
+def _limit_cpu(seconds: float) -> None:
+    """SIGXCPU after `seconds` of this process's CPU time, SIGKILL shortly after (a fork starts at zero)."""
+    soft = max(1, int(seconds + 0.999))
+    _, hard = resource.getrlimit(resource.RLIMIT_CPU)
+    if hard != resource.RLIM_INFINITY and hard <= soft:
+        return
+    resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 5 if hard == resource.RLIM_INFINITY else hard))
+
+
+def _child(target, cwd, env, w, cpu_limit_s):
     out, err = io.StringIO(), io.StringIO()
     code, value = 1, None
     try:
+        _limit_cpu(cpu_limit_s)
         os.chdir(cwd)
         os.environ.update(env or {})
         _, hard = resource.getrlimit(resource.RLIMIT_AS)
@@ -119,16 +133,17 @@ def _vm_bytes() -> int:
 
 def run_forked(target, cwd, env=None, timeout=CASE_TIMEOUT_S) -> Outcome:
     """target() -> (exit code, JSON-able value) in a forked child with cwd `cwd` and a memory limit;
-    killed after `timeout` seconds. stdout/stderr (warnings too) are captured."""
+    killed after `timeout` seconds of its CPU time (or WALL_BACKSTOP_FACTOR times that in wall time, for a
+    child blocked without computing). stdout/stderr (warnings too) are captured."""
     import time
 
     r, w = os.pipe()
     pid = os.fork()
     if pid == 0:                                    # pragma: no cover - the child
         os.close(r)
-        _child(target, cwd, env, w)
+        _child(target, cwd, env, w, timeout)
     os.close(w)
-    chunks, deadline, timed_out = [], time.monotonic() + timeout, False
+    chunks, deadline, timed_out = [], time.monotonic() + WALL_BACKSTOP_FACTOR * timeout, False
     try:
         while True:
             left = deadline - time.monotonic()
@@ -146,13 +161,15 @@ def run_forked(target, cwd, env=None, timeout=CASE_TIMEOUT_S) -> Outcome:
         os.close(r)
     if timed_out:
         os.kill(pid, signal.SIGKILL)
-    _, status = os.waitpid(pid, 0)
-    if timed_out:
-        return Outcome(None, "", "", timed_out=True)
+    _, status, usage = os.wait4(pid, 0)
+    cpu_s = usage.ru_utime + usage.ru_stime
+    if timed_out or (os.WIFSIGNALED(status) and os.WTERMSIG(status) in (signal.SIGXCPU, signal.SIGKILL)
+                     and cpu_s >= timeout):
+        return Outcome(None, "", "", timed_out=True, cpu_s=cpu_s)
     if os.WIFSIGNALED(status):
-        return Outcome(None, "", "", signal=os.WTERMSIG(status))
+        return Outcome(None, "", "", signal=os.WTERMSIG(status), cpu_s=cpu_s)
     d = json.loads(b"".join(chunks).decode())
-    return Outcome(d["code"], d["out"], d["err"], value=d["value"])
+    return Outcome(d["code"], d["out"], d["err"], value=d["value"], cpu_s=cpu_s)
 
 
 def run_isolated(argv, cwd, env=None, timeout=CASE_TIMEOUT_S) -> Outcome:
@@ -202,7 +219,7 @@ def snapshot(root: Path) -> dict:
 
 
 def check_user_error(res: Outcome, *, codes=(2,), must_say: tuple[str, ...] = ()):
-    assert not res.timed_out, f"no answer within {CASE_TIMEOUT_S} s (a hang)"
+    assert not res.timed_out, f"no answer within the case's CPU-time limit ({res.cpu_s:.1f} s used; a hang)"
     assert not res.signal, f"crashed with signal {res.signal}"
     assert "Traceback" not in res.err, res.err[-3000:]
     assert res.code in codes, f"exit code {res.code}, expected {codes}; stderr: {res.err[-1500:]}"
@@ -271,6 +288,25 @@ def command_reading(kind: str, path: Path, d: Path) -> list:
 
 YAML_KINDS = ("scenario", "sweep", "vehicle", "strut", "road_spec")
 ALL_KINDS = YAML_KINDS + ("road_csv", "rig_csv")
+
+
+def test_a_case_is_limited_by_its_cpu_time_not_by_the_wall_clock(tmp_path):
+    """A child that computes past its limit is stopped there; one that waits longer than its limit in wall time
+    (as on a loaded machine, where the CPU goes to others) is not."""
+    import time
+
+    def spin():
+        while True:
+            pass
+
+    def wait():
+        time.sleep(2.5)
+        return 0, "done"
+
+    busy = run_forked(spin, tmp_path, timeout=1.0)
+    assert busy.timed_out and 1.0 <= busy.cpu_s < WALL_BACKSTOP_FACTOR
+    idle = run_forked(wait, tmp_path, timeout=1.0)
+    assert not idle.timed_out and (idle.code, idle.value) == (0, "done") and idle.cpu_s < 1.0
 
 
 # --- family: long and crafted quantity strings -----------------------------------------------------

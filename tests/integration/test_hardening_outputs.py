@@ -118,6 +118,11 @@ def _inputs(case_dir):
     ["plot", "{in}/r.h5", "-o", "{in}/r.h5", "--overwrite"],
     ["validate", "{in}/r.h5", "--plot", "{in}/r.h5", "--overwrite"],
     ["run", "{in}/s.yaml", "-o", "{in}/s.yaml", "--overwrite", "--no-progress"],
+    ["strut", "characteristic", "--strut", "{in}/my.yaml", "--csv", "{in}/my.yaml", "--overwrite"],
+    ["strut", "cycle", "--strut", "{in}/my.yaml", "--amplitude", "10mm", "--frequency", "1Hz", "--mean", "115mm",
+     "--plot", "{in}/my.yaml", "--overwrite"],
+    ["strut", "fit", "--strut", "{in}/my.yaml", "--data", "struts/data/apc_rig_energy.csv", "--fit", "F0",
+     "--write", "{in}/my.yaml", "--overwrite"],
 ], ids=lambda a: " ".join(a[:2]))
 def test_a_command_never_writes_over_its_input(case_dir, argv):
     d = _inputs(case_dir)
@@ -140,7 +145,14 @@ def test_a_command_never_writes_over_its_input(case_dir, argv):
     ["compare", "{in}/r.h5", "{in}/r.h5", "--plot", "{out}.png"],
     ["validate", "{in}/r.h5", "--plot", "{out}.png"],
     ["vehicle", "response", "--plot", "{out}.png"],
-], ids=lambda a: " ".join(a[:2]))
+    ["strut", "characteristic", "--csv", "{out}.csv"],
+    ["strut", "characteristic", "--plot", "{out}.png"],
+    ["strut", "cycle", "--amplitude", "10mm", "--frequency", "1Hz", "--mean", "115mm", "--cycles", "1",
+     "--csv", "{out}.csv"],
+    ["strut", "gas", "--temperatures", "300K", "--plot", "{out}.png"],
+    ["strut", "identify", "--strut", "yin2023", "--csv", "{out}.csv"],
+    ["strut", "fit", "--data", "struts/data/apc_rig_energy.csv", "--fit", "F0", "--write", "{out}.yaml"],
+], ids=lambda a: " ".join(a[:3]))
 def test_an_existing_output_is_refused_without_overwrite(case_dir, argv):
     d = _inputs(case_dir)
     out = case_dir / "work" / "out"
@@ -288,3 +300,89 @@ def test_a_new_output_gets_the_umask_mode_not_mkstemps_0600(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "new.csv").stat().st_mode) == 0o640
+
+
+# --- strut rig outputs and the UQ summary ------------------------------------------------------------------------
+@pytest.mark.parametrize("stop, code", [(KeyboardInterrupt, 130), (Terminated, 143),
+                                        (lambda: OSError(errno.ENOSPC, "No space left on device"), 2)])
+@pytest.mark.parametrize("flag", ["--csv", "--plot"])
+def test_strut_outputs_stopped_midway_keep_the_old_output(tmp_path, monkeypatch, capsys, flag, stop, code):
+    """Ctrl-C, SIGTERM or a full disk halfway through a strut rig's CSV or figure: the old file is as it was and no
+    temporary file is left."""
+    import csv
+
+    from matplotlib.figure import Figure
+
+    from vehicle.cli import main
+
+    out = tmp_path / ("f.csv" if flag == "--csv" else "f.png")
+    out.write_bytes(OLD)
+    writer = csv.writer
+
+    def half_a_table_then_stop(fh, *args, **kwargs):
+        fh.write("x_m,force_N,gas_pressure_Pa\n0.0,")
+        raise stop()
+
+    def half_a_figure_then_stop(self, path, *args, **kwargs):
+        Path(path).write_bytes(b"\x89PNG half")
+        raise stop()
+
+    monkeypatch.setattr(csv, "writer", half_a_table_then_stop if flag == "--csv" else writer)
+    monkeypatch.setattr(Figure, "savefig", half_a_figure_then_stop)
+    assert main(["strut", "characteristic", flag, str(out), "--overwrite"]) == code
+    assert out.read_bytes() == OLD
+    assert _leftovers(tmp_path) == []
+    if code == 2:
+        assert f"{out}: cannot write (No space left on device)" in capsys.readouterr().err
+
+
+def test_strut_outputs_are_replaced_whole_with_overwrite(tmp_path, capsys):
+    from vehicle.cli import main
+
+    table, figure = tmp_path / "f.csv", tmp_path / "f.png"
+    for f in (table, figure):
+        f.write_bytes(OLD)
+    assert main(["strut", "characteristic", "--csv", str(table), "--plot", str(figure), "--overwrite"]) == 0
+    assert table.read_text().startswith("x_m,force_N,gas_pressure_Pa")
+    assert figure.read_bytes().startswith(b"\x89PNG")
+    assert _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, Terminated])
+def test_uq_summary_stopped_midway_keeps_the_old_summary(tmp_path, monkeypatch, stop):
+    import json
+
+    from vehicle.studies.uq_tables import write_summary
+
+    (tmp_path / "summary.json").write_bytes(OLD)
+    write_text = Path.write_text
+
+    def half_then_stop(self, text, *args, **kwargs):
+        write_text(self, text[:len(text) // 2], *args, **kwargs)
+        raise stop()
+
+    monkeypatch.setattr(Path, "write_text", half_then_stop)
+    with pytest.raises(stop):
+        write_summary(tmp_path, {"samples": 8, "bands": {"T gas end": [50.0, 60.0]}})
+    assert (tmp_path / "summary.json").read_bytes() == OLD
+    assert _leftovers(tmp_path) == []
+    monkeypatch.setattr(Path, "write_text", write_text)
+    write_summary(tmp_path, {"samples": 8, "wall_s": float("nan")})
+    assert json.loads((tmp_path / "summary.json").read_text())["samples"] == 8
+    assert _leftovers(tmp_path) == []
+
+
+def test_uq_table_failing_midway_keeps_the_old_table(tmp_path):
+    from vehicle.studies.uq_tables import write_bands
+
+    out = tmp_path / "bands.csv"
+    out.write_bytes(OLD)
+    band = {c: 1.0 for c in ("p5", "p50", "p95", "nominal", "mean", "sd", "min", "max")} | {"n": 8}
+    summary = {"units": {}, "bands": {"axle1.rise_K": band, "axle2.rise_K": band | {"p5": "not a number"}}}
+    with pytest.raises(ValueError):
+        write_bands(out, summary)
+    assert out.read_bytes() == OLD
+    assert _leftovers(tmp_path) == []
+    del summary["bands"]["axle2.rise_K"]
+    write_bands(out, summary)
+    assert out.read_text().splitlines()[1].startswith("axle1.rise_K,1,rise_K,")

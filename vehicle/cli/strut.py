@@ -16,13 +16,14 @@ import itertools
 import logging
 import re
 import sys
-from pathlib import Path
 
 from hpsim.tables import format_table, print_json
 from hpsim.errors import UserInputError
-from hpsim.outputs import check_figure_file, check_output_file
+from hpsim.outputs import atomic_output, check_figure_file, check_output_file
 from hpsim.units import MAX_LIST_ITEMS, parse_quantity
 from hpsim.extras import install_hint
+
+from .options import add_overwrite
 
 PROCESSES = ("polytropic", "isothermal")
 MODELS = ("file", "physical", "identified")
@@ -134,6 +135,8 @@ def register(sub):
     i.add_argument("--csv", help="write the identified parameters as CSV (one row per test)")
     i.add_argument("--plot", help="write the identified parameters against frequency per temperature as PNG")
     i.set_defaults(func=cmd_identify)
+    for sp in (c, y, g, f, i):
+        add_overwrite(sp)
     for sp in (s, c, y, f, i):
         _accept_negative_values(sp)
 
@@ -202,12 +205,18 @@ def cmd_static(args):
             ("gas temperature [degC]", out["gas_temperature_K"] - 273.15)]))
 
 
+def _inputs(args) -> list:
+    """The files a strut command reads (a built-in strut name is no file and is ignored by the output checks)."""
+    return [getattr(args, "strut", None), getattr(args, "data", None)]
+
+
 def _check_outputs(args, figure: str | None = "plot", table: str | None = "csv"):
-    """The figure and CSV paths of a strut command, checked before any work."""
+    """The figure and CSV paths of a strut command, checked before any work: never one of its inputs, an
+    existing file only with --overwrite."""
     if figure and getattr(args, figure, None):
-        check_figure_file(getattr(args, figure), f"--{figure}")
+        check_figure_file(getattr(args, figure), f"--{figure}", inputs=_inputs(args), overwrite=args.overwrite)
     if table and getattr(args, table, None):
-        check_output_file(getattr(args, table), f"--{table}")
+        check_output_file(getattr(args, table), f"--{table}", inputs=_inputs(args), overwrite=args.overwrite)
 
 
 def cmd_characteristic(args):
@@ -444,7 +453,8 @@ def cmd_fit(args):
     from struts.rig import check_cycle_work
 
     if args.write:
-        check_output_file(args.write, "--write", suffixes=(".yaml", ".yml"))
+        check_output_file(args.write, "--write", suffixes=(".yaml", ".yml"), inputs=_inputs(args),
+                          overwrite=args.overwrite)
     params, _, _ = _params(args)
     data = read_rig_csv(args.data)
     check_cycle_work(len(data.rows), args.cycles)
@@ -455,7 +465,8 @@ def cmd_fit(args):
         import yaml
         fitted = with_values(params, names, [res.values[n] for n in names])
         try:
-            Path(args.write).write_text(yaml.safe_dump(fitted.model_dump(), sort_keys=False))
+            with atomic_output(args.write) as tmp:
+                tmp.write_text(yaml.safe_dump(fitted.model_dump(), sort_keys=False))
         except OSError as exc:
             raise UserInputError(f"--write: cannot write {args.write} ({exc.strerror})") from None
     unidentified = [n for n in names if not _identified(res.confidence_95[n])]
@@ -667,7 +678,7 @@ def cmd_gas(args):
 
 def _write_csv(path, header, rows):
     try:
-        with open(path, "w", newline="") as fh:
+        with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(header)
             for r in rows:
@@ -678,6 +689,7 @@ def _write_csv(path, header, rows):
 
 def _save_figure(fig, path, where: str):
     try:
-        fig.savefig(path, dpi=120)
+        with atomic_output(path) as tmp:
+            fig.savefig(tmp, dpi=120)
     except OSError as exc:
         raise UserInputError(f"{where}: cannot write {path} ({exc.strerror})") from None

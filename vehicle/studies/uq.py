@@ -52,7 +52,7 @@ from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, vali
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import dask_client, execute, run_case
-from vehicle.studies.uq_tables import json_safe, write_bands, write_ranking, write_sobol
+from vehicle.studies.uq_tables import write_bands, write_ranking, write_sobol, write_summary
 from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
 from vehicle.engines.ensemble import eligible, grouped_jobs
 
@@ -554,7 +554,7 @@ def _run_study(plan: StudyPlan) -> dict:
     summary = analyse(out_dir, params, rows, records, method=method, samples=samples, seed=seed, groups=groups)
     summary["wall_s"] = time.perf_counter() - t0
     summary["ran_now"] = done
-    (out_dir / "summary.json").write_text(json.dumps(json_safe(summary), indent=1) + "\n")
+    write_summary(out_dir, summary)
     return summary
 
 
@@ -600,7 +600,7 @@ def run_scenario_study(scenario: str | Path, *, samples: int, method: str = "sob
     summary["scenario"] = str(scenario)
     summary["distance"] = distance
     summary["notes"] = notes
-    (out_dir / "summary.json").write_text(json.dumps(json_safe(summary), indent=1) + "\n")
+    write_summary(out_dir, summary)
     return summary
 
 

@@ -1,12 +1,16 @@
-"""The tables of a UQ study folder (bands.csv, sobol.csv, ranking.csv) and its summary.json's numbers made JSON-safe."""
+"""The tables of a UQ study folder (bands.csv, sobol.csv, ranking.csv) and its summary.json, its numbers made
+JSON-safe; each written whole or not at all (hpsim.outputs.atomic_output: an interrupted write keeps the old file)."""
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
 from pathlib import Path
 
 import numpy as np
+
+from hpsim.outputs import atomic_output
 
 
 def _split(name: str) -> tuple[str, str]:
@@ -15,7 +19,7 @@ def _split(name: str) -> tuple[str, str]:
 
 
 def write_bands(path: Path, summary: dict) -> Path:
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["output", "axle", "quantity", "unit", "p5", "p50", "p95", "nominal", "mean", "sd", "min", "max", "n"])
         for k, b in summary["bands"].items():
@@ -26,7 +30,7 @@ def write_bands(path: Path, summary: dict) -> Path:
 
 
 def write_sobol(path: Path, table: dict) -> Path:
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["output", "parameter", "S1", "S1_conf", "ST", "ST_conf"])
         for k, v in table.items():
@@ -36,7 +40,7 @@ def write_sobol(path: Path, table: dict) -> Path:
 
 
 def write_ranking(path: Path, table: dict) -> Path:
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["output", "parameter", "spearman", "prcc"])
         for k, v in table.items():
@@ -47,6 +51,14 @@ def write_ranking(path: Path, table: dict) -> Path:
 
 def _fmt(v) -> str:
     return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.6g}"
+
+
+def write_summary(out_dir: Path, summary: dict) -> Path:
+    """DIR/summary.json: the study's summary with non-finite numbers as null."""
+    path = out_dir / "summary.json"
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(json_safe(summary), indent=1) + "\n")
+    return path
 
 
 def json_safe(obj):
