@@ -5,8 +5,8 @@ an `hpsim uq` study of scenarios/mileage_106km_uq.yaml:
     python docs/scripts/uq_per_axle_table.py results/mileage_uq [--data docs/data]
 
 Writes <data>/uq_per_axle_readings.csv (per axle and instrument: the nominal prediction, the model's 5/50/95 %
-and the 5/50/95 % of what the instrument would read after minus before the drive; `hpsim validate STUDY`) and
-<data>/uq_per_axle_spread.csv (what sets the axle-to-axle spread of the rise and of dN: per prior, grouped
+and the 5/50/95 % of what the instrument would read after minus before the drive; `hpsim validate STUDY`).
+It also writes <data>/uq_per_axle_spread.csv (what sets the axle-to-axle spread of the rise and of dN: per prior, grouped
 over its per-axle draws, the share of the spread's rank variance a linear regression on the group's ranks
 explains, adjusted R^2; and the per-parameter Spearman correlations), and prints both as Markdown tables.
 """
