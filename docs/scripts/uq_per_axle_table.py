@@ -119,10 +119,10 @@ PER_AXLE_OUTPUTS = ("rise_K", "dN_pct")
 
 
 def deviation_shares(study: Path) -> dict:
-    """What sets the differences between axles: per output (rise, dN) the deviations of each axle from the
-    drive's mean, pooled over drives and axles, regressed by least squares on each per-axle prior's deviations
-    (its draw on that axle less the mean of its draws; the road factor of axle 1 is 1) plus one constant per
-    axle (the layout: the pattern all drives share). Share of a group: beta^2 var(x) / var(deviation); the rest
+    """What sets the differences between axles. Per output (rise, dN) the deviations of each axle from the
+    drive's mean, pooled over drives and axles, are regressed by least squares on each per-axle prior's
+    deviations plus one constant per axle (the layout: the pattern all drives share). A prior's deviation is its
+    draw on that axle less the mean of its draws (the road factor of axle 1 is 1). Share of a group: beta^2 var(x) / var(deviation); the rest
     is what the vehicle-wide priors do to the pattern (interactions) and the noise."""
     from vehicle.scenario.schema import read_scenario
     from vehicle.studies.uq import physical_values, scenario_parameters
