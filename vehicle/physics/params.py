@@ -85,7 +85,8 @@ def _check_environment(model):
 
 class AxleHeat(Model):
     """Per-axle overrides of the vehicle's heat environment (docs/physics.md "Per-station heat
-    environment"); a field left out keeps the vehicle's `heat` value. Give air_speed_ratio or film_coefficient, not both."""
+    environment"); a field left out keeps the vehicle's `heat` value. Give air_speed_ratio or
+    film_coefficient, not both."""
 
     air_speed_ratio: Number | None = None                   # wheel-bay air speed / vehicle speed
     film_coefficient: Quantity("W/(m**2*K)") | None = None  # outside convection (replaces natural + forced)
