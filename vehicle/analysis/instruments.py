@@ -15,13 +15,13 @@ Pyrometer (surface_temperature), a reading of station i (before and after the dr
                                                   ambient in proportion to that excess: no excess, no deficit)
     T_read = radiometric(T_spot, eps, eps_set, T_bg) + noise
 
-The temperatures are those of the standing network (`standing_network`: no driving power, no wind) `delay` after
-the stop; before the drive every node stands at the start temperature. Here radiometric(...) is what a
-broadband IR thermometer set to eps_set shows for a grey surface of emissivity eps before a background at T_bg
-(the ambient): eps_set T_r^4 + (1 - eps_set) T_bg^4 = eps T^4 + (1 - eps) T_bg^4 (the radiometric equation,
-e.g. Incropera 7th ed. §12.4 with the instrument's emissivity compensation). One station's h, f and eps are drawn once and
-read both times (the same instrument on the same spot), so a change's offset is the difference of the two
-readings' offsets: about zero for a strut that did not warm.
+The temperatures are those of the standing network (`standing_network`: no driving power, no wind) `delay` after the
+stop; before the drive every node stands at the start temperature. Here radiometric(...) is what a broadband IR
+thermometer set to eps_set shows for a grey surface of emissivity eps before a background at T_bg (the ambient):
+eps_set T_r^4 + (1 - eps_set) T_bg^4 = eps T^4 + (1 - eps) T_bg^4 (the radiometric equation, e.g. Incropera 7th ed.
+§12.4 with the instrument's emissivity compensation). One station's h, f and eps are drawn once and read both times
+(the same instrument on the same spot), so a change's offset is the difference of the two readings' offsets: about
+zero for a strut that did not warm.
 
 Thermocouple (oil_temperature): T_oil after the delay + noise.
 
