@@ -8,11 +8,12 @@ integration").
 Runs `hpsim -v run <scenario> -o <tmp>.h5 --overwrite --no-progress` for both scenarios as separate processes, one
 after the other, --repeat times alternating (full, multiscale, full, ...), so that both see the same machine load;
 first one warm-up run of each (the compile cache filled: the timings are those of a warm cache). Prints each
-command's wall time (from outside the process: interpreter start and imports included), the ratio full /
-multiscale of the medians, and the `-v` stage times of the median run of each (reading, scenario checks, model,
-road, the cache lookup, the drive, the summary; "other" is the wall time outside the stages: interpreter start,
-imports, the output file's set-up), and each command's CPU time (user + system, of the process and its children):
-on a shared machine the wall times are noisy (compare the ratio of one run), the CPU times less so.
+command's wall time (from outside the process: interpreter start and imports included) and the ratio full /
+multiscale of the medians. It also prints the `-v` stage times of the median run of each (reading, scenario
+checks, model, road, the cache lookup, the drive, the summary; "other" is the wall time outside the stages:
+interpreter start, imports, the output file's set-up). Last comes each command's CPU time (user + system, of the
+process and its children): on a shared machine the wall times are noisy (compare the ratio of one run), the CPU
+times less so.
 
 Python's bytecode cache: a user's Python writes each module's compiled bytecode (__pycache__) on the first import
 and reads it afterwards. Where PYTHONDONTWRITEBYTECODE is set (this project's development machine sets it), every

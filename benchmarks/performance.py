@@ -16,8 +16,9 @@ included), one after the other in a temporary folder:
 - the test suite (`python -m pytest -q -n 2`, the README's test command less the install).
 
 It then writes the table's headline rows into README.md between its `performance` markers (`--quote`
-does only that, from the docs/performance.md there is). The table states the machine, its CPU flags, its load average before and after, the commit and the date:
-on a machine shared with other work the walls are longer, the ratios of one run less so. --distance
+does only that, from the docs/performance.md there is). The table states the machine, its CPU flags, its
+load average before and after, the commit and the date. On a machine shared with other work the walls are
+longer, the ratios of one run less so. --distance
 shortens every 106 km scenario (the multiscale ones to at least three windows, the time-parallel one
 to its segments' minimum) and says so in the table.
 """

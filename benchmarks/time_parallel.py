@@ -11,12 +11,12 @@ Three runs of the same scenario into memory (vehicle.results.run.run_in_memory, 
   lanes          `solver: {time_parallel: P, time_parallel_lanes: --lanes}` (default 4): P x lanes segments, each
                  process running its lanes in lockstep on the lane library (vehicle.numerics.lanes).
 Printed: drive wall time of each (the summary's wall_s: without building the model, the same for both) and
-their ratio, the sum of the workers' CPU time and the coarse run's wall time, per axle the final strut
+their ratio, the sum of the workers' CPU time and the coarse run's wall time. Per axle it prints the final strut
 temperature and wheel-load change differences (time-parallel - serial), without the correction for the
-temperatures, and the run's own a-posteriori estimate; with --reference-dt every run's largest per-axle error
-of the final strut temperature and the load change against the serial run at that step (e.g. 1 ms).
-On a machine shared with other work the wall ratio
-understates what P free cores give: the CPU sum says how much work was done.
+temperatures, and the run's own a-posteriori estimate. With --reference-dt it prints every run's largest
+per-axle error of the final strut temperature and the load change against the serial run at that step (e.g.
+1 ms). On a machine shared with other work the wall ratio understates what P free cores give: the CPU sum says
+how much work was done.
 """
 from __future__ import annotations
 

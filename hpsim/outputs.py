@@ -1,9 +1,9 @@
 """The one way a command writes an output file: checked before any work starts, written whole or not at all.
 
 `check_output_file` and `check_output_dir` raise `UserInputError` (one line, exit code 2) naming
-the option and the path when the file or folder cannot be written: a directory where a file is
-expected, a file where a folder is expected, a missing or read-only folder, a figure type the
-plotting library does not know, one of the command's own inputs, an existing file without
+the option and the path when the file or folder cannot be written. That is a directory where a file
+is expected, a file where a folder is expected, a missing or read-only folder, a figure type the
+plotting library does not know, one of the command's own inputs, or an existing file without
 `--overwrite`. Writability is tested by creating (and at once removing) a uniquely named empty
 file in the folder: permission bits alone do not tell (root, read-only mounts, /sys).
 

@@ -147,8 +147,8 @@ def lugre_bristle_rate(z_m, v, F_c, F_s, v_s, sigma0, eps):
     """LuGre bristle deflection rate [m/s]: dz/dt = v - sigma0 |v| z / g(v), g = F_c + (F_s - F_c) e^(-(v/v_s)^2).
 
     (Canudas de Wit et al. 1995; REFERENCE §7.) z_m [m] bristle deflection, F_c / F_s [N]
-    Coulomb / static level, v_s [m/s], sigma0 [N/m] bristle stiffness. |v| ~ sqrt(v^2 + eps^2)
-    (width eps [m/s]), which keeps the steady state exactly z_ss = g(v) v / (sigma0 sqrt(v^2 +
+    Coulomb / static level, v_s [m/s], sigma0 [N/m] bristle stiffness. The smooth |v| ~ sqrt(v^2 + eps^2)
+    (width eps [m/s]) keeps the steady state exactly z_ss = g(v) v / (sigma0 sqrt(v^2 +
     eps^2)) = g(v)/sigma0 sgn_eps(v) and adds a slow creep (time constant g/(sigma0 eps)) in
     presliding: choose eps well below the velocities of interest.
     """

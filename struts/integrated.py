@@ -229,10 +229,11 @@ class IntegratedStrut(StrutBase):
     def emulsion(self, p, T_wall, gamma0=None) -> dict:
         """Emulsion properties at pressure p [Pa] and body temperature T_wall [K].
 
-        gamma (eq. 9), rho [kg/m^3] (eq. 10), nu = V/V(p0) [-] (relative volume of a fixed mass),
-        kappa = -d ln nu/dp [1/Pa] (compressibility, the exact derivative of the eq. 8 volumes;
-        1/kappa is seed 001 eq. 11 up to O((p - p0)/beta_h)). gamma0: the gas fraction at p0 (default: the
-        file's emulsion.initial_gas_fraction; a map's value at the excitation, seed 001 Fig. 10a).
+        gamma (eq. 9), rho [kg/m^3] (eq. 10) and nu = V/V(p0) [-] (relative volume of a fixed mass).
+        The compressibility kappa = -d ln nu/dp [1/Pa] is the exact derivative of the eq. 8 volumes;
+        1/kappa is seed 001 eq. 11 up to O((p - p0)/beta_h)).
+        gamma0: the gas fraction at p0 (default: the file's emulsion.initial_gas_fraction; a map's value at
+        the excitation, seed 001 Fig. 10a).
         """
         n = self.p.gas.polytropic_exponent
         p0 = self.p.charge.pressure

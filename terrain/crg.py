@@ -5,7 +5,7 @@ The file is read and evaluated by the OpenCRG C library through its Python bindi
 pip install -e ".[crg]"), with the file's own modifiers and options, as any OpenCRG tool sees it. The tracks
 are the elevations z(u, v) at v = c + track/2 (left; OpenCRG's v is positive to the left of the reference line)
 and v = c - track/2 (right) for u from the start to the end of the reference line at the road's spacing
-(default: the file's u increment). c is the lateral offset of the vehicle's centre line (default 0: centred
+(default: the file's u increment). `c` is the lateral offset of the vehicle's centre line (default 0: centred
 on the reference line); a file whose long sections lie on one side of the reference line (a minimalist file
 without LONG_SECTION_V_RIGHT/LEFT covers v from 0 to its width) needs one, e.g. half its width.
 The reference line's own elevation (slope) is part of z, so a grade in the file is a slow height change of

@@ -1,9 +1,9 @@
 """Is a profile a road a vehicle can drive on? Finite elevations, bounded rises, a bounded range.
 
 Every road source (OpenCRG surface, CSV profile, generated road with its events) passes
-`check_plausible_tracks` before anything is driven on it or written from it, so that a damaged
-file or a unit error (millimetres read as metres) is refused with the file, the track, the
-distance and the value, instead of reaching the vehicle model as a wall or a cliff.
+`check_plausible_tracks` before anything is driven on it or written from it. A damaged file or
+a unit error (millimetres read as metres) is so refused with the file, the track, the distance and
+the value, instead of reaching the vehicle model as a wall or a cliff.
 
 The bounds and why:
 

@@ -6,7 +6,7 @@ scenarios/mechanism_sweep.yaml (the 106 km mileage test, one mechanism per case,
     python docs/scripts/mechanism_table.py results/mechanisms [results/mechanisms_30km] [--data docs/data]
 
 Writes <data>/mileage_prediction.csv (per axle: surface, oil and gas end temperatures, rise, dh and dN
-with their weighing bands, for the uncompensated and the compensated drive) and
+with their weighing bands, for the uncompensated and the compensated drive). It also writes
 <data>/mechanism_sensitivity.csv (per case: mean surface rise, the axle-to-axle spread of the rise
 and of dN (max - min over the four axles), the per-axle rises and dN, and the change of the spreads
 against the case's reference), and prints both as Markdown tables.

@@ -5,10 +5,11 @@ an `hpsim uq` study of scenarios/mileage_106km_uq.yaml:
     python docs/scripts/uq_per_axle_table.py results/mileage_uq [--data docs/data]
 
 Writes <data>/uq_per_axle_readings.csv (per axle and instrument: the nominal prediction, the model's 5/50/95 %
-and the 5/50/95 % of what the instrument would read after minus before the drive; `hpsim validate STUDY`) and
-<data>/uq_per_axle_spread.csv (what sets the axle-to-axle spread of the rise and of dN: per prior, grouped
-over its per-axle draws, the share of the spread's rank variance a linear regression on the group's ranks
-explains, adjusted R^2; and the per-parameter Spearman correlations), and prints both as Markdown tables.
+and the 5/50/95 % of what the instrument would read after minus before the drive; `hpsim validate STUDY`).
+It also writes <data>/uq_per_axle_spread.csv (what sets the axle-to-axle spread of the rise and of dN: per
+prior, grouped over its per-axle draws, the share of the spread's rank variance a linear regression on the
+group's ranks explains, adjusted R^2; and the per-parameter Spearman correlations), and prints both as Markdown
+tables.
 """
 from __future__ import annotations
 
@@ -119,11 +120,12 @@ PER_AXLE_OUTPUTS = ("rise_K", "dN_pct")
 
 
 def deviation_shares(study: Path) -> dict:
-    """What sets the differences between axles: per output (rise, dN) the deviations of each axle from the
-    drive's mean, pooled over drives and axles, regressed by least squares on each per-axle prior's deviations
-    (its draw on that axle less the mean of its draws; the road factor of axle 1 is 1) plus one constant per
-    axle (the layout: the pattern all drives share). Share of a group: beta^2 var(x) / var(deviation); the rest
-    is what the vehicle-wide priors do to the pattern (interactions) and the noise."""
+    """What sets the differences between axles. Per output (rise, dN) the deviations of each axle from the
+    drive's mean, pooled over drives and axles, are regressed by least squares on each per-axle prior's
+    deviations plus one constant per axle (the layout: the pattern all drives share). A prior's deviation is its
+    draw on that axle less the mean of its draws (the road factor of axle 1 is 1). Share of a group: beta^2
+    var(x) / var(deviation); the rest is what the vehicle-wide priors do to the pattern (interactions) and the
+    noise."""
     from vehicle.scenario.schema import read_scenario
     from vehicle.studies.uq import physical_values, scenario_parameters
 

@@ -14,22 +14,25 @@ Pyrometer (surface_temperature), a reading of station i (before and after the dr
                                                   of its excess over the ambient (the skin loses heat to the
                                                   ambient in proportion to that excess: no excess, no deficit)
     T_read = radiometric(T_spot, eps, eps_set, T_bg) + noise
-with the temperatures of the standing network (`standing_network`: no driving power, no wind) `delay` after the
-stop; before the drive every node stands at the start temperature. radiometric: a broadband IR thermometer set
-to eps_set reading a grey surface of emissivity eps before a background at T_bg (the ambient):
-eps_set T_r^4 + (1 - eps_set) T_bg^4 = eps T^4 + (1 - eps) T_bg^4 (the radiometric equation, e.g. Incropera
-7th ed. §12.4 with the instrument's emissivity compensation). One station's h, f and eps are drawn once and
-read both times (the same instrument on the same spot), so a change's offset is the difference of the two
-readings' offsets: about zero for a strut that did not warm.
+
+The temperatures are those of the standing network (`standing_network`: no driving power, no wind) `delay` after the
+stop; before the drive every node stands at the start temperature. Here radiometric(...) is what a broadband IR
+thermometer set to eps_set shows for a grey surface of emissivity eps before a background at T_bg (the ambient):
+eps_set T_r^4 + (1 - eps_set) T_bg^4 = eps T^4 + (1 - eps) T_bg^4 (the radiometric equation, e.g. Incropera 7th ed.
+§12.4 with the instrument's emissivity compensation). One station's h, f and eps are drawn once and read both times
+(the same instrument on the same spot), so a change's offset is the difference of the two readings' offsets: about
+zero for a strut that did not warm.
 
 Thermocouple (oil_temperature): T_oil after the delay + noise.
 
 Photogrammetry (height), after minus before at axle k:
     dh_read = dh_friction + dh_tyre + dh_cool + noise
-dh_friction uniform in the seal-friction band of the two standing poses (vehicle.physics.weighing,
-`dh_band_mm` of the report; the frictionless dh when the results hold no band), dh_tyre the lift of tyres warmed
-by the drive (`tyre_lift_m`: inflation pressure up with the absolute air temperature, stiffness ~ p + p_carcass,
-static deflection W/k_t down), dh_cool the sinking of the hull while the struts cool during the delay, linear in
+
+The friction term dh_friction is uniform in the seal-friction band of the two standing poses
+(vehicle.physics.weighing, `dh_band_mm` of the report; the frictionless dh when the results hold no band). The
+tyre term dh_tyre is the lift of tyres warmed by the drive (`tyre_lift_m`: inflation pressure up with the absolute
+air temperature, stiffness ~ p + p_carcass, static deflection W/k_t down). The cooling term dh_cool is the sinking
+of the hull while the struts cool during the delay, linear in
 the oil temperature's drop (the gas follows the oil through the floating piston in 10-60 s, and both expand
 linearly in T): dh_cool = dh_model (T_oil(delay) - T_oil,end) / (T_oil,end - T_start).
 

@@ -20,13 +20,13 @@ from hpsim.cancellation import NEVER, CancelToken
 class Engine(Protocol):
     """A drive of a vehicle model over a road with settings (vehicle.scenario.settings.DriveSettings).
 
-    mode             "full", "multiscale", "time_parallel": recorded as the results' solver_mode
-    model, settings  the vehicle model and the drive settings it runs
-    gas_masses       the struts' gas masses [kg] as charged (recorded with the results)
-    total_time_s     the drive's duration [s]
-    build_s          set-up wall time [s] (model, compilation, proxies)
-    T_index          the state indices of the reported strut temperatures (the surface node, per station)
-    resumable        False: an interrupted run is not continued but started again (`--overwrite`)
+    mode:            "full", "multiscale", "time_parallel": recorded as the results' solver_mode
+    model, settings: the vehicle model and the drive settings it runs
+    gas_masses:      the struts' gas masses [kg] as charged (recorded with the results)
+    total_time_s:    the drive's duration [s]
+    build_s:         set-up wall time [s] (model, compilation, proxies)
+    T_index:         the state indices of the reported strut temperatures (the surface node, per station)
+    resumable:       False: an interrupted run is not continued but started again (`--overwrite`)
     """
 
     mode: str

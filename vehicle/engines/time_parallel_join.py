@@ -41,16 +41,16 @@ def merge_estimates(parts: list[StepDoublingEstimate]) -> StepDoublingEstimate |
 class SegmentRun:
     """One segment as its worker ran it (`TimeParallelDrive.fine_segment`), what the join reads.
 
-    k, t0, t1        its index and its start and end [s] (on the output-sample grid)
-    x_start, x_end   its state at t0 (after the warm-up from the predicted start) and at its end (uncorrected)
-    state            its drive state at the end (`DriveState`: the statistics interval left open)
-    mark, tail       its slow states shortly after t0 and, past its end, at the next segment's mark (None: none)
-    blocks           its output series, joined over its blocks (drive key -> array)
-    rows             its raw statistics intervals (`BlockRecorder.stats_intervals`)
-    X_sub, M_sub, U_sub  every few samples' states, solver memory and inputs (the slow-rate Jacobian)
-    A                the slow states' Jacobian averaged over the segment, its first and its second half
-    estimate         its step-doubling estimate, or None
-    integration_s, cpu_s, wall_s   its solver's wall time, its worker's CPU and wall time [s]
+    k, t0, t1:       its index and its start and end [s] (on the output-sample grid)
+    x_start, x_end:  its state at t0 (after the warm-up from the predicted start) and at its end (uncorrected)
+    state:           its drive state at the end (`DriveState`: the statistics interval left open)
+    mark, tail:      its slow states shortly after t0 and, past its end, at the next segment's mark (None: none)
+    blocks:          its output series, joined over its blocks (drive key -> array)
+    rows:            its raw statistics intervals (`BlockRecorder.stats_intervals`)
+    X_sub, M_sub, U_sub: every few samples' states, solver memory and inputs (the slow-rate Jacobian)
+    A:               the slow states' Jacobian averaged over the segment, its first and its second half
+    estimate:        its step-doubling estimate, or None
+    integration_s, cpu_s, wall_s:  its solver's wall time, its worker's CPU and wall time [s]
     """
 
     k: int

@@ -16,14 +16,14 @@ class WindowRecord:
     """One window of the multiscale drive: what `MultiscaleDrive.window_record` makes of its integration, then
     the gap after it and the road proxy's means (`_drive_windows`, `run`). Times [s], distances [m].
 
-    x_avg0, x_end, t_avg0, t_end   the state and time at the start of its averaged stretch and at its end
-    A, r, xbar, b, q_rate          its averaged slow model dx_s/dt = b + A x_s (r: the slow rates, xbar: the mean
+    x_avg0, x_end, t_avg0, t_end:  the state and time at the start of its averaged stretch and at its end
+    A, r, xbar, b, q_rate:         its averaged slow model dx_s/dt = b + A x_s (r: the slow rates, xbar: the mean
                                    slow state) and the totals' rates
-    row, memory, samples           its statistics row, the solver memory at its end, its samples for the sink
-    flow                           `LinearFlow` of A; predicted_start: integrated from a predicted start (paired)
-    t_start, t_gap_end, tau, tw    its start, the end of the gap after it, the gap's and the warm-up's durations
-    s_start, s_avg0, s_end, s_gap_end   the same as distances
-    p_win, p_warm, p_gap           the road proxy's means over the window, its warm-up and its gap
+    row, memory, samples:          its statistics row, the solver memory at its end, its samples for the sink
+    flow:                          `LinearFlow` of A; predicted_start: integrated from a predicted start (paired)
+    t_start, t_gap_end, tau, tw:   its start, the end of the gap after it, the gap's and the warm-up's durations
+    s_start, s_avg0, s_end, s_gap_end:  the same as distances
+    p_win, p_warm, p_gap:          the road proxy's means over the window, its warm-up and its gap
     """
 
     x_end: np.ndarray
@@ -60,11 +60,11 @@ class WindowEstimator:
 
     Parameters
     ----------
-    slow_index, ext_index    the slow states and the totals (quadratures) in the state vector
-    slow_station             the station of each slow state (-1: the vehicle's)
-    cv_basis                 the orthonormal basis of the slow states in which the control variate regresses
-    cv_quad, cv_quad_station the dissipated energies' states regressed too, and their stations
-    T_oil_index              the oil temperature states (the variance ratio is reported for them)
+    slow_index, ext_index:   the slow states and the totals (quadratures) in the state vector
+    slow_station:            the station of each slow state (-1: the vehicle's)
+    cv_basis:                the orthonormal basis of the slow states in which the control variate regresses
+    cv_quad, cv_quad_station: the dissipated energies' states regressed too, and their stations
+    T_oil_index:             the oil temperature states (the variance ratio is reported for them)
     """
 
     def __init__(self, slow_index, ext_index, slow_station, cv_basis, cv_quad, cv_quad_station, T_oil_index):

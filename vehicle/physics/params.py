@@ -48,7 +48,7 @@ class Tyre(Model):
 
 
 class AxleTyre(Model):
-    """Per-axle override of the vehicle's `tyre:` (issue 12 §4): the keys given replace the vehicle's values
+    """Per-axle override of the vehicle's `tyre:` (docs/vehicles.md "tyre"): the keys given replace the vehicle's values
     for the two wheels of this axle (`VehicleParams.axle_tyre`); the merged tyre is validated as a `Tyre`."""
 
     radius: m | None = None
@@ -61,10 +61,10 @@ class AxleTyre(Model):
         return {k: getattr(self, k) for k in type(self).model_fields if getattr(self, k) is not None}
 
 
-# allowed ranges of a station's heat environment (SI; issue 10 §2): a wheel bay's air moves at most
-# twice the vehicle speed; a film coefficient above 500 W/m^2K is boiling or a water jet, not air; a
-# local heat source above 5 kW would be a fire; an ambient offset beyond -50/+150 K is no longer the
-# air around a strut
+# allowed ranges of a station's heat environment (SI; docs/physics.md "Per-station heat environment"):
+# a wheel bay's air moves at most twice the vehicle speed; a film coefficient above 500 W/m^2K is
+# boiling or a water jet, not air; a local heat source above 5 kW would be a fire; an ambient offset
+# beyond -50/+150 K is no longer the air around a strut
 ENVIRONMENT_RANGES = {
     "air_speed_ratio": (0.0, 2.0),            # -
     "film_coefficient": (0.0, 500.0),         # W/(m^2 K)
@@ -84,8 +84,9 @@ def _check_environment(model):
 
 
 class AxleHeat(Model):
-    """Per-axle overrides of the vehicle's heat environment (issue 10 §2); a field left out keeps the
-    vehicle's `heat` value. Give air_speed_ratio or film_coefficient, not both."""
+    """Per-axle overrides of the vehicle's heat environment (docs/physics.md "Per-station heat
+    environment"); a field left out keeps the vehicle's `heat` value. Give air_speed_ratio or
+    film_coefficient, not both."""
 
     air_speed_ratio: Number | None = None                   # wheel-bay air speed / vehicle speed
     film_coefficient: Quantity("W/(m**2*K)") | None = None  # outside convection (replaces natural + forced)
@@ -191,7 +192,7 @@ class Hull(Model):
 
 
 class Longitudinal(Model):
-    """How the longitudinal tyre forces of the speed profile's acceleration load the hull (issue 10 §3;
+    """How the longitudinal tyre forces of the speed profile's acceleration load the hull (docs/scenarios.md;
     vehicle.physics.hull.longitudinal_pitch_moment, linkage_forces).
 
     drive_distribution / brake_distribution: relative share of the drive (a > 0) and brake (a < 0)
@@ -218,8 +219,8 @@ class Longitudinal(Model):
 
 
 class Heat(Model):
-    """Strut heat network (vehicle.physics.thermal; issue 10 §1) and the default heat environment of
-    every station (§2; axles[k].heat overrides it)."""
+    """Strut heat network (vehicle.physics.thermal; docs/physics.md) and the default heat environment of
+    every station (axles[k].heat overrides it)."""
 
     capacity: Quantity("J/K")                   # total of the strut's nodes (oil + steel), REFERENCE §8
     surface_area: Quantity("m**2")
@@ -233,12 +234,12 @@ class Heat(Model):
     air_kinematic_viscosity: Quantity("m**2/s") = 1.6e-5
     air_prandtl: Number = 0.71
     convection_multiplier: Number = 1.0   # scales the outside convective coefficient (sensitivity studies)
-    # the default environment of every station (issue 10 §2)
+    # the default environment of every station (docs/physics.md "Per-station heat environment")
     film_coefficient: Quantity("W/(m**2*K)") | None = None   # replaces natural + forced outside convection
     ambient_offset: K = 0.0
     view_factor: Number = 1.0
     heat_source: Quantity("W") = 0.0
-    # the network (issue 10 §1; defaults are the apc_8x8 file's values, see its sources)
+    # the network (docs/physics.md "Strut heat network"; defaults are the apc_8x8 file's values, see its sources)
     oil_capacity_fraction: Number = 0.1        # of capacity: the oil node
     surface_capacity_fraction: Number = 0.2    # of the steel (capacity - oil): the outer skin node
     bore_diameter: m = 0.11                    # inner diameter of the cylinder wall
@@ -272,7 +273,7 @@ class Heat(Model):
 # Allowed settings of the levelling loop (SI; docs/scenarios.md "compensation"). It must stay a
 # slow loop beside the suspension's own body modes (1-2 Hz, 6-12 rad/s): a closed-loop time
 # constant of at least 2 s keeps its bandwidth below a tenth of them, and a filter of at least 1 s
-# takes the body motion (attenuated 6x at 1 Hz) out of the measured deflection. A levelling pump
+# takes the body motion (attenuated 6x at 1 Hz) out of the deflection signal. A levelling pump
 # moves a strut slowly: 1e-4 m^3/s (6 L/min per strut) extends the APC strut at 22 mm/s, a tenth
 # of its ride velocities; more is a second actuator. The dead band's edges are blended over
 # `smoothing`, which divides (hpsim.symbolic.ramp): it must be > 0.
@@ -319,7 +320,7 @@ CHARGING_METHODS = ("load_and_height", "gas_pressure", "polytropic_convention")
 
 
 class Charging(Model):
-    """How the gas charges were set while stationary (seed 000 §3; REFERENCE §3; issue 10 §5).
+    """How the gas charges were set while stationary (seed 000 §3; REFERENCE §3; docs/vehicles.md "charging").
 
     `method` decides the gas mass of every strut (vehicle.physics.equilibrium.charge_gas_masses):
       load_and_height        the wheel_loads are carried at strut_deflection at `temperature` with

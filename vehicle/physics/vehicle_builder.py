@@ -2,7 +2,7 @@
 
 Given the axles (positions), the static loads (per axle, or the total mass and its CG), the track, the
 ride height and the strut per axle, `vehicle_text(spec)` writes a vehicle file (docs/vehicles.md) that
-charges every strut by `charging.method: load_and_height`: the gas mass of each strut is set so that it
+charges every strut by `charging.method: load_and_height`. The gas mass of each strut is set so that it
 carries its wheel's load at the chosen static deflection at the charging temperature
 (vehicle.physics.equilibrium.charge_gas_masses), so the vehicle stands at the given heights and loads.
 Every other value comes from the labelled defaults of vehicle/data/templates/new_vehicle.yaml (most of

@@ -313,8 +313,9 @@ def roll_stiffness_N_m_per_rad(wheel_rates_N_m, lateral_positions_m) -> float:
 
 
 def rollover_threshold_g(track_m: float, cg_height_m: float, roll_stiffness: float, mass_kg: float) -> float:
-    """Quasi-static rollover threshold [g] of a vehicle rolling on its suspension about an axis at the ground:
-    the static stability factor t / (2 h) times (1 - m g h / K_phi), the CG's lateral shift as the body rolls
+    """Quasi-static rollover threshold [g] of a vehicle rolling on its suspension about an axis at the ground.
+
+    It is the static stability factor t / (2 h) times (1 - m g h / K_phi), the CG's lateral shift as the body rolls
     (moment balance about the outer wheels: a_y h = g (t/2 - h phi), phi = m a_y h / (K_phi - m g h);
     Gillespie 1992 §9). Zero or less: the vehicle cannot stand upright on its springs."""
     return track_m / (2.0 * cg_height_m) * (1.0 - mass_kg * GRAVITY * cg_height_m / roll_stiffness)
