@@ -90,14 +90,14 @@ def test_a_read_only_road_store_warns_once_and_the_road_is_computed(monkeypatch,
 
 
 def test_a_full_compile_cache_names_the_cache_and_a_way_out(monkeypatch, tmp_path):
-    from vehicle.numerics import codegen
+    from vehicle.numerics import compiler_processes as cp
 
     def full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(codegen.tempfile, "mkdtemp", full)
+    monkeypatch.setattr(cp.tempfile, "mkdtemp", full)
     with pytest.raises(UserInputError) as exc:
-        codegen._start_build("cc", ["-O2"], b"int x;", "sha", tmp_path, "lib")
+        cp.start_build(cp.BuildJob("cc", ["-O2"], b"int x;", "sha", tmp_path, "lib"))
     text = str(exc.value)
     assert f"compile cache {tmp_path}: No space left on device" in text
     assert "HPSIM_CACHE" in text and "HPSIM_CACHE_MAX_MB" in text
@@ -105,36 +105,36 @@ def test_a_full_compile_cache_names_the_cache_and_a_way_out(monkeypatch, tmp_pat
 
 def test_a_compiler_failing_on_a_full_disk_names_the_cache(tmp_path):
     """The compiler itself reports the full disk (its output cannot be written): the same message."""
-    from vehicle.numerics import codegen
+    from vehicle.numerics import compiler_processes as cp
 
     script = tmp_path / "cc"
     script.write_text("#!/bin/sh\necho 'fatal error: error writing to /tmp/ccX.s: No space left on device' >&2\n"
                       "exit 1\n")
     script.chmod(0o755)
-    proc, job = codegen._start_build(str(script), [], b"int x;", "sha", tmp_path, "lib")
+    build = cp.start_build(cp.BuildJob(str(script), [], b"int x;", "sha", tmp_path, "lib"))
     with pytest.raises(UserInputError, match=r"compile cache .*No space left on device \(fatal error: error writing"):
-        codegen._finish_build(proc, job)
-    assert not codegen._RUNNING and not list(tmp_path.glob(".build-*"))
+        cp.finish_build(build)
+    assert not cp.RUNNING and not list(tmp_path.glob(".build-*"))
 
 
 def test_compilers_started_from_any_thread_are_killed_at_exit(tmp_path):
     """A compiler started by an ensemble lane's thread is registered; the exit handler kills its process group."""
     import threading
 
-    from vehicle.numerics import codegen
+    from vehicle.numerics import compiler_processes as cp
 
     script = tmp_path / "cc"
     script.write_text("#!/bin/sh\nsleep 60\n")
     script.chmod(0o755)
     started = []
     t = threading.Thread(target=lambda: started.append(
-        codegen._start_build(str(script), [], b"int x;", "sha", tmp_path, "lib")))
+        cp.start_build(cp.BuildJob(str(script), [], b"int x;", "sha", tmp_path, "lib"))))
     t.start()
     t.join()
-    proc, job = started[0]
-    assert proc in codegen._RUNNING and proc.poll() is None
-    codegen.kill_running_compilers()
-    assert proc.returncode is not None and not codegen._RUNNING
+    proc = started[0].proc
+    assert proc in cp.RUNNING and proc.poll() is None
+    cp.kill_running_compilers()
+    assert proc.returncode is not None and not cp.RUNNING
 
 
 def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
@@ -145,7 +145,7 @@ def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
 
     from hpsim.errors import Terminated
     from vehicle.engines.ensemble import run_lockstep
-    from vehicle.numerics import codegen
+    from vehicle.numerics import compiler_processes as cp
 
     script = tmp_path / "cc"
     script.write_text("#!/bin/sh\nsleep 60\n")
@@ -153,9 +153,9 @@ def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
     started = []
 
     def compile_in_lane():
-        build = codegen._start_build(codegen.BuildJob(str(script), [], b"int x;", "sha", tmp_path, "lib"))
+        build = cp.start_build(cp.BuildJob(str(script), [], b"int x;", "sha", tmp_path, "lib"))
         started.append(build.proc)
-        return {"status": "done", "error": codegen._finish_build(build)}
+        return {"status": "done", "error": cp.finish_build(build)}
 
     def raise_terminated(signum, frame):
         raise Terminated
@@ -171,7 +171,7 @@ def test_sigterm_during_a_lanes_compile_kills_the_compiler(tmp_path):
         signal.signal(signal.SIGTERM, old)
     proc = started[0]
     proc.wait(timeout=5)
-    assert proc.returncode == -signal.SIGKILL and not codegen._RUNNING
+    assert proc.returncode == -signal.SIGKILL and not cp.RUNNING
 
 
 # --- checks before work -----------------------------------------------------------------------------------------

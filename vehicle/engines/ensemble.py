@@ -1,9 +1,9 @@
-"""The ensemble engine: many full-fidelity drives of one model structure stepping in lockstep (issue 26).
+"""The ensemble engine: many full-fidelity drives of one model structure stepping in lockstep.
 
 K cases (different parameter values, roads, speeds, initial temperatures, distances) run as K ordinary
 drives, each in its own thread with its own results file, checkpoints and resume (`vehicle.results.run`,
 unchanged): only the integration is shared. Each drive's solver is a `LaneSolver`, one lane of a
-`LockstepGroup`: its `advance` hands the block's start, inputs and parameters to the group and waits; when
+`LockstepGroup`: its `advance` hands the block's start, inputs and parameters to the group and waits. When
 every lane still running has handed in its block, one call of the compiled lane block function
 (`vehicle.numerics.lanes.LaneStepper`, every operation on all K lanes in one vector instruction) integrates
 them all, and each drive goes on with its own states (outputs, statistics, checks, sink) in Python.
@@ -33,7 +33,7 @@ import numpy as np
 
 from hpsim.errors import UserInputError
 
-from vehicle.numerics.codegen import kill_running_compilers
+from vehicle.numerics.compiler_processes import kill_running_compilers
 from vehicle.numerics.lanes import ISAS, LaneStepper, default_lanes
 from vehicle.scenario.settings import resolve_segments
 from vehicle.engines.choice import engine_for
@@ -270,8 +270,8 @@ def check_lanes(lanes: int | None, where: str = "--ensemble") -> None:
 
 
 def group_size(lanes: int | None, n_cases: int, workers: int | None) -> tuple[int, int]:
-    """(lanes of the compiled library, cases per group) for `--ensemble` (None: chosen): given K, K and K; by
-    default one vector's lanes when there are more cases than workers, the groups as full as the cases allow
+    """(lanes of the compiled library, cases per group) for `--ensemble` (None: chosen): given K, K and K.
+    By default one vector's lanes when there are more cases than workers, the groups as full as the cases allow
     with every worker busy (a group of fewer cases than lanes leaves lanes masked: they cost as much as used
     ones), else 1 (each case on its own, the scalar engine). Lanes: one hardware vector (`default_lanes`: 8 with
     AVX-512, 4 with AVX2; benchmarks/ensemble.py)."""

@@ -3,7 +3,7 @@
 The cache lives in ~/.cache/hpsim (or $HPSIM_CACHE). A CasADi function given as a `Library` (what
 the drives compile) is keyed by what determines its code: its name, the caller's key (the model's
 structure, the step, the block shape), the source of hpsim's packages (`source_version`), CasADi's
-version, the compiler and its flags; a run finds its library by that key before any graph is built,
+version, the compiler and its flags. A run finds its library by that key before any graph is built,
 and builds the graph and its C only when the library is missing. A plain `casadi.Function` is keyed by
 a hash of its generated code, the compiler and its flags. Either way a structural change of the model
 compiles anew and everything else reuses the library. Without a C compiler the function runs in
@@ -30,35 +30,30 @@ built are loaded.
 from __future__ import annotations
 
 import atexit
-import contextlib
-import errno
 import functools
 import hashlib
 import json
 import os
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib.util import find_spec
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable
 
 import casadi as ca
 
 from hpsim.cache import CACHE_ENV, cache_problem, least_recently_used, remove_stale_temporaries, size_limit_bytes
-from hpsim.errors import UserInputError
 from hpsim.stages import timed
 
 from vehicle.numerics import compile_time, vector_math
+from vehicle.numerics.compiler_processes import (BuildJob, CACHE_MAX_ENV, build_one, library_record, run_builds,
+                                                 sha256_file)
 from vehicle.numerics.direct_call import DirectFunction
 
-CACHE_MAX_ENV = "HPSIM_CACHE_MAX_MB"
 DEFAULT_CACHE_MAX_MB = 200.0
 
 
@@ -94,14 +89,6 @@ def cache_limit_bytes() -> float:
 COMPILER_FLAGS = ("-O2", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off")
 
 
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _verified(lib: Path, record: Path, code_sha: str | None, lookup_key: str | None = None) -> bool:
     """The library on disk is the one built from this C code (code_sha), or the one recorded under this lookup key
     by this user (see the module's trust model)."""
@@ -113,15 +100,9 @@ def _verified(lib: Path, record: Path, code_sha: str | None, lookup_key: str | N
             return False
         if lookup_key is not None and (meta.get("lookup_key") != lookup_key or not _mine(lib) or not _mine(record)):
             return False
-        return lib.stat().st_size == meta.get("library_bytes") and _sha256_file(lib) == meta.get("library_sha256")
+        return lib.stat().st_size == meta.get("library_bytes") and sha256_file(lib) == meta.get("library_sha256")
     except (OSError, ValueError):
         return False
-
-
-def _file_record(path: Path) -> dict:
-    """What a cache entry's record holds of its file (`_verified` compares it): its SHA-256, its size, when built."""
-    return {"library_sha256": _sha256_file(path), "library_bytes": path.stat().st_size,
-            "built": time.strftime("%Y-%m-%dT%H:%M:%S")}
 
 
 def _mine(path: Path) -> bool:
@@ -200,179 +181,6 @@ def generate_c(fns: list[ca.Function], file_name: str, *, c_library_math: bool =
 
 def _generate_c(fn: ca.Function, c_library_math: bool = False) -> bytes:
     return generate_c([fn], f"{fn.name()}.c", c_library_math=c_library_math)
-
-
-_DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
-
-
-def _cache_full(d: Path, why: str) -> UserInputError:
-    """The error of a cache folder that cannot take a library: names the folder and the ways out."""
-    return UserInputError(f"compile cache {d}: {why}; free space there, or set {CACHE_ENV} to a folder on another "
-                          f"disk (and {CACHE_MAX_ENV} to bound its size in MB)")
-
-
-# compilers running in this process (started from any thread): killed with their process groups at exit, so that
-# a command ended by SIGTERM while ensemble lanes compile leaves no compiler behind
-_RUNNING: set = set()
-_RUNNING_LOCK = threading.Lock()
-
-
-@atexit.register
-def kill_running_compilers() -> None:
-    """Kill every compiler this process started and is still waiting for, from any thread (their own sessions
-    keep them from a terminal's signals): for a command or an ensemble stopped while its lanes' threads compile."""
-    with _RUNNING_LOCK:
-        running = list(_RUNNING)
-    for proc in running:
-        _kill(proc)
-
-
-@dataclass(frozen=True)
-class BuildJob:
-    """A library to compile into the cache: the compiler `cc` and its `flags`, the C `code` and its SHA-256, the cache
-    `folder` and the library's `stem` there (stem.so, stem.json), and more entries of its record (a `Library`'s
-    lookup key and signature)."""
-
-    cc: str
-    flags: Sequence[str]
-    code: bytes
-    code_sha: str
-    folder: Path
-    stem: str
-    record: dict = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class StartedBuild:
-    """A compiler process working on `job` in its private build folder `build_dir`."""
-
-    proc: subprocess.Popen
-    job: BuildJob
-    build_dir: Path
-
-
-def _start_build(job: BuildJob) -> StartedBuild:
-    """Start compiling a job in a private build folder of its cache folder."""
-    try:
-        build = Path(tempfile.mkdtemp(prefix=f".build-{job.stem}-", dir=job.folder))
-    except OSError as exc:
-        if exc.errno in _DISK_FULL:
-            raise _cache_full(job.folder, exc.strerror) from None
-        raise
-    try:
-        src = build / f"{job.stem}.c"
-        src.write_bytes(job.code)
-        # the compiler runs in its own session: a Ctrl-C at the terminal reaches hpsim (which stops
-        # it), never the compiler alone (a compiler killed under us used to fall back silently)
-        proc = subprocess.Popen([job.cc, *job.flags, "-fPIC", "-shared", src.name, "-o", f"{job.stem}.so", "-lm"],
-                                cwd=build, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                start_new_session=True)
-        with _RUNNING_LOCK:
-            _RUNNING.add(proc)
-    except BaseException as exc:
-        shutil.rmtree(build, ignore_errors=True)
-        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:
-            raise _cache_full(job.folder, exc.strerror) from None
-        raise
-    return StartedBuild(proc, job, build)
-
-
-def _finish_build(started: StartedBuild) -> str | None:
-    """Wait for a started compiler and put its library and record into the cache (atomic renames); None when done,
-    else the compiler's error. The build folder is removed whatever happens; an interrupt kills the compiler."""
-    proc, job, build = started.proc, started.job, started.build_dir
-    try:
-        try:
-            _, stderr = proc.communicate()
-        except BaseException:
-            _kill(proc)
-            raise
-        finally:
-            with _RUNNING_LOCK:
-                _RUNNING.discard(proc)
-        if proc.returncode == -signal.SIGINT:
-            raise KeyboardInterrupt
-        if proc.returncode != 0:
-            full = next((os.strerror(e) for e in _DISK_FULL if os.strerror(e) in stderr), None)
-            if full is not None:        # the cache's disk (or the compiler's temporary folder) is full
-                raise _cache_full(job.folder, f"{full} ({stderr.strip().splitlines()[0][:160]})")
-            return stderr.strip()[:300] or f"exit code {proc.returncode}"
-        built = build / f"{job.stem}.so"
-        meta = {"c_sha256": job.code_sha, **_file_record(built), "compiler": job.cc, "flags": job.flags, **job.record}
-        (build / f"{job.stem}.json").write_text(json.dumps(meta))
-        # atomic renames, library first: a reader sees an old record with a new library at worst,
-        # which fails verification and rebuilds
-        os.replace(built, job.folder / f"{job.stem}.so")
-        os.replace(build / f"{job.stem}.json", job.folder / f"{job.stem}.json")
-        return None
-    except OSError as exc:
-        if exc.errno in _DISK_FULL:
-            raise _cache_full(job.folder, exc.strerror) from None
-        raise
-    finally:
-        shutil.rmtree(build, ignore_errors=True)
-
-
-@contextlib.contextmanager
-def _interrupts_held():
-    """SIGINT held back while a compiler is started and recorded, so that a Ctrl-C cannot land between the two
-    (a compiler nobody waits for, a build folder nobody removes); it is delivered right after."""
-    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-def _abort(started: list[StartedBuild]) -> None:
-    """Stop started compilers and remove their build folders (for any of them, finished or not)."""
-    for build in started:
-        _kill(build.proc)
-        shutil.rmtree(build.build_dir, ignore_errors=True)
-
-
-def _kill(proc) -> None:
-    """Kill a compiler and what it started (cc1, as: its process group, the session it leads), and reap it."""
-    with _RUNNING_LOCK:
-        _RUNNING.discard(proc)
-    if proc.returncode is not None:     # reaped already: its process group id may be another's by now
-        return
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    if proc.poll() is None:
-        proc.kill()
-    proc.wait()
-
-
-def _run_builds(jobs: list[BuildJob], width: int) -> list[str | None]:
-    """Compile the jobs with at most `width` compilers at once; per job None when built, else the compiler's error. An interrupt or an error stops every
-    compiler and keeps nothing of the unfinished ones."""
-    errors, running = [], []                    # running: started, removed only once finished
-    try:
-        for job in jobs:
-            if len(running) == width:
-                errors.append(_finish_build(running[0]))
-                running.pop(0)
-            with _interrupts_held():
-                running.append(_start_build(job))
-        while running:
-            errors.append(_finish_build(running[0]))
-            running.pop(0)
-    except BaseException:
-        _abort(running)
-        raise
-    return errors
-
-
-def _build(job: BuildJob) -> str | None:
-    """Compile a job into folder/stem.so with its record folder/stem.json; None when done, else the compiler's
-    error."""
-    return _run_builds([job], 1)[0]
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -531,7 +339,7 @@ def precompile(fns, *, opt_level: str = "-O2") -> int:
     if todo:
         compile_time.announce([len(t.code) for t in todo], width, todo[0].folder)
     t0 = time.perf_counter()
-    timed("compile", _run_builds, todo, width=width)
+    timed("compile", run_builds, todo, width=width)
     if todo:
         compile_time.record([len(t.code) for t in todo], width, time.perf_counter() - t0, todo[0].folder)
         evict(todo[0].folder, cache_limit_bytes(), keep=tuple(t.stem for t in todo))
@@ -624,7 +432,7 @@ def _compile_announced(name: str, job: BuildJob, verbose: bool) -> str | None:
     about: the caller falls back to the virtual machine)."""
     compile_time.announce([len(job.code)], 1, job.folder)
     t0 = time.perf_counter()
-    error = _build(job)
+    error = build_one(job)
     if error is not None:
         warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
         return error
@@ -639,7 +447,7 @@ def _cache_build(job: BuildJob, lookup_key: str | None = None) -> str | None:
     """Build one job into the cache, trim the cache and
     check what is there now: None when the library is the one built, else why not (the compiler's error, or
     replaced by someone else in between)."""
-    error = _build(job)
+    error = build_one(job)
     if error is not None:
         return error
     evict(job.folder, cache_limit_bytes(), keep=(job.stem,))
@@ -690,7 +498,7 @@ def serialized_function(lib: Library) -> ca.Function:
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".build-{stem}-", dir=d))
         (tmp / data.name).write_text(text)
-        meta = {**_file_record(tmp / data.name), "lookup_key": key}
+        meta = {**library_record(tmp / data.name), "lookup_key": key}
         (tmp / record.name).write_text(json.dumps(meta))
         os.replace(tmp / data.name, data)             # the data first: an old record with new data fails to verify
         os.replace(tmp / record.name, record)

@@ -6,18 +6,17 @@ ROS2 of Verwer, Spee, Blom & Hundsdorfer (1999, SIAM J. Sci. Comput. 20(4)):
     W k1 = f(t_n, y_n)
     W k2 = f(t_n + h, y_n + h k1) - 2 k1
     y_n+1 = y_n + 3/2 h k1 + 1/2 h k2
-The family is L-stable for gamma = 1 +- 1/sqrt(2) (the z^2 term of its stability function's
-numerator, 1/2 - 2 gamma + gamma^2, vanishes); Verwer et al. take the larger root, this engine the
+The family is L-stable for gamma = 1 +- 1/sqrt(2). (The z^2 term of its stability function's
+numerator, 1/2 - 2 gamma + gamma^2, vanishes.) Verwer et al. take the larger root, this engine the
 smaller (docs/physics.md uses it for the stage overshoot of an under-resolved mode, 1/gamma - 1).
 It is second order for *any* W (a W-method), so J only needs the stiff part of the Jacobian:
 the wheel stations, the strut internal states and the hull (seal friction and valves make
 them stiff). Slow states (temperatures, levelling, energy quadratures) get W = I, i.e. the
-explicit trapezoidal rule, except the quadratures of indicator functions (time lifted off, on an end
+explicit trapezoidal rule. The exceptions are the quadratures of indicator functions (time lifted off, on an end
 stop, above each travel-bin edge: `VehicleModel.indicator_quadrature_indices`), whose integrands jump:
 the trapezoid's order is lost at every crossing, so they take the rectangle rule on the first stage
-(y_n+1 = y_n + h g(y_n); 13.6k instead of 14.6k instructions per step, 6.7 instead of 7.3 us; the
-physical states are bit-identical, the times above a threshold move by less than a step per crossing,
-with zero mean). The valve algebraic variables are eliminated inside f by Newton
+(y_n+1 = y_n + h g(y_n), which is also cheaper). The physical states are bit-identical; the times above a
+threshold move by less than a step per crossing, with zero mean. The valve algebraic variables are eliminated inside f by Newton
 (index-1 DAE -> ODE). The method is L-stable for the exact Jacobian, so stiff friction sticks
 instead of ringing.
 
@@ -103,9 +102,9 @@ class Ros2:
     order 2 for any W, so only the error constant and the damping of the stiff modes change, not the
     order (tests/test_engine.py checks both on a drive). 1 (the default): a fresh W at every step.
 
-    engine="baseline": the engine as it was when issue 11 was filed (commit 18a58c4), on the current
-    model, for benchmarks/engine.py only: the parameter values baked into the code as constants (the
-    compiled function then serves one parameter set; only the run parameters are an input), no common
+    engine="baseline": the reference engine of benchmarks/engine.py (docs/engines.md), on the current
+    model. The parameter values are baked into the code as constants (the
+    compiled function then serves one parameter set; only the run parameters are an input). It has no common
     subexpression elimination, the K steps of a sample folded (`Function.fold`) with the run parameters
     repeated for every step, and the block outputs evaluated in CasADi's virtual machine (the drive's
     `legacy_outputs`), the C library's exp, log, pow and tanh (not vehicle.numerics.vector_math's), no batched
@@ -288,8 +287,8 @@ class Ros2:
         else:
             raw = ca.Function("ros2_step_raw", [z, u0, u1, p], outs)
         # merge repeated subexpressions (the eight stations share one strut's parameter symbols, and
-        # f, its Jacobian and the two stages rebuild the same terms): 16.0k -> 10.5k instructions per
-        # step, exact up to rounding order; then lift what depends on the parameters only out of the
+        # f, its Jacobian and the two stages rebuild the same terms): a much shorter step,
+        # exact up to rounding order (docs/engines.md); then lift what depends on the parameters only out of the
         # step: computed once per call
         args, parts, pw, parametric = lift_parameters(raw, 3, "ros2_parametric")
         z, u0, u1 = args[:3]
@@ -315,7 +314,7 @@ class Ros2:
         nz = nx + nm
         # K steps -> one sample, unrolled by hand so that every step reads the same parameter
         # vector: neither carried through the loop's accumulator (a load and a store of every
-        # parameter per step: 9.4 vs 7.8 us measured) nor copied into a (n_p, steps) matrix. A long output
+        # parameter per step, which is slower) nor copied into a (n_p, steps) matrix. A long output
         # interval (K > MAX_UNROLLED_STEPS) is a loop over unrolled pieces: the generated code stays the size of
         # one piece whatever the interval (an hour at 4 ms unrolled would be 900k steps of C)
         npw = parametric.size1_out(0)
@@ -348,7 +347,7 @@ class Ros2:
         return ca.Function(self._block_name(model, self.K, self.M), [Z0, U, P], [out])
 
     def _build_baseline(self, model) -> ca.Function:
-        """The block function of commit 18a58c4 on this model (see the class docstring)."""
+        """The baseline engine's block function on this model (see the class docstring)."""
         nx, nu, np_, nm, n_run = model.nx, model.nu, model.np, model.n_memory, model.n_run
         x, mem, u0, u1 = self.step_symbols(model)
         p_run = ca.SX.sym("p_run", n_run)

@@ -28,7 +28,6 @@ The outputs of a drive come from its per-axle report (vehicle.analysis.summary.r
 from __future__ import annotations
 
 import copy
-import csv
 import fnmatch
 import hashlib
 import json
@@ -52,6 +51,7 @@ from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, vali
 from vehicle.results.run import results_status
 from vehicle.analysis.summary import report
 from vehicle.studies.sweep import dask_client, execute, run_case
+from vehicle.studies.uq_files import read_records, read_samples, study_differences, write_samples
 from vehicle.studies.uq_tables import write_bands, write_ranking, write_sobol, write_summary
 from vehicle.studies.uq_per_axle import expand_per_axle, latent_nominal, set_path
 from vehicle.engines.ensemble import eligible, grouped_jobs
@@ -301,84 +301,6 @@ def _fingerprint(params: list[Parameter], method: str, samples: int, seed: int, 
             "parameters": [f"{p.name}: {p.prior.describe()}" for p in params], "model": model}
 
 
-def _write_samples(path: Path, meta: dict, names: list[str], rows: list[tuple[str, np.ndarray]]) -> None:
-    tmp = path.with_name(path.name + ".partial")
-    with open(tmp, "w", newline="") as fh:
-        fh.write("# hpsim uq sample matrix: one row per case, values in SI; the nominal case holds the files' values\n")
-        for k in ("method", "samples", "seed", "groups"):
-            fh.write(f"# {k}: {meta[k]}\n")
-        fh.write(f"# fingerprint: {json.dumps(meta, sort_keys=True)}\n")
-        w = csv.writer(fh)
-        w.writerow(["case"] + names)
-        for name, x in rows:
-            w.writerow([name] + [f"{v:.17g}" for v in x])
-    tmp.replace(path)
-
-
-def _read_samples(path: Path) -> tuple[dict, list[str], list[tuple[str, np.ndarray]]]:
-    meta, lines = None, []
-    with open(path, newline="") as fh:
-        for line in fh:
-            if line.startswith("# fingerprint: "):
-                meta = json.loads(line[len("# fingerprint: "):])
-            elif not line.startswith("#"):
-                lines.append(line)
-    rows = list(csv.reader(lines))
-    if meta is None or not rows or rows[0][0] != "case":
-        raise UserInputError(f"{path}: not a sample matrix written by hpsim uq (remove the folder to start again)")
-    names = rows[0][1:]
-    return meta, names, _sample_rows(path, rows[1:], len(names))
-
-
-def _sample_rows(path: Path, rows: list[list[str]], n: int) -> list[tuple[str, np.ndarray]]:
-    """The cases of samples.csv; a damaged row is a one-line error naming the file and line (nothing is changed)."""
-    out = []
-    lineno = {}
-    with open(path, newline="") as fh:             # the file's line of each case (for the message)
-        for k, line in enumerate(fh, start=1):
-            lineno.setdefault(line.split(",", 1)[0].strip(), k)
-    for r in rows:
-        case = r[0] if r else ""
-        where = f"{path}:{lineno.get(case, '?')}"
-        try:
-            values = np.array([float(v) for v in r[1:]])
-        except ValueError:
-            values = None
-        if values is None or values.size != n or not np.all(np.isfinite(values)):
-            raise UserInputError(f"{where}: case {case!r}: expected {n} finite numbers; the sample matrix is damaged "
-                                 "(the study folder was left as it is): restore it, or start again in another folder (-o)")
-        out.append((case, values))
-    return out
-
-
-def _differences(stored: dict, asked: dict) -> list[str]:
-    out = []
-    for k in ("method", "samples", "seed", "groups"):
-        if stored.get(k) != asked.get(k):
-            out.append(f"{k} {stored.get(k)} (now {asked.get(k)})")
-    if stored.get("parameters") != asked.get("parameters"):
-        a, b = set(stored.get("parameters") or []), set(asked.get("parameters") or [])
-        what = sorted(a ^ b)
-        out.append(f"parameters or priors ({len(what)} differ, e.g. {what[0]!r})" if what else "parameter order")
-    if stored.get("model") != asked.get("model"):
-        out.append("the scenario, its input files (vehicle, struts, road or speed CSV) or --distance")
-    return out
-
-
-def _read_records(path: Path) -> dict[str, dict]:
-    """Finished cases of earlier runs (a line cut by a crash is ignored)."""
-    out = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            try:
-                r = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            if isinstance(r, dict) and "case" in r:
-                out[r["case"]] = r
-    return out
-
-
 # --- running cases -----------------------------------------------------------------------------
 def run_one(runner: Callable[[str, dict], dict], name: str, values: dict,
             make_solver: Callable[[float], object] | None = None) -> dict:
@@ -503,8 +425,8 @@ def _run_study(plan: StudyPlan) -> dict:
     meta = _fingerprint(params, method, samples, seed, groups, plan.model)
     samples_csv = out_dir / "samples.csv"
     if samples_csv.exists():
-        stored, stored_names, rows = _read_samples(samples_csv)
-        diff = _differences(stored, meta)
+        stored, stored_names, rows = read_samples(samples_csv)
+        diff = study_differences(stored, meta)
         if diff or stored_names != names:
             raise UserInputError(f"{out_dir}: holds a study made with other settings: {'; '.join(diff or ['parameters'])}. "
                                  f"Re-run with the same settings to resume it, or give another -o folder")
@@ -513,10 +435,10 @@ def _run_study(plan: StudyPlan) -> dict:
         X = design(params, method, samples, seed, groups)
         rows = ([(NOMINAL, np.array([p.nominal() for p in params]))] if nominal else []) + \
             [(f"s{i:05d}", x) for i, x in enumerate(X)]
-        _write_samples(samples_csv, meta, names, rows)
-        _, _, rows = _read_samples(samples_csv)      # the values every case sees, as stored
+        write_samples(samples_csv, meta, names, rows)
+        _, _, rows = read_samples(samples_csv)      # the values every case sees, as stored
     records_path = out_dir / "cases.jsonl"
-    records = {k: r for k, r in _read_records(records_path).items() if r.get("status") == "done"}
+    records = {k: r for k, r in read_records(records_path).items() if r.get("status") == "done"}
     todo = [(name, x) for name, x in rows if name not in records]
     n_design = sum(1 for name, _ in rows if name != NOMINAL)
     log(f"{plan.label or out_dir}: {len(params)} parameters, {method} design of {samples} -> {n_design} cases"

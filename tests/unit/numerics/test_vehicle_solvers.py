@@ -172,11 +172,11 @@ def test_a_drive_compiles_its_libraries_together(monkeypatch, tmp_path):
     finds every one of them in the cache. The drive's result is the one of the libraries built one by one."""
     import os
 
-    from vehicle.numerics import codegen
+    from vehicle.numerics import codegen, compiler_processes
 
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache"))
     events = []                                          # ("start" | "finish", the library's stem), in order
-    real_start, real_finish = codegen._start_build, codegen._finish_build
+    real_start, real_finish = compiler_processes.start_build, compiler_processes.finish_build
 
     def start(job):
         events.append(("start", job.stem))
@@ -187,8 +187,8 @@ def test_a_drive_compiles_its_libraries_together(monkeypatch, tmp_path):
             return real_finish(started)
         finally:
             events.append(("finish", started.job.stem))
-    monkeypatch.setattr(codegen, "_start_build", start)
-    monkeypatch.setattr(codegen, "_finish_build", finish)
+    monkeypatch.setattr(compiler_processes, "start_build", start)
+    monkeypatch.setattr(compiler_processes, "finish_build", finish)
     solvers._BLOCK_FUNCTIONS.clear()
     road = build_road(RoadSpec(iso_class="D", length=60.0, seed=5))
     m = VehicleModel(load_vehicle("apc_8x8"))
