@@ -70,6 +70,11 @@ def smooth_sign(x, eps):
     return x / sqrt(x * x + eps * eps)
 
 
+def smooth_abs(x, eps):
+    """|x| ~ sqrt(x^2 + eps^2) - eps: even, zero at zero."""
+    return sqrt(x * x + eps * eps) - eps
+
+
 def smooth_pos(x, eps):
     """max(x, 0) ~ (x + sqrt(x^2 + eps^2)) / 2."""
     return 0.5 * (x + sqrt(x * x + eps * eps))

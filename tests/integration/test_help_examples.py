@@ -31,6 +31,7 @@ LONG = {
     "hpsim animate demo.h5 -o drive.mp4": "ffmpeg, where installed",
     "hpsim validate mileage_uq": "a uq study folder (tests/unit/studies/test_validate.py validates one)",
     "hpsim export fmu": "an FMU's C compiled (tests/integration/test_fmu.py builds and runs both kinds)",
+    "hpsim strut identify": "rig loops of fifteen tests (tests/unit/struts/test_identify.py identifies loops)",
     "hpsim optimize": "a study of 24 trials of two drives (tests/integration/test_optimize_cli.py runs a small one)",
     "hpsim report strut_opt": "an optimisation folder (tests/integration/test_optimize_cli.py reports one)",
 }

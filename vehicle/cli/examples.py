@@ -44,6 +44,9 @@ EXAMPLES = {
     (--data: measured loops, columns amplitude_m, frequency_Hz, mean_m, t_s, force_N; here the ones just written)""",
     "strut gas": """\
   hpsim strut gas --temperatures 250K,300K,400K --plot gas.png""",
+    "strut identify": """\
+  hpsim strut identify --strut yin2023 --csv internal.csv --plot internal.png
+  hpsim strut identify --strut yin2023 --temperatures 40degC --frequencies 1Hz,8Hz --model identified""",
     "strut fit": """\
   hpsim strut fit --strut apc --data struts/data/apc_rig_energy.csv --fit F0,thermal_time_constant,bleed_area
   hpsim strut fit --strut apc --data struts/data/apc_rig_energy.csv --fit bleed_area --write apc_fitted.yaml""",

@@ -201,7 +201,7 @@ def test_a_drive_compiles_its_libraries_together(monkeypatch, tmp_path):
     together = d.run().state.x
     # one by one (compile_function alone, as before precompile existed), into another empty cache
     monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache2"))
-    monkeypatch.setattr("vehicle.engines.full.precompile", lambda fns: 0)
+    monkeypatch.setattr("vehicle.engines.binding.precompile", lambda fns: 0)
     solvers._BLOCK_FUNCTIONS.clear()
     alone = Drive(m, road, DriveSettings(**settings)).run().state.x
     assert len(events) == 12 and [kind for kind, _ in events[6:]] == ["start", "finish"] * 3   # one by one

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import re
 import subprocess
 import sys
@@ -81,8 +82,10 @@ def test_a_sweep_prints_its_drives_and_estimate_before_it_starts(tmp_path):
     text = (ROOT / "scenarios" / "quick_demo.yaml").read_text().replace("distance: 5 km", "distance: 300 m")
     (tmp_path / "base.yaml").write_text(text)
     (tmp_path / "sw.yaml").write_text("base: base.yaml\ngrid: {speed: [20 km/h, 25 km/h]}\n")
+    # its own cache: the rate is the one this test's probe measures, not one another test recorded
+    env = {**os.environ, "HPSIM_CACHE": str(tmp_path / "cache")}
     p = subprocess.run([sys.executable, "-m", "vehicle.cli", "sweep", "sw.yaml", "--workers", "1"], cwd=tmp_path,
-                       capture_output=True, text=True, timeout=600)
+                       capture_output=True, text=True, timeout=600, env=env)
     assert p.returncode == 0, p.stderr
     m = re.search(r"hpsim sweep: 2 drives on 1 worker, estimated ([0-9.]+) (s|min) wall \(([0-9.]+) (s|min) per drive",
                   p.stderr)
