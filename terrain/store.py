@@ -27,6 +27,7 @@ import json
 import os
 import shutil
 import tempfile
+import threading
 import warnings
 from importlib.util import find_spec
 from pathlib import Path
@@ -39,6 +40,10 @@ from hpsim.cache import least_recently_used, remove_stale_temporaries, size_limi
 ROAD_CACHE_MAX_ENV = "HPSIM_ROAD_CACHE_MAX_MB"
 DEFAULT_ROAD_CACHE_MAX_MB = 1000.0
 FOLDER = "roads"
+# numpy.load parses an .npy header with ast.literal_eval, and CPython 3.11's AST constructor keeps its recursion
+# depth per interpreter, not per thread (CPython gh-106905): two tracks read on two threads (`Road.prepare`) can
+# fail with "SystemError: AST constructor recursion depth mismatch". Opening an entry is milliseconds; one at a time.
+_OPEN_LOCK = threading.Lock()
 
 
 def limit_bytes() -> float:
@@ -75,7 +80,8 @@ def _folder() -> Path | None:
 def _read(entry: Path, names: Sequence[str]) -> tuple[np.ndarray, ...] | None:
     """The entry's arrays memory-mapped read-only, or None when it is missing or not whole."""
     try:
-        arrays = tuple(np.load(entry / f"{n}.npy", mmap_mode="r", allow_pickle=False) for n in names)
+        with _OPEN_LOCK:
+            arrays = tuple(np.load(entry / f"{n}.npy", mmap_mode="r", allow_pickle=False) for n in names)
         os.utime(entry)                                   # recently used (the bound removes the oldest first)
         return arrays
     except (OSError, ValueError):

@@ -4,6 +4,8 @@ the store is bounded, can be turned off, and an untrusted cache folder is not re
 from __future__ import annotations
 
 import os
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -119,3 +121,29 @@ def test_untrusted_cache_folder_is_not_used(cache, monkeypatch):
         assert not (cache / store.FOLDER / road.key).exists()
     finally:
         os.chmod(cache, 0o700)
+
+
+def test_two_tracks_prepared_on_two_threads_open_their_entries_one_at_a_time(cache, monkeypatch):
+    """`numpy.load` parses the header with `ast`, which CPython 3.11 cannot do on two threads at once
+    (gh-106905, a SystemError seen in CI): the store opens entries one at a time however the tracks are read."""
+    env = build_road(RoadSpec(**SPEC)).enveloped(0.35)
+    env.prepare()                                    # both slopes computed and stored
+    inside, most = [0], [0]
+    count = threading.Lock()
+    real_load = np.load
+
+    def slow_load(*args, **kwargs):
+        with count:
+            inside[0] += 1
+            most[0] = max(most[0], inside[0])
+        time.sleep(0.05)                             # long enough for the other thread to arrive
+        try:
+            return real_load(*args, **kwargs)
+        finally:
+            with count:
+                inside[0] -= 1
+
+    monkeypatch.setattr(store.np, "load", slow_load)
+    again = build_road(RoadSpec(**SPEC)).enveloped(0.35).prepare()
+    assert from_disk(again.knot_slopes(0)) and from_disk(again.knot_slopes(1))
+    assert most[0] == 1
