@@ -31,6 +31,7 @@ import numpy as np
 from vehicle.physics import ride
 from vehicle.results.validity import SHOCK_KEYS, seat_shocks  # noqa: F401  (SHOCK_KEYS: the seat rows' keys)
 from vehicle.physics.outputs import variable_name
+from vehicle.results.layout import STATS
 
 PERCENTILES = (1, 50, 99)
 
@@ -43,8 +44,8 @@ def _rows(view, key):
 def _bin_edges(view, key="strut_travel_histogram_s"):
     """Travel-bin edges [m]: the histogram dataset's attribute, or a summary value."""
     f = getattr(view, "f", None)
-    if f is not None and "stats" in f and variable_name(key) in f["stats"]:
-        edges = f["stats"][variable_name(key)].attrs.get("bin_edges_m")
+    if f is not None and STATS in f and variable_name(key) in f[STATS]:
+        edges = f[STATS][variable_name(key)].attrs.get("bin_edges_m")
         if edges is not None:
             return np.asarray(edges, float)
     v = view.summary_values().get(variable_name("strut_travel_bin_edges_m"))
