@@ -79,10 +79,8 @@ class BlockSolver:
         return self
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
-        Z = np.asarray(self.fn(np.concatenate([x0, self.memory]), U, p))
-        self.memory_samples = Z[self.nx:]
-        self.memory = Z[self.nx:, -1].copy()
-        return Z[: self.nx]
+        X, self.memory_samples, self.memory = solvers.advance_block(self.fn, self.nx, x0, self.memory, U, p)
+        return X
 
     def get_state(self) -> np.ndarray:
         return np.asarray(self.memory, float).copy()

@@ -150,6 +150,14 @@ def ros2_stages(model, h: float, x, mem, u0, u1, p, solve_stiff=None) -> Ros2Sta
     return Ros2Stages(f0, k1, k2, x + 1.5 * h * k1 + 0.5 * h * k2, mem1, lu)
 
 
+def advance_block(fn, nx: int, x0: np.ndarray, memory: np.ndarray, U: np.ndarray, p: np.ndarray) -> tuple:
+    """One call of a block function fn (z0, U, p) -> Z (nx + n_memory, M) from the states x0 and the memory: (the
+    states at the M sample instants (nx, M), the memory at each of them (output evaluation), the memory after the
+    block)."""
+    Z = np.asarray(fn(np.concatenate([x0, memory]), U, p))
+    return Z[:nx], Z[nx:], Z[nx:, -1].copy()
+
+
 def indicators_by_rectangle(model, h: float, x, st: Ros2Stages) -> ca.SX:
     """The step's result `st.x_next` with the indicator quadratures (`VehicleModel.indicator_quadrature_indices`)
     taken by the rectangle rule on the first stage, x + h f0 (module docstring); the other states as they are."""
@@ -323,10 +331,8 @@ class Ros2:
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         """States at the M sample instants (nx, M) from x0 and the inputs U (nu, K*M+1) at every step."""
-        Z = np.asarray(self.fn(np.concatenate([x0, self.memory]), U, p))
-        self.memory_samples = Z[self.nx:]          # the memory at each sample (output evaluation)
-        self.memory = Z[self.nx:, -1].copy()
-        return Z[: self.nx]
+        X, self.memory_samples, self.memory = advance_block(self.fn, self.nx, x0, self.memory, U, p)
+        return X
 
     def get_state(self) -> np.ndarray:
         return np.asarray(self.memory, float).copy()
