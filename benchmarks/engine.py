@@ -6,13 +6,14 @@
 The drive: the apc_8x8 on ISO class D (seed 0) at 20 km/h, 25 degC, output every 1 s, statistics every 1 km
 (the mileage scenario's settings; --distance 106km is the mileage drive).
 
-Engines, all `vehicle.numerics.solvers.Ros2`
-at --dt (4 ms) on the same model, road and settings:
-  baseline     Ros2(engine="baseline"): the simplest compiled engine, kept as the yardstick. The
+Engines, the ROS2 method at --dt (4 ms) on the same model, road and settings:
+  baseline     benchmarks/baseline_solvers.py BaselineRos2: the simplest compiled engine, kept as the yardstick. The
                parameter values are baked into the code, with no common-subexpression elimination, the steps of a
                sample folded, the block outputs evaluated in CasADi's virtual machine.
-  current      Ros2(): the production engine (parameters as inputs, CSE, unrolled steps, compiled outputs).
-  current_jK   Ros2(jacobian_every=K) for each K > 1 of --jacobian-every: W and its LU made every K steps.
+  current      vehicle.numerics.solvers.Ros2(): the production engine (parameters as inputs, CSE, unrolled steps,
+               compiled outputs).
+  current_jK   benchmarks/baseline_solvers.py JacobianReuseRos2(dt, K) for each K > 1 of --jacobian-every: W and its
+               LU made every K steps.
   reference    Ros2() at --reference-dt (1 ms): the step error is second order, 16x below the 4 ms one.
 
 Per engine: the build (symbolic step, code generation, compilation; cold cache unless --warm-cache), the drive's
@@ -145,7 +146,7 @@ def main(argv=None):
     ap.add_argument("--dt", default="4ms")
     ap.add_argument("--reference-dt", default="1ms")
     ap.add_argument("--jacobian-every", default="1,5",
-                    help="comma-separated values of Ros2(jacobian_every=...) for the current engine (1: exact W)")
+                    help="comma-separated steps between two W of the current engine (1: exact W at every step)")
     ap.add_argument("--no-reference", action="store_true")
     ap.add_argument("--repeats", type=int, default=7, help="interleaved repetitions of the us/step measurement")
     ap.add_argument("--warm-cache", action="store_true")
@@ -153,6 +154,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if not args.warm_cache:
         os.environ["HPSIM_CACHE"] = tempfile.mkdtemp(prefix="hpsim_bench_")
+    from benchmarks.baseline_solvers import BaselineRos2, JacobianReuseRos2
     from hpsim.units import parse_quantity
     from vehicle.numerics.solvers import Ros2
     from vehicle.scenario.schema import prepare, read_scenario_text
@@ -162,9 +164,9 @@ def main(argv=None):
     prep = prepare(read_scenario_text(scenario_text(args.distance, args.dt), "engine benchmark", "."))
     model, road = prep.model(), prep.road()
     setup_s = time.perf_counter() - t0
-    engines = {"baseline": Ros2(dt, engine="baseline")}
+    engines = {"baseline": BaselineRos2(dt)}
     for k in (int(v) for v in args.jacobian_every.split(",")):
-        engines["current" if k == 1 else f"current_j{k}"] = Ros2(dt, jacobian_every=k)
+        engines["current" if k == 1 else f"current_j{k}"] = Ros2(dt) if k == 1 else JacobianReuseRos2(dt, k)
     out = {"distance_km": prep.scenario.distance / 1e3, "dt_ms": dt * 1e3, "setup_s": setup_s, "engines": {}}
     drives, builds = {}, {}
     for name, solver in engines.items():

@@ -86,10 +86,10 @@ def libm_block(model, solver):
     CasADi's C calls the C library's exp, log, pow and tanh; the compiler flags are the production engine's."""
     import casadi as ca
 
-    from vehicle.numerics.codegen import compile_c, generate_c
+    from vehicle.numerics.codegen import casadi_c, compile_c
 
-    graph = solver._graph(model)
-    code = generate_c([graph], f"{graph.name()}.c", c_library_math=True)
+    graph = solver.block_function(model, solver.K, solver.M)
+    code = casadi_c([graph], f"{graph.name()}.c")
     lib, error = compile_c(code, f"{graph.name()}_libm")
     if lib is None:
         raise RuntimeError(error)

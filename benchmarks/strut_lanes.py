@@ -70,7 +70,7 @@ def main() -> None:
     split = Ros2(DT).split_step_functions(model)
     if split is None:
         sys.exit(f"{a.vehicle}: no strut kernel for all stations (the whole step runs)")
-    whole, _, _, _ = Ros2(DT, strut_lanes=False).step_functions(model)
+    whole, _ = Ros2(DT, strut_lanes=False).step_functions(model)
     n = model.n
     kern = [arith(k) for k in split.kernels]
     rest = [arith(f) for f in split.pieces]

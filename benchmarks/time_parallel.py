@@ -41,7 +41,7 @@ def main(argv=None):
                          "the scenario default); 0: leave that run out")
     ap.add_argument("--distance", default=None, help="override the scenario's distance, e.g. '10 km'")
     ap.add_argument("--baseline", action="store_true",
-                    help="also run the engine of issue 11's filing serially first (Ros2(engine='baseline'), same model)")
+                    help="also run the baseline engine serially first (benchmarks/baseline_solvers.py, same model)")
     ap.add_argument("--dt", default=None,
                     help="the serial and time-parallel runs' step (default the scenario's; the old engine of "
                          "--baseline keeps the scenario's: today's engine as configured), e.g. '1/260 s' as '3.846153846 ms'")
@@ -78,15 +78,15 @@ def main(argv=None):
 
     baseline = None
     if args.baseline:
-        # the baseline engine (Ros2(engine="baseline")), on the same model and road, serial, no sink (what a drive
+        # the baseline engine (benchmarks/baseline_solvers.py), on the same model and road, serial, no sink (what a drive
         # costs without the results file: the serial and parallel runs below write into memory, a small difference)
-        from vehicle.numerics.solvers import Ros2
+        from benchmarks.baseline_solvers import BaselineRos2
         from vehicle.engines.full import Drive
         from vehicle.scenario.schema import prepare
 
         prep = prepare(read_scenario_text(yaml.safe_dump(data), src.name, src.base_dir))
         model, settings = prep.model(), prep.settings()
-        drive = Drive(model, prep.road(), settings, solver=Ros2(settings.dt_s, engine="baseline"))
+        drive = Drive(model, prep.road(), settings, solver=BaselineRos2(settings.dt_s))
         t0 = time.perf_counter()
         res_b = drive.run()
         # per axle final temperature and load change as benchmarks/engine.py summarises its engines

@@ -107,7 +107,14 @@ def seal_friction(v, x, p, *, F0_comp, F0_reb, f_p, K_brk, v_s, f_v, eps, v_h_co
             f"when v_h_comp or v_h_reb is non-zero (got v_h_comp={v_h_comp!r}, v_h_reb={v_h_reb!r}); "
             "pass eps_x > 0, e.g. a small fraction of the motion amplitude")
 
-    # --- seed 001 eq. 3: the band after a reversal ----------------------------------------------
+    return _reversal_band(F_out, v, x, s_v, a_v, (F_c_comp, F_c_reb), (K_brk, K_reb), (v_s, v_s_r),
+                          (v_h_comp, v_h_reb), f_v, eps, eps_x, stroke_dir)
+
+
+def _reversal_band(F_out, v, x, s_v, a_v, F_c, K, v_s, v_h_dir, f_v, eps, eps_x, stroke_dir):
+    """Seed 001 eq. 3, the band after a reversal, blended into the eq.-2 force F_out (see `seal_friction`). F_c, K,
+    v_s, v_h_dir: the (compression, rebound) Coulomb levels, Stribeck ratios, Stribeck velocities and bands."""
+    (F_c_comp, F_c_reb), (K_brk, K_reb), (v_s, v_s_r), (v_h_comp, v_h_reb) = F_c, K, v_s, v_h_dir
     s_x = sym.smooth_sign(x, eps_x) if stroke_dir is None else stroke_dir
     old_comp = 0.5 * (1.0 + s_x)      # x > 0 (or stroke_dir > 0): the stroke before the reversal was compression
     # v = 0: breakaway level of the old stroke; |v| = v_h: eq. 2 of the new stroke

@@ -210,18 +210,7 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
         if not spec.flat:
             info["gd_n0_m3"] = spec.gd_n0_m3
         road_length = (n - 1) * step
-    for i, ev in enumerate(spec.events):
-        if ev.position > road_length:
-            raise UserInputError(f"events.{i}: {ev.type} at {ev.position:g} m is beyond the road "
-                                 f"length {road_length:g} m")
-    events = list(spec.events)
-    counts = []
-    for j, pop in enumerate(spec.populations):
-        drawn = pop.realise(road_length, population_rng(spec.seed, j, pop.seed))
-        counts.append(len(drawn))
-        events += drawn
-    if counts:
-        info["population_counts"] = counts
+    events = _events(spec, road_length, info)
     # steps and ramps change the level for good: the passes compact the roughness, not the grade
     level_events = [ev for ev in events if isinstance(ev, LEVEL_EVENTS)] \
         if any(not p.identity for p in spec.passes) else []
@@ -240,6 +229,24 @@ def build_road(spec: RoadSpec, base_dir: Path | None = None) -> Road:
     arrays = stored_arrays(key, names, tracks)
     return Road(step, arrays[0], arrays[1], info=info, copy=False, passes=spec.passes,
                 level_m=tuple(arrays[2:]) or None, key=key)
+
+
+def _events(spec: RoadSpec, road_length: float, info: dict) -> list:
+    """The road's events: the listed ones (each checked to lie on the road) and those its populations draw (their
+    counts into `info`)."""
+    for i, ev in enumerate(spec.events):
+        if ev.position > road_length:
+            raise UserInputError(f"events.{i}: {ev.type} at {ev.position:g} m is beyond the road "
+                                 f"length {road_length:g} m")
+    events = list(spec.events)
+    counts = []
+    for j, pop in enumerate(spec.populations):
+        drawn = pop.realise(road_length, population_rng(spec.seed, j, pop.seed))
+        counts.append(len(drawn))
+        events += drawn
+    if counts:
+        info["population_counts"] = counts
+    return events
 
 
 def _source_name(spec: RoadSpec) -> str:

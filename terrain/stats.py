@@ -179,15 +179,56 @@ def _finite(x):
     return float(x) if x is not None and np.isfinite(x) else None
 
 
+def _check_long_enough(road) -> None:
+    """UserInputError when the profile is too short for two Welch segments."""
+    dx = road.spacing_m
+    if road.n_points < MIN_PSD_POINTS:
+        raise UserInputError(f"road profile: {road.n_points} points ({(road.n_points - 1) * dx:.6g} m at {dx:.6g} m); "
+                             f"its spectrum needs at least {MIN_PSD_POINTS} (two Welch segments of "
+                             f"{MIN_PSD_POINTS // 2}): give a longer profile")
+
+
+def _track_fits(f, tracks_in: dict, edges, k_eff, r, dx: float, iri: bool) -> tuple[dict, dict]:
+    """Per track (name -> (its PSD, its profile)): the power-law fit, its class, RMS and IRI; and the relative
+    variances of its band averages."""
+    tracks, track_relvar = {}, {}
+    for name, (p, z) in tracks_in.items():
+        j, pm, rv = band_average(f, p, edges, k_eff, r)
+        track_relvar[name] = rv
+        g1, w1, sg1, sw1 = fit_power_law(f, j, pm, rv)
+        tracks[name] = {"gd_n0_m3": _finite(g1), "gd_n0_rel_se": _finite(sg1), "waviness": _finite(w1),
+                        "waviness_se": _finite(sw1), "iso_class": iso8608.class_of_gd(g1),
+                        "rms_m": float(np.std(z)), "iri_m_per_km": iri_m_per_km(z, dx) if iri else None}
+    return tracks, track_relvar
+
+
+def _coherence_at_n0(f, pll, prr, plr) -> float | None:
+    """The coherence of the two tracks in the 1/3-octave band centred on COHERENCE_AT (0.1 cycle/m)."""
+    a, b = COHERENCE_AT * 2.0 ** (-1.0 / 6.0), COHERENCE_AT * 2.0 ** (1.0 / 6.0)
+    j = np.nonzero((f >= a) & (f < b))[0]
+    denom = np.sqrt(pll[j].sum() * prr[j].sum()) if j.size else 0.0
+    return float(np.real(plr[j].sum()) / denom) if denom > 0 else None
+
+
+def _bands(f, idx, pmean, relvar, gamma_band, left_relvar) -> dict:
+    """The fit band's octave bands: centre frequencies, mean PSD of both tracks, its relative standard error, the
+    coherence and its standard error."""
+    return {
+        "centre_cycle_per_m": np.array([np.exp(np.mean(np.log(f[j]))) for j in idx]),
+        "psd_m3": pmean,
+        "rel_se": np.sqrt(relvar),
+        "coherence": gamma_band,
+        "coherence_se": coherence_se(gamma_band, left_relvar) if len(idx) == len(left_relvar)
+        else np.full(len(idx), np.nan),
+    }
+
+
 def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nperseg: int | None = None,
                     iri: bool = True) -> dict:
     """Statistics of a Road (see module docstring). Scalars first, then arrays for plots."""
     dx = road.spacing_m
     left, right = road.left_m, road.right_m
-    if road.n_points < MIN_PSD_POINTS:
-        raise UserInputError(f"road profile: {road.n_points} points ({(road.n_points - 1) * dx:.6g} m at {dx:.6g} m); "
-                             f"its spectrum needs at least {MIN_PSD_POINTS} (two Welch segments of "
-                             f"{MIN_PSD_POINTS // 2}): give a longer profile")
+    _check_long_enough(road)
     nyq = 0.5 / dx
     lo, hi = fit_band
     hi = min(hi, 0.5 * nyq)
@@ -210,21 +251,8 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
     relvar = relvar * 0.5 * (1.0 + np.nan_to_num(gamma_band) ** 2)
     gd, w, se_gd, se_w = fit_power_law(f, idx, pmean, relvar)
 
-    tracks = {}
-    track_relvar = {}
-    for name, p, z in (("left", pll, left), ("right", prr, right)):
-        j, pm, rv = band_average(f, p, edges, k_eff, r)
-        track_relvar[name] = rv
-        g1, w1, sg1, sw1 = fit_power_law(f, j, pm, rv)
-        tracks[name] = {"gd_n0_m3": _finite(g1), "gd_n0_rel_se": _finite(sg1), "waviness": _finite(w1),
-                        "waviness_se": _finite(sw1), "iso_class": iso8608.class_of_gd(g1),
-                        "rms_m": float(np.std(z)), "iri_m_per_km": iri_m_per_km(z, dx) if iri else None}
-
-    # coherence at n0: 1/3-octave band centred on 0.1 cycle/m
-    a, b = COHERENCE_AT * 2.0 ** (-1.0 / 6.0), COHERENCE_AT * 2.0 ** (1.0 / 6.0)
-    j = np.nonzero((f >= a) & (f < b))[0]
-    denom = np.sqrt(pll[j].sum() * prr[j].sum()) if j.size else 0.0
-    coh01 = float(np.real(plr[j].sum()) / denom) if denom > 0 else None
+    tracks, track_relvar = _track_fits(f, {"left": (pll, left), "right": (prr, right)}, edges, k_eff, r, dx, iri)
+    coh01 = _coherence_at_n0(f, pll, prr, plr)
 
     rms = float(np.sqrt(0.5 * (np.var(left) + np.var(right))))
     iri_mean = _finite(0.5 * (tracks["left"]["iri_m_per_km"] + tracks["right"]["iri_m_per_km"])) if iri else None
@@ -244,14 +272,7 @@ def road_statistics(road, fit_band: tuple[float, float] = DEFAULT_FIT_BAND, nper
         "welch_segments_effective": float(k_eff),
         "segment_length_m": nperseg * dx,
         "tracks": tracks,
-        "bands": {
-            "centre_cycle_per_m": np.array([np.exp(np.mean(np.log(f[j]))) for j in idx]),
-            "psd_m3": pmean,
-            "rel_se": np.sqrt(relvar),
-            "coherence": gamma_band,
-            "coherence_se": coherence_se(gamma_band, track_relvar["left"]) if len(idx) == len(
-                track_relvar["left"]) else np.full(len(idx), np.nan),
-        },
+        "bands": _bands(f, idx, pmean, relvar, gamma_band, track_relvar["left"]),
         "frequency_cycle_per_m": f,
         "psd_left_m3": pll,
         "psd_right_m3": prr,

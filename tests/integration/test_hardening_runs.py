@@ -62,7 +62,7 @@ def test_a_long_output_interval_loops_over_pieces_instead_of_unrolling(monkeypat
     d = make_drive(distance_m=30.0, error_check_every=0)
     m, dt = d.model, d.settings.dt_s
     monkeypatch.setattr(solvers, "MAX_UNROLLED_STEPS", 4)
-    assert solvers._pieces(10, 1) == [4, 4, 2] and solvers._pieces(10, 3) == [3, 3, 3, 1]
+    assert solvers._pieces(10) == [4, 4, 2] and solvers._pieces(10, 3) == [3, 3, 3, 1]
     U = d.inputs(dt * np.arange(11))
     x0 = d.initial_state().x
     a = solvers.Ros2(dt, compile=False).bind(m, 10, 1).advance(x0, U, d.p)[:, -1]
@@ -70,9 +70,7 @@ def test_a_long_output_interval_loops_over_pieces_instead_of_unrolling(monkeypat
     assert np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-6)) < 1e-9
     sizes = {}
     for K in (40, 4000):
-        s = solvers.Ros2(dt, compile=False)
-        s.K, s.M = K, 1
-        sizes[K] = s._graph(m).n_nodes()
+        sizes[K] = solvers.Ros2(dt, compile=False).block_function(m, K, 1).n_nodes()
     assert sizes[4000] < 1.5 * sizes[40]
 
 

@@ -31,6 +31,7 @@ import numpy as np
 from vehicle.physics import ride
 from vehicle.results.validity import SHOCK_KEYS, seat_shocks  # noqa: F401  (SHOCK_KEYS: the seat rows' keys)
 from vehicle.physics.outputs import variable_name
+from vehicle.results.layout import STATS
 
 PERCENTILES = (1, 50, 99)
 
@@ -43,8 +44,8 @@ def _rows(view, key):
 def _bin_edges(view, key="strut_travel_histogram_s"):
     """Travel-bin edges [m]: the histogram dataset's attribute, or a summary value."""
     f = getattr(view, "f", None)
-    if f is not None and "stats" in f and variable_name(key) in f["stats"]:
-        edges = f["stats"][variable_name(key)].attrs.get("bin_edges_m")
+    if f is not None and STATS in f and variable_name(key) in f[STATS]:
+        edges = f[STATS][variable_name(key)].attrs.get("bin_edges_m")
         if edges is not None:
             return np.asarray(edges, float)
     v = view.summary_values().get(variable_name("strut_travel_bin_edges_m"))
@@ -61,44 +62,65 @@ def summarise(view) -> dict:
     T = _rows(view, "duration_s")
     if T is None or T.sum() <= 0:
         return {}
+    out = {"duration_s": float(T.sum())}
+    seats = _seats(view, T)
+    if seats is not None:
+        out["seats"] = seats
+    add_shocks(out, view)
+    stations = _stations(view, T)
+    if stations is not None:
+        out["stations"] = stations
+    hull = _hull(view, T)
+    if hull is not None:
+        out["hull"] = hull
+    return out
+
+
+def _rms(a, T):
+    """The root mean square over the drive of per-interval RMS values `a` (rows), weighted by the intervals' T [s]."""
+    return np.sqrt((T[:, None] * a * a).sum(axis=0) / T.sum())
+
+
+def _seats(view, T) -> list[dict] | None:
+    """Per seat: frequency-weighted RMS accelerations and comfort band, VDV, absorbed power; None without them."""
     total = T.sum()
-    w = T[:, None]
-
-    def mean_sq(a):
-        return np.sqrt((w * a * a).sum(axis=0) / total)
-
-    out = {"duration_s": float(total)}
     resolved = json.loads(view.scenario_attrs["resolved_json"])
     seat_names = [s["name"] for s in resolved.get("vehicle", {}).get("seats", [])]
     aw, vdv, pa = (_rows(view, k) for k in ("weighted_rms_acceleration_m_s2", "vdv_m_s175", "absorbed_power_W"))
     lat = _rows(view, "weighted_rms_lateral_acceleration_m_s2")
-    if any(a is not None for a in (aw, vdv, pa)):
-        n = next(a.shape[1] for a in (aw, vdv, pa) if a is not None)
-        names = seat_names if len(seat_names) == n else [f"seat{k + 1}" for k in range(n)]
-        seats = []
-        for k, name in enumerate(names):
-            s = {"seat": name}
-            if aw is not None:
-                a = float(mean_sq(aw)[k])
-                s.update(weighted_rms_acceleration_m_s2=a, comfort=ride.comfort_band(a))
-            if lat is not None:
-                s["weighted_rms_lateral_acceleration_m_s2"] = float(mean_sq(lat)[k])
-            if vdv is not None:
-                s["vdv_m_s175"] = ride.combine_vdv(vdv[:, k])
-            if pa is not None:
-                s["absorbed_power_W"] = float((T * pa[:, k]).sum() / total)
-            seats.append(s)
-        out["seats"] = seats
-    add_shocks(out, view)
+    if all(a is None for a in (aw, vdv, pa)):
+        return None
+    n = next(a.shape[1] for a in (aw, vdv, pa) if a is not None)
+    names = seat_names if len(seat_names) == n else [f"seat{k + 1}" for k in range(n)]
+    seats = []
+    for k, name in enumerate(names):
+        s = {"seat": name}
+        if aw is not None:
+            a = float(_rms(aw, T)[k])
+            s.update(weighted_rms_acceleration_m_s2=a, comfort=ride.comfort_band(a))
+        if lat is not None:
+            s["weighted_rms_lateral_acceleration_m_s2"] = float(_rms(lat, T)[k])
+        if vdv is not None:
+            s["vdv_m_s175"] = ride.combine_vdv(vdv[:, k])
+        if pa is not None:
+            s["absorbed_power_W"] = float((T * pa[:, k]).sum() / total)
+        seats.append(s)
+    return seats
+
+
+def _stations(view, T) -> list[dict] | None:
+    """Per wheel station: dynamic load, lift-off, end stops, strut travel (extremes, percentiles, histogram), strut
+    velocity; None when the rows hold none of it."""
+    w, total = T[:, None], T.sum()
     stations = [{"station": s} for s in view.stations]
     per_station = {
-        "dynamic_load_coefficient": lambda a: mean_sq(a),
+        "dynamic_load_coefficient": lambda a: _rms(a, T),
         "lift_off_share": lambda a: (w * a).sum(axis=0) / total,
         "end_stop_time_s": lambda a: a.sum(axis=0),
         "end_stop_energy_J": lambda a: a.sum(axis=0),
         "strut_travel_min_m": lambda a: a.min(axis=0),
         "strut_travel_max_m": lambda a: a.max(axis=0),
-        "rms_strut_velocity_m_per_s": lambda a: mean_sq(a),
+        "rms_strut_velocity_m_per_s": lambda a: _rms(a, T),
     }
     found = False
     for key, fn in per_station.items():
@@ -122,18 +144,20 @@ def summarise(view) -> dict:
             st.update({f"strut_travel_p{q}_m": _num(v) for q, v in zip(PERCENTILES, row)})
             st["strut_travel_histogram_s"] = [float(v) for v in h]
             st["bin_edges_m"] = [float(v) for v in e]
-    if found:
-        out["stations"] = stations
+    return stations if found else None
+
+
+def _hull(view, T) -> dict | None:
+    """The hull's RMS heave, pitch and roll accelerations over the drive; None without them."""
     acc = _rows(view, "rms_hull_acceleration")
     if acc is None:        # files that store the hull accelerations split (heave, pitch, roll)
         parts = [view.stats_series(f"rms_{d}_acceleration") for d in ("heave", "pitch", "roll")]
         acc = None if any(p is None or len(p) == 0 for p in parts) else np.stack(parts, axis=1)
-    if acc is not None:
-        r = mean_sq(np.asarray(acc, float))
-        out["hull"] = {"rms_heave_acceleration_m_s2": float(r[0]), "rms_pitch_acceleration_rad_s2": float(r[1]),
-                       "rms_roll_acceleration_rad_s2": float(r[2])}
-    return out
-
+    if acc is None:
+        return None
+    r = _rms(np.asarray(acc, float), T)
+    return {"rms_heave_acceleration_m_s2": float(r[0]), "rms_pitch_acceleration_rad_s2": float(r[1]),
+            "rms_roll_acceleration_rad_s2": float(r[2])}
 
 def add_shocks(out: dict, view) -> None:
     """Per seat: crest factor, MTVV and the ISO 2631-5 doses (vehicle.physics.shocks) from the stored series,

@@ -98,18 +98,7 @@ def report_from(r: ResultsView, name: str) -> dict:
     T0 = _axle_mean(equilibrium_temperature(before)) - 273.15
     N0 = _axle_mean(before["wheel_load"])
     h0 = np.asarray(before["axle_height_change"], float)
-    final = r.summary_values()
-    T_end = {}
-    for key, var in (("surface", "strut_temperature"), ("oil", "oil_temperature")):
-        v = final.get(var) if after is not None else None
-        if v is None:
-            v = _last_row(r, var)
-        T_end[key] = _axle_mean(v) - 273.15 if v is not None else np.full(len(axles), np.nan)
-    # the gas swings by kelvins with every bump: its mean over the last statistics interval
-    g = r.stats_series("mean_gas_temperature")
-    T_end["gas"] = _axle_mean(g[-1]) - 273.15 if g is not None and len(g) else np.full(len(axles), np.nan)
-    if after is not None and final.get("strut_temperature") is None and "strut_temperature" in after:
-        T_end["surface"] = _axle_mean(after["strut_temperature"]) - 273.15     # a file without /summary values
+    T_end = _end_temperatures(r, after, len(axles))
     T1 = T_end["surface"]
     if after is not None:
         N1 = _axle_mean(after["wheel_load"])
@@ -121,18 +110,9 @@ def report_from(r: ResultsView, name: str) -> dict:
     E_ax = _axle_sum(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
     bands = weighing_difference_bands({k: r.equilibrium(k) for k in ("before_band", "after_band")}, len(axles))
     n_done = r.counts()[0]
-    if "distance_km" in summ and status == "complete":
-        dist_km, sim_s = float(summ["distance_km"]), float(summ["simulated_s"])
-    else:
-        st = r.state()
-        dist_km = st["s_m"] / 1e3 if st is not None else 0.0
-        sim_s = st["t_s"] if st is not None else 0.0
+    dist_km, sim_s = _driven(r, summ, status)
     wall = float(summ.get("wall_s", 0.0))
-
-    def num(v):
-        v = float(v)
-        return None if not np.isfinite(v) else v
-
+    num = _finite_or_none
     rows = []
     for k, a in enumerate(axles):
         rows.append({"axle": k + 1, "T_start_C": num(T0[k]), "T_end_C": num(T1[k]),
@@ -144,12 +124,7 @@ def report_from(r: ResultsView, name: str) -> dict:
                      "dN_band_pct": bands["dN_band_pct"][k], "dh_band_mm": bands["dh_band_mm"][k]})
     shift = 100.0 * np.sum(np.abs(N1 - N0)) / np.sum(N0)
     shift_charged = 100.0 * np.sum(np.abs(N1 - Nc)) / np.sum(Nc)
-    try:
-        S = json.loads(sc["resolved_json"])["scenario"]
-        compensation, ambient_C = bool(S["compensation"]["enabled"]), S["ambient_temperature"] - 273.15
-    except (ValueError, KeyError, TypeError):
-        raise UserInputError(f"{name}: damaged results file: /scenario attribute 'resolved_json' is not the "
-                             "resolved scenario") from None
+    compensation, ambient_C = _compensation_and_ambient(sc, name)
     out = {"file": name, "status": status, "complete": status == "complete",
            "distance_km": dist_km, "planned_distance_km": float(sc["distance_m"]) / 1e3,
            "simulated_s": sim_s, "wall_s": wall, "n_samples": n_done,
@@ -163,15 +138,66 @@ def report_from(r: ResultsView, name: str) -> dict:
            "ambient_C": ambient_C,
            "hpsim_version": str(sc.get("hpsim_version", ""))}
     out.update(solver_mode_summary(r, summ, len(axles)))
+    out.update(_solver_notes(summ))
+    out.update(_checks(r))
+    return out
+
+
+def _finite_or_none(v) -> float | None:
+    v = float(v)
+    return None if not np.isfinite(v) else v
+
+
+def _end_temperatures(r: ResultsView, after: dict | None, n_axles: int) -> dict:
+    """Per axle at the drive's end [degC]: "surface" and "oil" (the summary's values, else the last statistics
+    row's), "gas" (its mean over the last statistics interval: the gas swings by kelvins with every bump)."""
+    final = r.summary_values()
+    T_end = {}
+    for key, var in (("surface", "strut_temperature"), ("oil", "oil_temperature")):
+        v = final.get(var) if after is not None else None
+        if v is None:
+            v = _last_row(r, var)
+        T_end[key] = _axle_mean(v) - 273.15 if v is not None else np.full(n_axles, np.nan)
+    g = r.stats_series("mean_gas_temperature")
+    T_end["gas"] = _axle_mean(g[-1]) - 273.15 if g is not None and len(g) else np.full(n_axles, np.nan)
+    if after is not None and final.get("strut_temperature") is None and "strut_temperature" in after:
+        T_end["surface"] = _axle_mean(after["strut_temperature"]) - 273.15     # a file without /summary values
+    return T_end
+
+
+def _driven(r: ResultsView, summ: dict, status: str) -> tuple[float, float]:
+    """(km, s) driven: the summary's of a complete run, else the last checkpoint's."""
+    if "distance_km" in summ and status == "complete":
+        return float(summ["distance_km"]), float(summ["simulated_s"])
+    st = r.state()
+    return (st["s_m"] / 1e3, st["t_s"]) if st is not None else (0.0, 0.0)
+
+
+def _compensation_and_ambient(sc: dict, name: str) -> tuple[bool, float]:
+    """(compensation enabled, ambient temperature [degC]) from the stored resolved scenario."""
+    try:
+        S = json.loads(sc["resolved_json"])["scenario"]
+        return bool(S["compensation"]["enabled"]), S["ambient_temperature"] - 273.15
+    except (ValueError, KeyError, TypeError):
+        raise UserInputError(f"{name}: damaged results file: /scenario attribute 'resolved_json' is not the "
+                             "resolved scenario") from None
+
+
+def _solver_notes(summ: dict) -> dict:
+    """The solver's error estimate, tolerance and advice, and the run's error, as the summary holds them."""
+    out = {}
     for k in ("solver_error_estimate", "solver_tolerance", "solver_advice"):
         if k in summ:
-            out[k] = num(summ[k]) if k != "solver_advice" else str(summ[k])
+            out[k] = _finite_or_none(summ[k]) if k != "solver_advice" else str(summ[k])
     if "error" in summ:
         out["error"] = str(summ["error"])
+    return out
 
-    out["ride"] = ride_metrics.summarise(r)
-    out["warnings"] = validity.check(r)
-    drift = damping_over_drive(r)            # integrated struts with internal maps only
+
+def _checks(r: ResultsView) -> dict:
+    """Ride metrics, validity warnings and (integrated struts with internal maps only) the damping's drift."""
+    out = {"ride": ride_metrics.summarise(r), "warnings": validity.check(r)}
+    drift = damping_over_drive(r)
     if drift is not None:
         out["damping_over_drive"] = drift
     return out

@@ -18,7 +18,15 @@ from .stages import command_wall_s, tenths_down
 
 
 def register(sub):
-    # hpsim vehicle equilibrium
+    _register_vehicle(sub)
+    _register_run(sub)
+    _register_reading(sub)
+    _register_sweep(sub)
+    _register_figures(sub)
+
+
+def _register_vehicle(sub):
+    """hpsim vehicle: equilibrium, response, new, check."""
     pv = sub.add_parser("vehicle", help="vehicle tools (new, check, equilibrium, response)")
     vsub = pv.add_subparsers(dest="vehicle_command", required=True, parser_class=type(pv))
     pe = vsub.add_parser("equilibrium", help="static equilibrium of the charged vehicle at given strut temperatures")
@@ -32,6 +40,9 @@ def register(sub):
     response.register(vsub)
     vehicles.register(vsub)
 
+
+def _register_run(sub):
+    """hpsim run: one drive into a results file."""
     pr = sub.add_parser("run", help="run a scenario file, writing HDF5 results as it goes")
     pr.add_argument("scenario", help="scenario YAML file (see docs/scenarios.md)")
     pr.add_argument("-o", "--output", default=None, help="HDF5 output file (default: <scenario name>.h5 here)")
@@ -44,6 +55,9 @@ def register(sub):
                          "the slow states (overrides solver.time_parallel; auto: one process per CPU)")
     pr.set_defaults(func=cmd_run)
 
+
+def _register_reading(sub):
+    """hpsim report and hpsim compare: what reads results files."""
     pp = sub.add_parser("report", help="per-axle summary of a results file (or a shareable HTML/PDF report, also "
                                        "of a sweep or UQ study folder)")
     pp.add_argument("results", help="HDF5 file written by `hpsim run`, or (with --html/--pdf) a sweep or UQ study folder")
@@ -64,6 +78,10 @@ def register(sub):
     add_overwrite(pc)
     pc.set_defaults(func=cmd_compare)
 
+
+
+def _register_sweep(sub):
+    """hpsim sweep: a base scenario over a grid or list of overrides."""
     ps = sub.add_parser("sweep", help="run a base scenario over a grid or list of overrides (parallel)")
     ps.add_argument("sweep", help="sweep YAML file (see docs/scenarios.md)")
     ps.add_argument("-o", "--output-dir", default=None, help="folder for the case files, summary.csv and plots "
@@ -82,6 +100,8 @@ def register(sub):
                          "base scenario or input files); without it such a sweep is refused")
     ps.set_defaults(func=cmd_sweep)
 
+def _register_figures(sub):
+    """hpsim animate and hpsim plot: figures of one results file."""
     pa = sub.add_parser("animate", help="side-view movie of a drive (hull, wheels and struts over the road)")
     pa.add_argument("results", help="HDF5 file written by `hpsim run` with its series stored (output.interval)")
     pa.add_argument("-o", "--output", required=True, help="movie file: .gif (Pillow) or .mp4 (needs ffmpeg)")

@@ -104,7 +104,7 @@ def _outputs_as_variables(entries) -> list[Variable]:
 
 def _step_functions(model, dt_s: float) -> dict:
     """One internal step of the drive's compiled ROS2 solver for `model` ((z, u0, u1, pw) -> z) and p -> pw."""
-    step, _, parametric, _ = Ros2(dt_s).step_functions(model)
+    step, parametric = Ros2(dt_s).step_functions(model)
     return {"step": step, "parametric": parametric}
 
 

@@ -136,9 +136,6 @@ class Library:
     name: str
     key: tuple
     build: Callable[[], ca.Function]
-    # the C library's exp/log/pow/tanh instead of vehicle.numerics.vector_math's (the baseline engine of the
-    # benchmarks: the engine as it was)
-    c_library_math: bool = False
 
     def graph(self) -> ca.Function:
         fn = self.build()
@@ -162,9 +159,15 @@ def _same_signature(a: ca.Function, b: ca.Function) -> bool:
             and all(a.sparsity_out(i) == b.sparsity_out(i) for i in range(a.n_out())))
 
 
-def generate_c(fns: list[ca.Function], file_name: str, *, c_library_math: bool = False) -> bytes:
+def generate_c(fns: list[ca.Function], file_name: str) -> bytes:
     """CasADi's C of the functions `fns` in one file named `file_name` (its helpers are named after it), with
-    vehicle.numerics.vector_math's exp, log, pow and tanh (c_library_math=True: the C library's, as before)."""
+    vehicle.numerics.vector_math's exp, log, pow and tanh: what every compiled library is built from."""
+    return vector_math.with_scalar_math(casadi_c(fns, file_name))
+
+
+def casadi_c(fns: list[ca.Function], file_name: str) -> bytes:
+    """CasADi's C of the functions `fns` in one file named `file_name`, as CasADi writes it (the C library's exp,
+    log, pow and tanh)."""
     with tempfile.TemporaryDirectory() as tmp:
         cg = ca.CodeGenerator(file_name, {"with_header": False})
         for fn in fns:
@@ -175,12 +178,11 @@ def generate_c(fns: list[ca.Function], file_name: str, *, c_library_math: bool =
             cg.generate()
         finally:
             os.chdir(cwd)
-        code = (Path(tmp) / file_name).read_bytes()
-    return code if c_library_math else vector_math.with_scalar_math(code)
+        return (Path(tmp) / file_name).read_bytes()
 
 
-def _generate_c(fn: ca.Function, c_library_math: bool = False) -> bytes:
-    return generate_c([fn], f"{fn.name()}.c", c_library_math=c_library_math)
+def _generate_c(fn: ca.Function) -> bytes:
+    return generate_c([fn], f"{fn.name()}.c")
 
 
 def evict(d: Path, limit_bytes: float, keep: tuple[str, ...] = ()) -> list[str]:
@@ -277,7 +279,7 @@ def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = N
         error = _cache_build(job, key)
         if error is not None:
             return None, error
-        compile_time.compiled_s += time.perf_counter() - t0
+        compile_time.add_compiled_s(time.perf_counter() - t0)
     _touch(record)
     return so, ""
 
@@ -285,7 +287,7 @@ def compile_library(lib: CLibrary, *, opt_level: str = "-O2", cc: str | None = N
 def _library_job(lib: Library, cc: str, opt_level: str, d: Path, stem: str, key: str):
     """The graph of a `Library` missing from the cache, and its build job."""
     graph = lib.graph()
-    code = _generate_c(graph, c_library_math=lib.c_library_math)
+    code = _generate_c(graph)
     meta = {"lookup_key": key, "signature": _signature(graph)}
     return graph, BuildJob(cc, [opt_level, *COMPILER_FLAGS[1:]], code, hashlib.sha256(code).hexdigest(), d, stem, meta)
 
@@ -436,7 +438,7 @@ def _compile_announced(name: str, job: BuildJob, verbose: bool) -> str | None:
     if error is not None:
         warnings.warn(f"C compilation failed ({error}); using CasADi's virtual machine")
         return error
-    compile_time.compiled_s += time.perf_counter() - t0
+    compile_time.add_compiled_s(time.perf_counter() - t0)
     if verbose:
         print(f"compiled {name} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     evict(job.folder, cache_limit_bytes(), keep=(job.stem,))

@@ -41,10 +41,16 @@ def announce(sizes: list[int], width: int, cache: Path) -> None:
     LOG.info(f"compiling the vehicle model (first run only, ~{max(1, round(estimate_s(sizes, width, cache)))} s)")
 
 
-def record(sizes: list[int], width: int, seconds: float, cache: Path) -> None:
-    """Keep the measured rate for the next estimate (best effort: a cache that cannot be written keeps none)."""
+def add_compiled_s(seconds: float) -> None:
+    """Count `seconds` of compiler wall time into `compiled_s`."""
     global compiled_s
     compiled_s += max(seconds, 0.0)
+
+
+def record(sizes: list[int], width: int, seconds: float, cache: Path) -> None:
+    """Keep the measured rate for the next estimate (best effort: a cache that cannot be written keeps none), and
+    count the time (`add_compiled_s`)."""
+    add_compiled_s(seconds)
     lanes = max(1, min(width, len(sizes)))
     longest = estimate_s(sizes, lanes, cache) * _rate(cache)        # the bytes of the longest lane
     if seconds <= 0 or longest <= 0:

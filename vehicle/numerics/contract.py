@@ -13,7 +13,7 @@ Optional, by capability:
     step_doubling        refined_solver(factor) / refined(model, factor): the same method at dt/factor for the
                          a-posteriori error estimate (vehicle.numerics.error_estimate)
     compiled_outputs     the drive may evaluate its block outputs in one compiled call (False: CasADi's
-                         virtual machine, as the benchmark's baseline engine did)
+                         virtual machine)
 """
 from __future__ import annotations
 

@@ -505,7 +505,7 @@ def default_lanes(isa: str | None = None) -> int:
 
 
 class LaneStepper:
-    """The ROS2 block function of `solver` (a bound-able `Ros2`, W at every step) over `lanes` cases of `model`'s
+    """The ROS2 block function of `solver` (a bound-able `Ros2`) over `lanes` cases of `model`'s
     structure, compiled (cached like every library) and loaded: `advance(z0, U, P, K, M)`.
 
     scalar=True builds the fallback (lanes one after the other, no vector extension) on any compiler;
@@ -514,8 +514,6 @@ class LaneStepper:
 
     def __init__(self, solver, model, lanes: int, *, isa: str | None = None, scalar: bool = False,
                  cc: str | None = None, batched: bool = False, load: bool = True):
-        if solver.jacobian_every != 1 or solver.engine != "current":
-            raise ValueError("LaneStepper: only the current engine with W at every step has a lane form")
         strut_lanes = solver.strut_lanes
         self._setup(lanes, f"hpsim_lanes_{model.structure}_{int(lanes)}{'b' if batched else ''}"
                     f"{'s' if strut_lanes else ''}", isa, scalar or batched, cc)
@@ -527,7 +525,7 @@ class LaneStepper:
             if split is not None:
                 step, parametric = split, split.parametric
             else:
-                step, _, parametric, _ = solver.step_functions(model)
+                step, parametric = solver.step_functions(model)
             self.source = self._source(step, parametric, batch)
             return self.source.encode()
         # found in the compile cache by what determines the C (no graph built when it is there)

@@ -35,9 +35,9 @@ drive rather than chosen inside it.
 """
 from __future__ import annotations
 
-import hashlib
 import time
 import warnings
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -49,39 +49,124 @@ from vehicle.numerics import split_step
 from vehicle.numerics.step_graph import GAMMA, SparseLU, explicit_reciprocals, lift_parameters
 
 # the most steps of one output sample generated as straight-line code; longer samples loop over pieces of this
-# many steps (the default 1 s at 4 ms is 250 steps: unrolled as before)
+# many steps (the default 1 s at 4 ms is 250 steps: unrolled)
 MAX_UNROLLED_STEPS = 250
 
 
-def _pieces(K: int, every: int) -> list[int]:
-    """How a sample of K steps is generated: [K] (unrolled) or [n] * (K // n) + [K % n] with n <= MAX_UNROLLED_STEPS
-    a multiple of `every` (so each piece starts with a fresh Jacobian, as the sample does)."""
+def _pieces(K: int, piece: int | None = None) -> list[int]:
+    """How a sample of K steps is generated: [K] (unrolled) or [n] * (K // n) + [K % n] with n = `piece` (default
+    MAX_UNROLLED_STEPS)."""
+    n = MAX_UNROLLED_STEPS if piece is None else piece
     if K <= MAX_UNROLLED_STEPS:
         return [K]
-    n = max(every, MAX_UNROLLED_STEPS - MAX_UNROLLED_STEPS % every)
     R, rest = divmod(K, n)
     return [n] * R + ([rest] if rest else [])
 
 
-def _steps(step, reuse, every: int, z, U0, U1, PW):
-    """The state after the steps with inputs U0, U1 (one column per step) from z, unrolled; a fresh W every `every`
-    steps (reuse: the step that solves with an earlier W)."""
-    zk, lu = z, None
-    for k, (u0, u1) in enumerate(zip(ca.horzsplit(U0), ca.horzsplit(U1))):
-        if every == 1:
-            zk = step(zk, u0, u1, PW)
-        elif k % every == 0:
-            zk, lu = step(zk, u0, u1, PW)
-        else:
-            zk = reuse(zk, u0, u1, PW, lu)
+def _steps(step, z, U0, U1, PW):
+    """The state after the steps with inputs U0, U1 (one column per step) from z, unrolled."""
+    zk = z
+    for u0, u1 in zip(ca.horzsplit(U0), ca.horzsplit(U1)):
+        zk = step(zk, u0, u1, PW)
     return zk
 
 
-def _unrolled_steps(step, reuse, every: int, n: int, nz: int, nu: int, npw: int) -> ca.Function:
-    """n steps unrolled as a function (z, u0 (nu, n), u1 (nu, n), pw) -> z (see _steps)."""
+def _unrolled_steps(steps, n: int, nz: int, nu: int, npw: int) -> ca.Function:
+    """n steps unrolled by `steps` (see `block_function`) as a function (z, u0 (nu, n), u1 (nu, n), pw) -> z."""
     zs, PW = ca.MX.sym("z", nz), ca.MX.sym("pw", npw)
     U0k, U1k = ca.MX.sym("u0", nu, n), ca.MX.sym("u1", nu, n)
-    return ca.Function(f"ros2_steps_{n}", [zs, U0k, U1k, PW], [_steps(step, reuse, every, zs, U0k, U1k, PW)])
+    return ca.Function(f"ros2_steps_{n}", [zs, U0k, U1k, PW], [steps(zs, U0k, U1k, PW)])
+
+
+def block_function(name: str, steps, parametric: ca.Function, K: int, M: int, nz: int, nu: int,
+                   piece: int | None = None) -> ca.Function:
+    """The block function (z0, U (nu, K M + 1), p) -> z at the M sample instants (nz, M) of a step given as
+    `steps(z, U0, U1, pw) -> z` (unrolling one step per column of U0, U1; pw = parametric(p)).
+
+    K steps make one sample, unrolled by hand so that every step reads the same parameter vector: neither carried
+    through the loop's accumulator (a load and a store of every parameter per step) nor copied into a matrix. A long
+    output interval (K > MAX_UNROLLED_STEPS) is a loop (`Function.fold`) over pieces of `piece` steps, so the code
+    stays the size of one piece whatever the interval. The parameter vector is repeated once per sample."""
+    npw = parametric.size1_out(0)
+    zs = ca.MX.sym("z", nz)
+    U0k, U1k = ca.MX.sym("u0", nu, K), ca.MX.sym("u1", nu, K)
+    PW = ca.MX.sym("pw", npw)
+    pieces = _pieces(K, piece)
+    if len(pieces) == 1:
+        zk = steps(zs, U0k, U1k, PW)
+    else:
+        units = {n: _unrolled_steps(steps, n, nz, nu, npw) for n in set(pieces)}
+        zk, k0, rest = zs, 0, pieces
+        n_long, R = pieces[0], pieces.count(pieces[0])
+        if R > 1:
+            # R pieces of n_long steps in a loop (the C code holds one piece), then the remainder
+            zk = units[n_long].fold(R)(zk, U0k[:, :R * n_long], U1k[:, :R * n_long], ca.repmat(PW, 1, R))
+            k0, rest = R * n_long, pieces[R:]
+        for n in rest:
+            zk = units[n](zk, U0k[:, k0:k0 + n], U1k[:, k0:k0 + n], PW)
+            k0 += n
+    sample = ca.Function("ros2_sample", [zs, U0k, U1k, PW], [zk])
+    block = sample.mapaccum("ros2_block", M)
+    Z0 = ca.MX.sym("z0", nz)
+    U = ca.MX.sym("U", nu, K * M + 1)
+    P = ca.MX.sym("p", parametric.size1_in(0))
+    n = K * M
+    out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(parametric(P), 1, M))
+    return ca.Function(name, [Z0, U, P], [out])
+
+
+@dataclass
+class Ros2Stages:
+    """The two stages of one ROS2 step as SX: f0 = f(t_n, y_n), k1, k2, the step's result x_next = y_n + 3/2 h k1 +
+    1/2 h k2 (every state by the method), the memory after it (the second stage's warm starts) and the SparseLU of
+    its W (None when the caller solved with its own)."""
+
+    f0: ca.SX
+    k1: ca.SX
+    k2: ca.SX
+    x_next: ca.SX
+    mem_next: ca.SX
+    lu: SparseLU | None
+
+
+def ros2_stages(model, h: float, x, mem, u0, u1, p, solve_stiff=None) -> Ros2Stages:
+    """One ROS2 step of `model` from (x, mem) with step h (the module docstring's equations). W = I - gamma h J on the
+    stiff states only (any W keeps order 2), the slow states W = I. solve_stiff(b): a solver of W on the stiff
+    states to use instead of the W of the exact stiff Jacobian at (x, u0), which is made and factorised here."""
+    ns = model.n_stiff
+    f0, _ = model.ode_function(x, mem, u0, p)
+    lu = None
+    if solve_stiff is None:
+        J = model.jacobian_function(x, mem, u0, p)
+        lu = SparseLU(ca.SX.eye(ns) - GAMMA * h * J)
+        solve_stiff = lu.solve
+
+    def solve(b):
+        return ca.vertcat(solve_stiff(b[:ns]), b[ns:])
+
+    k1 = solve(f0)
+    f1, mem1 = model.ode_function(x + h * k1, mem, u1, p)
+    k2 = solve(f1 - 2.0 * k1)
+    return Ros2Stages(f0, k1, k2, x + 1.5 * h * k1 + 0.5 * h * k2, mem1, lu)
+
+
+def advance_block(fn, nx: int, x0: np.ndarray, memory: np.ndarray, U: np.ndarray, p: np.ndarray) -> tuple:
+    """One call of a block function fn (z0, U, p) -> Z (nx + n_memory, M) from the states x0 and the memory: (the
+    states at the M sample instants (nx, M), the memory at each of them (output evaluation), the memory after the
+    block)."""
+    Z = np.asarray(fn(np.concatenate([x0, memory]), U, p))
+    return Z[:nx], Z[nx:], Z[nx:, -1].copy()
+
+
+def indicators_by_rectangle(model, h: float, x, st: Ros2Stages) -> ca.SX:
+    """The step's result `st.x_next` with the indicator quadratures (`VehicleModel.indicator_quadrature_indices`)
+    taken by the rectangle rule on the first stage, x + h f0 (module docstring); the other states as they are."""
+    x_next = st.x_next
+    # their integrands jump, so the trapezoid's second order is lost anyway (both rules err by O(h) at each
+    # crossing, with zero mean); the second stage's indicators are then unused and left out of the generated code
+    for k in model.indicator_quadrature_indices():
+        x_next[k] = x[k] + h * st.f0[k]
+    return x_next
 
 
 class Ros2:
@@ -96,41 +181,22 @@ class Ros2:
     by `casadi.extract_parametric` and evaluated once per call, so a parameter change reuses the
     compiled library and costs no speed per step.
 
-    jacobian_every: the stiff Jacobian and the LU factors of W are computed at every
-    `jacobian_every`-th step and reused by the steps in between (the steps of one output sample are
-    counted from its start, so a sample always starts with a fresh W). ROS2 is a W-method: it keeps
-    order 2 for any W, so only the error constant and the damping of the stiff modes change, not the
-    order (tests/test_engine.py checks both on a drive). 1 (the default): a fresh W at every step.
-
-    engine="baseline": the reference engine of benchmarks/engine.py (docs/engines.md), on the current
-    model. The parameter values are baked into the code as constants (the
-    compiled function then serves one parameter set; only the run parameters are an input). It has no common
-    subexpression elimination, the K steps of a sample folded (`Function.fold`) with the run parameters
-    repeated for every step, and the block outputs evaluated in CasADi's virtual machine (the drive's
-    `legacy_outputs`), the C library's exp, log, pow and tanh (not vehicle.numerics.vector_math's), no batched
-    calls. Same method, same results to rounding.
+    batch_calls: the step's exp/log/tanh/pow calls gathered into vector calls (`vehicle.numerics.lanes`) where the
+    compiler allows, else CasADi's C. strut_lanes: the step split around the struts (`split_step_functions`);
+    False builds the whole step.
     """
 
     name = "ros2"
-    ENGINES = ("current", "baseline")
 
-    def __init__(self, dt: float = 0.004, *, compile: bool = True, jacobian_every: int = 1,
-                 engine: str = "current", batch_calls: bool = True, strut_lanes: bool = True):
-        if engine not in self.ENGINES:
-            raise ValueError(f"Ros2 engine: {engine!r}, expected one of {self.ENGINES}")
-        if int(jacobian_every) < 1:
-            raise ValueError(f"Ros2 jacobian_every: must be >= 1, got {jacobian_every}")
-        if engine == "baseline" and int(jacobian_every) != 1:
-            raise ValueError("Ros2: the baseline engine computes W at every step (jacobian_every=1)")
+    def __init__(self, dt: float = 0.004, *, compile: bool = True, batch_calls: bool = True,
+                 strut_lanes: bool = True):
         self.dt = float(dt)
         self.compile = compile
-        self.jacobian_every = int(jacobian_every)
-        self.engine = engine
         # the step's exp/log/tanh/pow calls gathered into vector calls (vehicle.numerics.lanes.emit_batched; the
-        # same bits): where it applies (compiled, current engine, W at every step, GCC or Clang), else CasADi's C
-        self.batch_calls = batch_calls and compile and engine == "current" and self.jacobian_every == 1
+        # same bits): where it applies (compiled, GCC or Clang), else CasADi's C
+        self.batch_calls = batch_calls and compile
         # the step split around the struts, their part over lanes of stations (vehicle.numerics.split_step), in
-        # the batched block function and the ensemble's lanes; strut_lanes=False: the whole step (benchmarks)
+        # the batched block function and the ensemble's lanes; strut_lanes=False: the whole step
         self.strut_lanes = bool(strut_lanes)
         self.memory = None
         self.build_s = 0.0
@@ -138,25 +204,14 @@ class Ros2:
 
     @property
     def capabilities(self) -> SolverCapabilities:
-        """Compiled block functions and step doubling; the block outputs compiled too, except for the baseline
-        engine (CasADi's virtual machine, as it did)."""
-        return SolverCapabilities(compiled=self.compile, step_doubling=True,
-                                  compiled_outputs=self.compile and self.engine != "baseline")
+        """Compiled block functions (and block outputs) when compiled; step doubling."""
+        return SolverCapabilities(compiled=self.compile, step_doubling=True, compiled_outputs=self.compile)
 
     def describe(self) -> dict:
-        d = {"solver": self.name, "dt_s": self.dt, "compiled": self.compile}
-        if self.jacobian_every != 1:
-            d["jacobian_every"] = self.jacobian_every
-        if self.engine != "current":
-            d["engine"] = self.engine
-        return d
+        return {"solver": self.name, "dt_s": self.dt, "compiled": self.compile}
 
     def _key(self, model, K: int, M: int) -> tuple:
-        key = (model.structure, self.dt, K, M, self.compile, min(self.jacobian_every, K), self.engine,
-               self.batch_calls, self.batch_calls and self.strut_lanes)
-        if self.engine == "baseline":        # the parameter values are in the code
-            key += (model.parameters.numeric().tobytes(),)
-        return key
+        return (model.structure, self.dt, K, M, self.compile, self.batch_calls, self.batch_calls and self.strut_lanes)
 
     def block_graph(self, model, steps_per_sample: int, samples_per_call: int) -> Library | None:
         """The block function `bind` would compile for this model, as a `codegen.Library` (its graph built only when
@@ -172,11 +227,9 @@ class Ros2:
                 return None if stepper.library is not None else stepper.spec
         return self._library(model, K, M)
 
-    def _block_name(self, model, K: int, M: int) -> str:
-        if self.engine == "baseline":
-            return f"hpsim_ros2_baseline_{model.structure}_{K}x{M}"
-        every = min(self.jacobian_every, K)
-        return f"hpsim_ros2_{model.structure}_{K}x{M}" + ("" if every == 1 else f"_j{every}")
+    @staticmethod
+    def _block_name(model, K: int, M: int) -> str:
+        return f"hpsim_ros2_{model.structure}_{K}x{M}"
 
     def _library(self, model, K: int, M: int) -> Library:
         """The block function for (K, M) as a `codegen.Library`: its name and key, its graph built on demand (once
@@ -185,20 +238,9 @@ class Ros2:
 
         def build():
             if key not in _GRAPHS:
-                solver = type(self)(self.dt, compile=self.compile, jacobian_every=self.jacobian_every,
-                                    engine=self.engine, batch_calls=self.batch_calls, strut_lanes=self.strut_lanes)
-                solver.K, solver.M = K, M
-                _GRAPHS[key] = solver._graph(model)
+                _GRAPHS[key] = self.block_function(model, K, M)
             return _GRAPHS[key]
-        # the baseline's parameter values are in its code: in the key as a digest
-        lib_key = key[1:] if self.engine != "baseline" else key[1:-1] + (hashlib.sha256(key[-1]).hexdigest(),)
-        baseline = self.engine == "baseline"          # as it was: the C library's exp, log, pow, tanh
-        return Library(self._block_name(model, K, M), (model.structure, *lib_key, baseline), build,
-                       c_library_math=baseline)
-
-    def _graph(self, model) -> ca.Function:
-        """The uncompiled block function of this engine for (self.K, self.M)."""
-        return self._build_baseline(model) if self.engine == "baseline" else self._build(model)
+        return Library(self._block_name(model, K, M), key, build)
 
     def bind(self, model, steps_per_sample: int, samples_per_call: int) -> "Ros2":
         """Build (or fetch from the caches) the compiled block function for this model's structure."""
@@ -221,42 +263,11 @@ class Ros2:
         self.build_s = time.perf_counter() - t0
         return self
 
-    def _stages(self, model, x, mem, u0, u1, p, reuse=None):
-        """One ROS2 step from (x, mem): (x_next, mem_next, the SparseLU of its W). With `reuse` = (a SparseLU of
-        this model's W, a vector of factor values in its layout) the step solves with those factors (a W made at an
-        earlier step) instead of building J and W here, and returns None for the factorisation."""
-        ns = model.n_stiff
-        h = self.dt
-        f0, _ = model.ode_function(x, mem, u0, p)
-        if reuse is None:
-            # W only needs the stiff physics (any W keeps order 2)
-            J = model.jacobian_function(x, mem, u0, p)
-            lu = SparseLU(ca.SX.eye(ns) - GAMMA * h * J)
-
-            def solve_stiff(b):
-                return lu.solve(b)
-        else:
-            lu = None
-            structure, values = reuse
-
-            def solve_stiff(b):
-                return structure.solve(b, values)
-
-        def solve(b):
-            return ca.vertcat(solve_stiff(b[:ns]), b[ns:])
-
-        k1 = solve(f0)
-        f1, mem1 = model.ode_function(x + h * k1, mem, u1, p)
-        k2 = solve(f1 - 2.0 * k1)
-        # the warm starts of the eliminated valves for the next step: this step's last stage
-        x_next = x + 1.5 * h * k1 + 0.5 * h * k2
-        if self.engine == "current":
-            # indicator quadratures (times above thresholds) by the rectangle rule: their integrands jump, so the
-            # trapezoid's second order is lost anyway (both rules err by O(h) at each crossing, with zero mean);
-            # the second stage's indicators are then unused and left out of the generated code
-            for k in model.indicator_quadrature_indices():
-                x_next[k] = x[k] + h * f0[k]
-        return x_next, mem1, lu
+    def stages(self, model, x, mem, u0, u1, p) -> tuple:
+        """One ROS2 step from (x, mem) as SX: (x_next, mem_next, the SparseLU of its W). The indicator quadratures
+        (`VehicleModel.indicator_quadrature_indices`) take the rectangle rule (module docstring)."""
+        st = ros2_stages(model, self.dt, x, mem, u0, u1, p)
+        return indicators_by_rectangle(model, self.dt, x, st), st.mem_next, st.lu
 
     @staticmethod
     def step_symbols(model):
@@ -265,110 +276,42 @@ class Ros2:
                 ca.SX.sym("u1", model.nu))
 
     def step_functions(self, model) -> tuple:
-        """(step, reuse or None, parametric, every) as SX functions: one step (z, u0, u1, pw) -> z_next (with a fresh
-        W; with every > 1 also its factor values), the step reusing factors ((z, u0, u1, pw, lu) -> z_next), and
-        pw = parametric(p): the parameters with the parameter-only subexpressions lifted out of the step. Divisions
-        are explicit reciprocals in the graph (`explicit_reciprocals`), so scalar and vector code round alike. What
-        the block function unrolls, what an FMU wraps (vehicle.fmu) and what `vehicle.numerics.lanes` turns into code
-        over many cases; an unbound solver takes one step per sample."""
+        """(step, parametric) as SX functions: one step (z, u0, u1, pw) -> z_next and pw = parametric(p): the
+        parameters with the parameter-only subexpressions lifted out of the step. Divisions are explicit reciprocals
+        in the graph (`explicit_reciprocals`), so scalar and vector code round alike. What the block function
+        unrolls, what an FMU wraps (vehicle.fmu) and what `vehicle.numerics.lanes` turns into code over many cases."""
         x, mem, u0, u1 = self.step_symbols(model)
         p = ca.SX.sym("p", model.np)
         z = ca.vertcat(x, mem)
-        every = min(self.jacobian_every, self.K)
-        x_next, mem1, lu = self._stages(model, x, mem, u0, u1, p)
-        outs = [ca.vertcat(x_next, mem1)]
-        if every > 1:
-            # the reusing step reads the factor values of an earlier fresh step from an input, in the layout of
-            # this step's factorisation (same sparsity at every step)
-            F = ca.SX.sym("lu", lu.values.numel())
-            x_reuse, mem_reuse, _ = self._stages(model, x, mem, u0, u1, p, reuse=(lu, F))
-            outs += [lu.values, ca.vertcat(x_reuse, mem_reuse)]
-            raw = ca.Function("ros2_step_raw", [z, u0, u1, p, F], outs)
-        else:
-            raw = ca.Function("ros2_step_raw", [z, u0, u1, p], outs)
+        x_next, mem1, _ = self.stages(model, x, mem, u0, u1, p)
+        raw = ca.Function("ros2_step_raw", [z, u0, u1, p], [ca.vertcat(x_next, mem1)])
         # merge repeated subexpressions (the eight stations share one strut's parameter symbols, and
         # f, its Jacobian and the two stages rebuild the same terms): a much shorter step,
         # exact up to rounding order (docs/engines.md); then lift what depends on the parameters only out of the
         # step: computed once per call
         args, parts, pw, parametric = lift_parameters(raw, 3, "ros2_parametric")
         z, u0, u1 = args[:3]
-        step = ca.Function("ros2_step", [z, u0, u1, pw], parts[:2] if every > 1 else parts[:1])
-        if every > 1:
-            reuse = ca.Function("ros2_step_reuse", [z, u0, u1, pw, args[4]], [parts[2]])
-        step, parametric = explicit_reciprocals(step), explicit_reciprocals(parametric)
-        if every > 1:
-            reuse = explicit_reciprocals(reuse)
-        return step, (reuse if every > 1 else None), parametric, every
+        step = ca.Function("ros2_step", [z, u0, u1, pw], parts[:1])
+        return explicit_reciprocals(step), explicit_reciprocals(parametric)
 
     def split_step_functions(self, model) -> split_step.SplitStep | None:
-        """The step split around the struts (`vehicle.numerics.split_step`), or None where it does not apply (W
-        reused, the baseline engine, `strut_lanes=False`, or a model without one strut kernel for all stations):
-        the whole step (`step_functions`) then."""
-        if not self.strut_lanes or self.engine != "current" or self.jacobian_every != 1:
+        """The step split around the struts (`vehicle.numerics.split_step`), or None where it does not apply
+        (`strut_lanes=False`, or a model without one strut kernel for all stations): the whole step
+        (`step_functions`) then."""
+        if not self.strut_lanes:
             return None
         return split_step.build(self, model)
 
-    def _build(self, model) -> ca.Function:
-        nx, nu, np_, nm = model.nx, model.nu, model.np, model.n_memory
-        step, reuse, parametric, every = self.step_functions(model)
-        nz = nx + nm
-        # K steps -> one sample, unrolled by hand so that every step reads the same parameter
-        # vector: neither carried through the loop's accumulator (a load and a store of every
-        # parameter per step, which is slower) nor copied into a (n_p, steps) matrix. A long output
-        # interval (K > MAX_UNROLLED_STEPS) is a loop over unrolled pieces: the generated code stays the size of
-        # one piece whatever the interval (an hour at 4 ms unrolled would be 900k steps of C)
-        npw = parametric.size1_out(0)
-        reuse_fn = reuse if every > 1 else None
-        zs = ca.MX.sym("z", nz)
-        U0k, U1k = ca.MX.sym("u0", nu, self.K), ca.MX.sym("u1", nu, self.K)
-        PW = ca.MX.sym("pw", npw)
-        pieces = _pieces(self.K, every)
-        if len(pieces) == 1:
-            zk = _steps(step, reuse_fn, every, zs, U0k, U1k, PW)
-        else:
-            units = {n: _unrolled_steps(step, reuse_fn, every, n, nz, nu, npw) for n in set(pieces)}
-            zk, k0, rest = zs, 0, pieces
-            n_long, R = pieces[0], pieces.count(pieces[0])
-            if R > 1:
-                # R pieces of n_long steps in a loop (Function.fold: the C code holds one piece), then the remainder
-                zk = units[n_long].fold(R)(zk, U0k[:, :R * n_long], U1k[:, :R * n_long], ca.repmat(PW, 1, R))
-                k0, rest = R * n_long, pieces[R:]
-            for n in rest:
-                zk = units[n](zk, U0k[:, k0:k0 + n], U1k[:, k0:k0 + n], PW)
-                k0 += n
-        sample = ca.Function("ros2_sample", [zs, U0k, U1k, PW], [zk])
-        # then M samples per call (the parameter vector repeated M times: once per sample, not per step)
-        block = sample.mapaccum("ros2_block", self.M)
-        Z0 = ca.MX.sym("z0", nz)
-        U = ca.MX.sym("U", nu, self.K * self.M + 1)
-        P = ca.MX.sym("p", np_)
-        n = self.K * self.M
-        out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(parametric(P), 1, self.M))
-        return ca.Function(self._block_name(model, self.K, self.M), [Z0, U, P], [out])
-
-    def _build_baseline(self, model) -> ca.Function:
-        """The baseline engine's block function on this model (see the class docstring)."""
-        nx, nu, np_, nm, n_run = model.nx, model.nu, model.np, model.n_memory, model.n_run
-        x, mem, u0, u1 = self.step_symbols(model)
-        p_run = ca.SX.sym("p_run", n_run)
-        # the parameter values as constants: SX folds the arithmetic on them while the step is built
-        p = ca.vertcat(p_run, ca.DM(model.parameters.numeric()))
-        x_next, mem1, _ = self._stages(model, x, mem, u0, u1, p)
-        step = ca.Function("ros2_step", [ca.vertcat(x, mem), u0, u1, p_run], [ca.vertcat(x_next, mem1)])
-        # K steps -> one sample (inputs per step as columns), then M samples per call
-        sample = step.fold(self.K)
-        block = sample.mapaccum("ros2_block", self.M)
-        Z0 = ca.MX.sym("z0", nx + nm)
-        U = ca.MX.sym("U", nu, self.K * self.M + 1)
-        P = ca.MX.sym("p", np_)
-        n = self.K * self.M
-        out = block(Z0, U[:, :n], U[:, 1:], ca.repmat(P[:n_run], 1, n))
-        return ca.Function(self._block_name(model, self.K, self.M), [Z0, U, P], [out])
+    def block_function(self, model, K: int, M: int) -> ca.Function:
+        """The uncompiled block function of this model for blocks of M samples of K steps (`block_function`)."""
+        step, parametric = self.step_functions(model)
+        return block_function(self._block_name(model, K, M), lambda z, U0, U1, PW: _steps(step, z, U0, U1, PW),
+                              parametric, K, M, model.nx + model.n_memory, model.nu)
 
     def refined_solver(self, factor: int) -> "Ros2":
         """The same solver with the step divided by `factor`, unbound."""
-        return type(self)(self.dt / factor, compile=self.compile, jacobian_every=self.jacobian_every,
-                          engine=self.engine, batch_calls=self.batch_calls, strut_lanes=self.strut_lanes)
+        return type(self)(self.dt / factor, compile=self.compile, batch_calls=self.batch_calls,
+                          strut_lanes=self.strut_lanes)
 
     def _batched_stepper(self, model, load: bool = True) -> LaneStepper | None:
         """The one-lane block library with batched calls for this model structure and step (one per process and
@@ -388,10 +331,8 @@ class Ros2:
 
     def advance(self, x0: np.ndarray, U: np.ndarray, p: np.ndarray) -> np.ndarray:
         """States at the M sample instants (nx, M) from x0 and the inputs U (nu, K*M+1) at every step."""
-        Z = np.asarray(self.fn(np.concatenate([x0, self.memory]), U, p))
-        self.memory_samples = Z[self.nx:]          # the memory at each sample (output evaluation)
-        self.memory = Z[self.nx:, -1].copy()
-        return Z[: self.nx]
+        X, self.memory_samples, self.memory = advance_block(self.fn, self.nx, x0, self.memory, U, p)
+        return X
 
     def get_state(self) -> np.ndarray:
         return np.asarray(self.memory, float).copy()

@@ -135,12 +135,16 @@ def vector_source(v: str, vl: str, suffix: str) -> str:
     """C of hp_exp_<suffix>, hp_log_<suffix>, hp_pow_<suffix>, hp_tanh_<suffix> over the lane type `v` (a GCC
     vector of doubles) with `vl` its 64-bit integer vector of the same length (comparisons give -1 / 0 lanes).
     Needs `tables_source()` before it in the file."""
-    # exp(r) - 1 = r + r^2 Q(r), Q(r) = sum_k r^k / (k + 2)!;  log1p(r) = r + r^2 Q(r), Q(r) = sum_k (-1)^(k+1) r^k / (k + 2)
+    return "\n" + _exp_source(v, vl, suffix) + _log_source(v, vl, suffix) + _pow_source(v, vl, suffix) + \
+        _tanh_source(v, vl, suffix)
+
+
+def _exp_source(v: str, vl: str, suffix: str) -> str:
+    """The lane helpers (select, 2^n, broadcast, sign mask), the exp argument reduction shared with tanh, and exp."""
+    # exp(r) - 1 = r + r^2 Q(r), Q(r) = sum_k r^k / (k + 2)!
     exp_decl, exp_q = _estrin("r", [1.0 / math.factorial(k + 2) for k in range(EXP_POLY_DEGREE - 1)], v)
-    log_decl, log_q = _estrin("r", [(-1.0) ** (k + 1) / (k + 2) for k in range(LOG_POLY_DEGREE - 1)], v)
     sh = _c(ROUNDING_SHIFTER)
-    return f"""
-static inline {v} hp_sel_{suffix}({vl} m, {v} a, {v} b) {{ return ({v})((({vl})a & m) | (({vl})b & ~m)); }}
+    return f"""static inline {v} hp_sel_{suffix}({vl} m, {v} a, {v} b) {{ return ({v})((({vl})a & m) | (({vl})b & ~m)); }}
 static inline {v} hp_pow2_{suffix}({vl} n) {{ return ({v})((n + 1023) << 52); }}
 static inline {v} hp_bc_{suffix}(double c) {{ return ({v}){{0}} + c; }}
 static inline {vl} hp_sign_{suffix}(void) {{ return ({vl}){{0}} + (long long)0x8000000000000000ULL; }}
@@ -163,7 +167,15 @@ static inline {v} hp_exp_{suffix}({v} x) {{
   {vl} m1 = m >> 1;
   return (th + (th * p + tl)) * hp_pow2_{suffix}(m1) * hp_pow2_{suffix}(m - m1);
 }}
-static inline {v} hp_log_{suffix}({v} x) {{
+"""
+
+
+def _log_source(v: str, vl: str, suffix: str) -> str:
+    """log: the table-driven reduction, log1p of the reduced argument, the special values."""
+    # log1p(r) = r + r^2 Q(r), Q(r) = sum_k (-1)^(k+1) r^k / (k + 2)
+    log_decl, log_q = _estrin("r", [(-1.0) ** (k + 1) / (k + 2) for k in range(LOG_POLY_DEGREE - 1)], v)
+    sh = _c(ROUNDING_SHIFTER)
+    return f"""static inline {v} hp_log_{suffix}({v} x) {{
   {vl} tiny = x < {_c(2.0 ** -1022)};
   {v} xs = hp_sel_{suffix}(tiny, x * {_c(2.0 ** SUBNORMAL_SCALE_BITS)}, x);
   {vl} bits = ({vl})xs;
@@ -188,7 +200,13 @@ static inline {v} hp_log_{suffix}({v} x) {{
   y = hp_sel_{suffix}(x == __builtin_inf(), x, y);
   return hp_sel_{suffix}(x != x, x, y);
 }}
-static inline {v} hp_pow_{suffix}({v} x, {v} y) {{
+"""
+
+
+def _pow_source(v: str, vl: str, suffix: str) -> str:
+    """pow = exp(y log|x|), with the sign of a negative base for an odd integer y, NaN for a non-integer y."""
+    sh = _c(ROUNDING_SHIFTER)
+    return f"""static inline {v} hp_pow_{suffix}({v} x, {v} y) {{
   {vl} sign = hp_sign_{suffix}();
   {v} ax = ({v})(({vl})x & ~sign);
   {v} r = hp_exp_{suffix}(y * hp_log_{suffix}(ax));
@@ -202,7 +220,12 @@ static inline {v} hp_pow_{suffix}({v} x, {v} y) {{
   r = ({v})(({vl})r ^ (negative & odd & sign));
   return hp_sel_{suffix}((y == 0.) | (x == 1.), hp_bc_{suffix}(1.), r);
 }}
-static inline {v} hp_tanh_{suffix}({v} x) {{
+"""
+
+
+def _tanh_source(v: str, vl: str, suffix: str) -> str:
+    """tanh = -e / (e + 2), e = expm1(-2|x|), with the sign of x."""
+    return f"""static inline {v} hp_tanh_{suffix}({v} x) {{
   {vl} sign = hp_sign_{suffix}();
   {v} u = ({v})(({vl})x & ~sign) * -2.;
   u = hp_sel_{suffix}(u < {_c(EXPM1_MIN_ARG)}, hp_bc_{suffix}({_c(EXPM1_MIN_ARG)}), u);
@@ -213,7 +236,6 @@ static inline {v} hp_tanh_{suffix}({v} x) {{
   return ({v})((({vl})h & ~sign) | (({vl})x & sign));
 }}
 """
-
 
 def scalar_functions() -> str:
     """C of hp_exp, hp_log, hp_pow and hp_tanh on doubles under GCC and Clang: the one-lane form of `vector_source`,

@@ -191,12 +191,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     G_plus = problem.gradient(q0, u0, c)
     G_minus = problem.gradient(q0, -1e-300 * np.ones(n_u), c)
     n_y = y0.size
-    # a friction force uniform over [lo F_reb, hi F_comp]: in utilisation units of the + side, its
-    # variance is (width)^2 / 12 (the rebound side scaled by F_reb/F_comp)
-    F_reb, F_comp, _ = (np.asarray(v).ravel() for v in problem.limits(q0, u0, c))
-    ratio = np.where(F_comp > 0, F_reb / np.maximum(F_comp, 1e-300), 1.0)
-    width = hi * (hi >= 0) + hi * ratio * (hi < 0) - (lo * (lo >= 0) + lo * ratio * (lo < 0))
-    std = np.sqrt(np.sum(G_plus ** 2 * width ** 2 / 12.0, axis=1))
+    std = _uniform_std(problem, q0, u0, c, G_plus, lo, hi)
     out = Extremes(nominal=y0, low=np.empty(n_y), high=np.empty(n_y), u_low=np.empty((n_y, n_u)),
                    u_high=np.empty((n_y, n_u)), linear_low=np.empty(n_y), linear_high=np.empty(n_y),
                    std_uniform=std)
@@ -218,17 +213,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
             u = np.clip(u, lo, hi)
             linear = y0[j] + np.sum(np.where(u >= 0, G_plus[j], G_minus[j]) * u)
             # 2.-3. nonlinear solve, vertex correction until the gradient agrees with the vertex
-            for _ in range(MAX_VERTEX_CORRECTIONS):
-                q, y = evaluate(u)
-                gj = sense * problem.gradient(q, u, c)[j]
-                want = np.where(np.abs(gj) * np.maximum(np.abs(lo), np.abs(hi)) <= res[j], u,
-                                np.where(gj > 0, hi, lo))
-                if np.array_equal(want, u):
-                    break
-                u = want
-                out.corrections += 1
-            else:
-                out.warnings.append(f"output {j}: vertex not settled after {MAX_VERTEX_CORRECTIONS} corrections")
+            u, q, y = _settled_vertex(problem, c, j, sense, u, lo, hi, res[j], evaluate, out)
             if sense > 0:
                 out.high[j], out.u_high[j], out.linear_high[j] = y[j], u, linear
             else:
@@ -241,6 +226,33 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
         out.low = np.minimum(out.low, y0)
         out.high = np.maximum(out.high, y0)
     return out
+
+
+def _uniform_std(problem: StaticsProblem, q0, u0, c, G_plus, lo, hi) -> np.ndarray:
+    """Per output, the linear standard deviation with every friction force uniform over [lo F_reb, hi F_comp]: in
+    utilisation units of the + side its variance is (width)^2 / 12 (the rebound side scaled by F_reb/F_comp)."""
+    F_reb, F_comp, _ = (np.asarray(v).ravel() for v in problem.limits(q0, u0, c))
+    ratio = np.where(F_comp > 0, F_reb / np.maximum(F_comp, 1e-300), 1.0)
+    width = hi * (hi >= 0) + hi * ratio * (hi < 0) - (lo * (lo >= 0) + lo * ratio * (lo < 0))
+    return np.sqrt(np.sum(G_plus ** 2 * width ** 2 / 12.0, axis=1))
+
+
+def _settled_vertex(problem: StaticsProblem, c, j: int, sense: float, u, lo, hi, res_j: float, evaluate,
+                    out: Extremes) -> tuple:
+    """(u, q, outputs) at the vertex of output j's extreme in direction `sense`, from the vertex `u`: solved,
+    moved to the vertex the gradient there points to, until they agree (corrections and a failure counted in
+    `out`)."""
+    for _ in range(MAX_VERTEX_CORRECTIONS):
+        q, y = evaluate(u)
+        gj = sense * problem.gradient(q, u, c)[j]
+        want = np.where(np.abs(gj) * np.maximum(np.abs(lo), np.abs(hi)) <= res_j, u, np.where(gj > 0, hi, lo))
+        if np.array_equal(want, u):
+            break
+        u = want
+        out.corrections += 1
+    else:
+        out.warnings.append(f"output {j}: vertex not settled after {MAX_VERTEX_CORRECTIONS} corrections")
+    return u, q, y
 
 
 # --- the vehicle ----------------------------------------------------------------------------------

@@ -35,6 +35,25 @@ def format_report(rep: dict) -> str:
                     f"against the charged loads {rep['load_shift_vs_charged_pct']:.2f} %")
     if rep.get("mean_temperature_rise_K") is not None:
         tail.append(f"mean strut (surface) temperature rise {rep['mean_temperature_rise_K']:.1f} K")
+    tail += _solver_mode_lines(rep)
+    if rep.get("error"):
+        tail.append(f"stopped: {rep['error']}")
+    ride = format_ride(rep.get("ride") or {}, len(rep["axles"]))
+    if ride:
+        tail.append("")
+        tail.append(ride)
+    if rep.get("damping_over_drive"):
+        tail.append("")
+        tail.append(format_damping_over_drive(rep["damping_over_drive"]))
+    if rep.get("warnings"):
+        tail.append("")
+        tail += format_warnings(rep["warnings"])
+    return "\n".join([head, table] + tail)
+
+
+def _solver_mode_lines(rep: dict) -> list[str]:
+    """What a multiscale or time-parallel run adds: how it drove and its estimated error; [] for a full run."""
+    tail = []
     est = rep.get("estimated_error")
     if rep.get("solver_mode") == "multiscale" and est:
         def worst(v):
@@ -59,19 +78,7 @@ def format_report(rep: dict) -> str:
                     "estimated error of the correction: T end "
                     + ", ".join("-" if x is None else f"{x:.3f}" for x in est["T_end_K"]) + " K, dN "
                     + ", ".join("-" if x is None else f"{x:.4f}" for x in est["dN_pct"]) + " pp per axle")
-    if rep.get("error"):
-        tail.append(f"stopped: {rep['error']}")
-    ride = format_ride(rep.get("ride") or {}, len(rep["axles"]))
-    if ride:
-        tail.append("")
-        tail.append(ride)
-    if rep.get("damping_over_drive"):
-        tail.append("")
-        tail.append(format_damping_over_drive(rep["damping_over_drive"]))
-    if rep.get("warnings"):
-        tail.append("")
-        tail += format_warnings(rep["warnings"])
-    return "\n".join([head, table] + tail)
+    return tail
 
 
 def format_damping_over_drive(rows) -> str:

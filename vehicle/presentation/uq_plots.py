@@ -110,49 +110,61 @@ def sensitivity_plot(summary: dict, out: str | Path) -> Path | None:
     sub = fig.subfigures(2, 1, height_ratios=[bar_h, map_h])
     ax = sub[0].subplots(1, len(bar_outputs), squeeze=False)
     for panel, k in zip(ax[0], bar_outputs):
-        rows = table[k]["rows"]
-        key = (lambda r: -(r[value] if _finite(r[value]) else -1)) if sobol else \
-            (lambda r: -(abs(r[value]) if _finite(r[value]) else -1))
-        rows = sorted(rows, key=key)[:n_bar][::-1]
-        y = np.arange(len(rows))
-        names = [r["parameter"] for r in rows]
-        if sobol:
-            bars = [panel.barh(y + 0.2, [r["ST"] for r in rows], 0.4, xerr=[r["ST_conf"] for r in rows],
-                               color="tab:orange", label="total ST", capsize=2),
-                    panel.barh(y - 0.2, [r["S1"] for r in rows], 0.4, xerr=[r["S1_conf"] for r in rows],
-                               color="tab:blue", label="first order S1", capsize=2)]
-            panel.set_xlabel("Sobol' index (whiskers: 95 % bootstrap interval)")
-            ends = [r[i] + sgn * r[i + "_conf"] for r in rows for i in ("S1", "ST") for sgn in (-1, 1)
-                    if _finite(r[i]) and _finite(r[i + "_conf"])]     # every whisker inside the panel
-            panel.set_xlim(min([-0.05] + ends) - 0.05, max([1.05] + ends) + 0.05)
-        else:
-            v = [r[value] for r in rows]
-            bars = [panel.barh(y, v, 0.6, color=["tab:red" if _finite(t) and t > 0 else "tab:blue" for t in v])]
-            panel.set_xlabel(("PRCC" if value == "prcc" else "Spearman") + " (red: the output rises with it)")
-            panel.set_xlim(-1, 1)
-        panel.axvline(0, color="k", lw=0.6)
-        panel.set_yticks(y, names, fontsize=7)
-        noise = _mark_unresolved(summary, k, names, bars)
-        panel.set_title(f"{k} [{summary['units'].get(k, '')}]".replace(" []", "") + noise, fontsize=10)
-        panel.grid(alpha=0.3, axis="x")
+        _bar_panel(panel, summary, table[k]["rows"], k, value, n_bar)
     if sobol:           # plain patches: a bar container's legend entry would copy a hatched (unresolved) bar
         from matplotlib.patches import Patch
 
         h = [Patch(color="tab:orange"), Patch(color="tab:blue")]
         sub[0].legend(h, ["total ST", "first order S1"], fontsize=8, loc="outside lower center", ncol=2, frameon=False)
-    hm = sub[1].subplots()
-    im = hm.imshow(M[order], aspect="auto", cmap="viridis" if sobol else "RdBu_r", vmin=0 if sobol else -1, vmax=1,
+    _index_map(sub[1], M[order], [params[i] for i in order], outputs, value)
+    what = "Sobol' indices" if sobol else "rank correlations"
+    fig.suptitle(f"{what} over the priors ({summary['done']} drives, N = {summary['samples']})", fontsize=10)
+    return save_figure(fig, Path(out))
+
+
+def _bar_panel(panel, summary: dict, rows: list[dict], k: str, value: str, n_bar: int) -> None:
+    """One headline output's bars: Sobol' S1 and ST with their intervals, or the rank correlations; the noise
+    marked."""
+    sobol = value == "ST"
+    key = (lambda r: -(r[value] if _finite(r[value]) else -1)) if sobol else \
+        (lambda r: -(abs(r[value]) if _finite(r[value]) else -1))
+    rows = sorted(rows, key=key)[:n_bar][::-1]
+    y = np.arange(len(rows))
+    names = [r["parameter"] for r in rows]
+    if sobol:
+        bars = [panel.barh(y + 0.2, [r["ST"] for r in rows], 0.4, xerr=[r["ST_conf"] for r in rows],
+                           color="tab:orange", label="total ST", capsize=2),
+                panel.barh(y - 0.2, [r["S1"] for r in rows], 0.4, xerr=[r["S1_conf"] for r in rows],
+                           color="tab:blue", label="first order S1", capsize=2)]
+        panel.set_xlabel("Sobol' index (whiskers: 95 % bootstrap interval)")
+        ends = [r[i] + sgn * r[i + "_conf"] for r in rows for i in ("S1", "ST") for sgn in (-1, 1)
+                if _finite(r[i]) and _finite(r[i + "_conf"])]     # every whisker inside the panel
+        panel.set_xlim(min([-0.05] + ends) - 0.05, max([1.05] + ends) + 0.05)
+    else:
+        v = [r[value] for r in rows]
+        bars = [panel.barh(y, v, 0.6, color=["tab:red" if _finite(t) and t > 0 else "tab:blue" for t in v])]
+        panel.set_xlabel(("PRCC" if value == "prcc" else "Spearman") + " (red: the output rises with it)")
+        panel.set_xlim(-1, 1)
+    panel.axvline(0, color="k", lw=0.6)
+    panel.set_yticks(y, names, fontsize=7)
+    noise = _mark_unresolved(summary, k, names, bars)
+    panel.set_title(f"{k} [{summary['units'].get(k, '')}]".replace(" []", "") + noise, fontsize=10)
+    panel.grid(alpha=0.3, axis="x")
+
+
+def _index_map(subfig, M, names: list[str], outputs: list[str], value: str) -> None:
+    """The map of `value` (ST, prcc or spearman) of every parameter (rows of M, `names`) for every output."""
+    sobol = value == "ST"
+    hm = subfig.subplots()
+    im = hm.imshow(M, aspect="auto", cmap="viridis" if sobol else "RdBu_r", vmin=0 if sobol else -1, vmax=1,
                    interpolation="nearest")
-    hm.set_yticks(np.arange(len(order)), [params[i] for i in order], fontsize=7)
+    hm.set_yticks(np.arange(len(names)), names, fontsize=7)
     hm.set_xticks(np.arange(len(outputs)), outputs, rotation=60, ha="right", fontsize=7)
     hm.set_title({"ST": "total index ST of every output", "prcc": "PRCC of every output",
                   "spearman": "Spearman correlation of every output"}[value], fontsize=9)
     # a colour bar as tall as the map, never a sliver: at most 15 times longer than wide
-    sub[1].colorbar(im, ax=hm, fraction=0.05, aspect=min(15, max(6, 3 * len(order))),
+    subfig.colorbar(im, ax=hm, fraction=0.05, aspect=min(15, max(6, 3 * len(names))),
                     label={"ST": "ST", "prcc": "PRCC", "spearman": "Spearman"}[value])
-    what = "Sobol' indices" if sobol else "rank correlations"
-    fig.suptitle(f"{what} over the priors ({summary['done']} drives, N = {summary['samples']})", fontsize=10)
-    return save_figure(fig, Path(out))
 
 
 def study_plots(summary: dict, out_dir: str | Path) -> dict:

@@ -1,5 +1,5 @@
-"""The resume state in a results file (/checkpoint): written by the HDF5 sink after every block's data,
-read by the reader and by `--resume`."""
+"""The resume state in a results file: the content of its checkpoint group (`layout.CHECKPOINT`), written by the
+HDF5 sink after every block's data, read by the reader and by `--resume`."""
 from __future__ import annotations
 
 import json
@@ -11,7 +11,7 @@ from vehicle.results.netcdf import attach, dimension_only
 
 
 class Checkpoint:
-    """Double-buffered resume state in /checkpoint: slots (2, L) float64 and pointer [slot, seq].
+    """Double-buffered resume state in the checkpoint group: slots (2, L) float64 and pointer [slot, seq].
 
     A slot packs the DriveState dict plus n_samples, n_stats and wall_s; attrs["fields"] (JSON)
     gives each field's [offset, length] and shape. pointer = [-1, 0] until the first checkpoint.
@@ -24,8 +24,8 @@ class Checkpoint:
         self.fields = json.loads(group.attrs["fields"])
 
     @classmethod
-    def create(cls, f: h5py.File, state: dict) -> "Checkpoint":
-        g = f.create_group("checkpoint")
+    def create(cls, g: h5py.Group, state: dict) -> "Checkpoint":
+        """The slots of `state`'s fields (and META) in the new, empty group g, no checkpoint written yet."""
         fields, off = {}, 0
         for k, v in list(state.items()) + [(m, 0.0) for m in cls.META]:
             a = np.asarray(v, float)
@@ -42,6 +42,11 @@ class Checkpoint:
                                   "none yet); slots[slot] packs the fields listed in attrs['fields'] as "
                                   "name: [offset, length, shape]")
         return cls(g)
+
+    @staticmethod
+    def complete(g: h5py.Group) -> bool:
+        """Whether g holds what `read` needs (slots, pointer, fields)."""
+        return "slots" in g and "pointer" in g and "fields" in g.attrs
 
     def write(self, state: dict, meta: dict) -> None:
         slot, seq = (int(v) for v in self.g["pointer"][()])

@@ -1,8 +1,10 @@
-"""The layout of a results file on the writing side (docs/hdf5.md): creating every group and variable before the
-drive, the static groups (equilibria, summary), the final write through a copy, the copy of what a checkpoint
-covers for a resume, and the safe temporary paths all of these go through.
+"""The layout of a results file (docs/hdf5.md): the one place that names its groups, their record dimensions and
+the datasets a reader requires. Then the writing side: creating every group and variable before the drive, the
+static groups (equilibria, summary), the final write through a copy, the copy of what a checkpoint covers for a
+resume, and the safe temporary paths all of these go through.
 
-The reading side of the same layout is vehicle.results.reader; the checkpoint slots are vehicle.results.checkpoint.
+The reader (vehicle.results.reader) and the sinks (vehicle.results.sinks) find their groups by these names; the
+content of the checkpoint group is vehicle.results.checkpoint's, of each variable vehicle.results.variables'.
 """
 from __future__ import annotations
 
@@ -26,7 +28,38 @@ from vehicle.results.variables import FileVariable, file_variables
 
 LIBVER = ("v110", "v110")   # HDF5 1.10 file format: needed for SWMR, readable by HDF5 >= 1.10
 STATS_CHUNK_ROWS = 64
+
+# --- the groups ----------------------------------------------------------------------------------------
+SCENARIO = "scenario"           # attributes only: the scenario's text, its resolved definition, the labels
+TIMESERIES = "timeseries"       # one row per output sample
+STATS = "stats"                 # one row per statistics interval
+EQUILIBRIUM = "equilibrium"     # one group per standing equilibrium (EQUILIBRIA)
+SUMMARY = "summary"             # the drive's end values and its status
+CHECKPOINT = "checkpoint"       # the resume state (vehicle.results.checkpoint)
+RECORD_DIM = {TIMESERIES: "time", STATS: "km"}
+EQUILIBRIA = ("charged", "before", "after", "before_band", "after_band")
 FINAL_EQUILIBRIA = ("after", "after_band")      # written by the final write only
+
+
+def equilibrium_group(which: str) -> str:
+    """The path of one equilibrium's group (`which` in EQUILIBRIA)."""
+    return f"{EQUILIBRIUM}/{which}"
+
+
+STATIC_GROUPS = tuple(equilibrium_group(e) for e in EQUILIBRIA) + (SUMMARY,)
+DATA_GROUPS = (TIMESERIES, STATS) + STATIC_GROUPS
+# what a reader requires: the scenario's attributes, groups, and the record coordinates by format version
+SCENARIO_ATTRS = ("yaml", "resolved_json", "stations", "axles", "distance_m")
+REQUIRED_GROUPS = (equilibrium_group("before"), TIMESERIES, STATS, CHECKPOINT)
+RECORD_COORDINATES = {1: (f"{TIMESERIES}/t_s", f"{STATS}/distance_end_m"),
+                      2: (f"{TIMESERIES}/{RECORD_DIM[TIMESERIES]}", f"{STATS}/{RECORD_DIM[STATS]}")}
+
+
+def labels_of(f: h5py.File) -> tuple[list[str], list[str], list[str]]:
+    """(stations, axles, seats) as the file's scenario group records them (seats empty when it has none)."""
+    attrs = f[SCENARIO].attrs
+    return ([str(s) for s in attrs["stations"]], [str(a) for a in attrs["axles"]],
+            [str(s) for s in attrs.get("seats", [])])
 
 
 @dataclass(frozen=True)
@@ -166,7 +199,7 @@ def write_static_group(parent: h5py.Group, name: str, arrays: dict, stations, ax
     scales = labels(g, stations, axles)
     for key, value in arrays.items():
         a = np.asarray(value, float)
-        for v in file_variables(key, a.shape, "static", len(stations), len(axles)):
+        for v in file_variables(key, a.shape, None, len(stations), len(axles)):
             ds = g.create_dataset(v.name, data=v.take(a, False))
             attach(ds, v.dims, scales, seats)
             for k, val in v.attrs.items():
@@ -181,7 +214,7 @@ def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, 
     """/timeseries or /stats: every variable empty and resizable along the record dimension."""
     g = f.create_group(group)
     scales = labels(g, stations, axles)
-    plan = {key: file_variables(key, np.asarray(v, float).shape[:-1], group, len(stations), len(axles))
+    plan = {key: file_variables(key, np.asarray(v, float).shape[:-1], RECORD_DIM[group], len(stations), len(axles))
             for key, v in sample.items()}
     ordered = sorted(((key, v) for key, vs in plan.items() for v in vs), key=lambda kv: kv[1].role != "record")
     coords = " ".join(v.name for _, v in ordered if v.role == "coord")
@@ -212,18 +245,18 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
     with create_h5(path) as f:
         for k, v in info["attrs"].items():
             f.attrs[k] = v
-        g = f.create_group("scenario")
+        g = f.create_group(SCENARIO)
         for k, v in info["scenario"].items():
             g.attrs[k] = v
-        e = f.create_group("equilibrium")
+        e = f.create_group(EQUILIBRIUM)
         for name, arrays in info["equilibrium"].items():
             write_static_group(e, name, arrays, stations, axles)
-        _record_group(f, "timeseries", {k: v for k, v in block.items() if k in stored}, chunk_rows, kw,
+        _record_group(f, TIMESERIES, {k: v for k, v in block.items() if k in stored}, chunk_rows, kw,
                       stations, axles, seats)
-        _record_group(f, "stats", {k: np.asarray(v, float)[..., None] for k, v in row.items()}, STATS_CHUNK_ROWS,
+        _record_group(f, STATS, {k: np.asarray(v, float)[..., None] for k, v in row.items()}, STATS_CHUNK_ROWS,
                       kw, stations, axles, seats, info.get("stats_attrs"))
-        Checkpoint.create(f, state)
-        write_static_group(f, "summary", {}, stations, axles, info["summary"])
+        Checkpoint.create(f.create_group(CHECKPOINT), state)
+        write_static_group(f, SUMMARY, {}, stations, axles, info["summary"])
 
 
 def finish_file(path: Path, final: dict) -> None:
@@ -233,17 +266,15 @@ def finish_file(path: Path, final: dict) -> None:
     try:
         safe_copy(path, tmp)
         with h5py.File(tmp, "r+", libver=LIBVER) as f:
-            stations = [str(s) for s in f["scenario"].attrs["stations"]]
-            axles = [str(a) for a in f["scenario"].attrs["axles"]]
-            seats = [str(s) for s in f["scenario"].attrs.get("seats", [])]
+            stations, axles, seats = labels_of(f)
             for name, arrays in final.get("equilibrium", {}).items():
-                write_static_group(f["equilibrium"], name, arrays, stations, axles)
-            old = dict(f["summary"].attrs) if "summary" in f else {}
+                write_static_group(f[EQUILIBRIUM], name, arrays, stations, axles)
+            old = dict(f[SUMMARY].attrs) if SUMMARY in f else {}
             arrays = final.get("summary_values")
             if arrays is not None:
-                write_static_group(f, "summary", arrays, stations, axles, old, seats)
+                write_static_group(f, SUMMARY, arrays, stations, axles, old, seats)
             for k, v in final.get("summary", {}).items():
-                f["summary"].attrs[k] = v
+                f[SUMMARY].attrs[k] = v
             fault_point("during_final_write")         # test hook: killed with the copy half written
             if "history" in final:
                 f.attrs["history"] = str(f.attrs.get("history", "")) + "\n" + final["history"]
@@ -303,7 +334,7 @@ def copy_covered(src: h5py.File, dst: h5py.File, n_samples: int, n_stats: int, h
     """Copy into a fresh file what a checkpoint covers: every group the creation wrote (the equilibria before the
     drive, its weighing bands included), the record variables cut to `n_samples` and `n_stats` rows, and /summary
     reset to status running. UserInputError if a record variable holds fewer rows than the checkpoint."""
-    for gname, n in (("timeseries", n_samples), ("stats", n_stats)):
+    for gname, n in ((TIMESERIES, n_samples), (STATS, n_stats)):
         for ds in src[gname].values():
             if ds.maxshape and ds.maxshape[0] is None and ds.shape[0] < n:
                 raise UserInputError(f"{src.filename}: /{gname}/{ds.name.rsplit('/', 1)[-1]} has {ds.shape[0]} "
@@ -312,15 +343,15 @@ def copy_covered(src: h5py.File, dst: h5py.File, n_samples: int, n_stats: int, h
     for k, v in src.attrs.items():
         dst.attrs[k] = v
     dst.attrs["history"] = str(src.attrs.get("history", "")) + "\n" + history
-    clone_group(src["scenario"], dst, "scenario")
-    e = dst.create_group("equilibrium")
-    for name, group in src["equilibrium"].items():
+    clone_group(src[SCENARIO], dst, SCENARIO)
+    e = dst.create_group(EQUILIBRIUM)
+    for name, group in src[EQUILIBRIUM].items():
         if name not in FINAL_EQUILIBRIA:
             clone_group(group, e, name)
-    clone_group(src["timeseries"], dst, "timeseries", n_samples)
-    clone_group(src["stats"], dst, "stats", n_stats)
-    clone_group(src["checkpoint"], dst, "checkpoint")
-    s = clone_group(src["summary"], dst, "summary", 0)
+    clone_group(src[TIMESERIES], dst, TIMESERIES, n_samples)
+    clone_group(src[STATS], dst, STATS, n_stats)
+    clone_group(src[CHECKPOINT], dst, CHECKPOINT)
+    s = clone_group(src[SUMMARY], dst, SUMMARY, 0)
     for k in ("error", "stopped_at_km"):
         if k in s.attrs:
             del s.attrs[k]
@@ -331,7 +362,7 @@ def copy_covered(src: h5py.File, dst: h5py.File, n_samples: int, n_stats: int, h
 def valid_counts(f: h5py.File) -> tuple[int, int]:
     """(samples, statistics rows) covered by the last checkpoint: the rows to trust in a file
     whose writer may have been stopped between appending data and checkpointing."""
-    ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
+    ck = Checkpoint(f[CHECKPOINT]).read() if CHECKPOINT in f else None
     if ck is not None:
         return ck[1]["n_samples"], ck[1]["n_stats"]
     return 0, 0
@@ -339,5 +370,5 @@ def valid_counts(f: h5py.File) -> tuple[int, int]:
 
 def read_state(f: h5py.File) -> dict | None:
     """The last checkpointed DriveState dict (t_s, s_m, x, ...) or None."""
-    ck = Checkpoint(f["checkpoint"]).read() if "checkpoint" in f else None
+    ck = Checkpoint(f[CHECKPOINT]).read() if CHECKPOINT in f else None
     return None if ck is None else ck[0]

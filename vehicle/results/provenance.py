@@ -4,8 +4,8 @@ A run records, in its results file (/scenario attribute `inputs_json`), the SHA-
 reads (the scenario itself, the vehicle file, strut files, road and speed CSVs) and of its resolved definition
 (every parameter after defaults and overrides, `Prepared.resolved()`). `--resume` and a study re-run compare them
 with the files as they are now (`compare`): a result is never continued or reused from inputs that changed
-(the message names the file, and `--overwrite` starts again). `output_is_input` refuses an output path that is
-one of the run's own inputs.
+(the message names the file, and `--overwrite` starts again). `run_inputs` lists the files an output must not
+replace (`hpsim.outputs.check_not_input`).
 """
 from __future__ import annotations
 
@@ -89,18 +89,12 @@ def compare(stored_json: str | None, prep, out, action: str = "resume") -> None:
                              "with --overwrite (or write to another output)")
 
 
-def output_is_input(out, src) -> None:
-    """Refuse an output path that is one of the run's own input files (the scenario, vehicle, strut, road or speed
-    file): --overwrite would replace it with results."""
-    target = Path(out).resolve()
-    files = {}
-    if Path(src.name).is_file():
-        files["scenario"] = Path(src.name).resolve()
+def run_inputs(src) -> list[Path]:
+    """The input files of a run of scenario source `src` (the scenario, vehicle, strut, road and speed files); a
+    scenario that cannot be prepared gives its own file only (its error is reported where it is prepared)."""
+    files = [Path(src.name).resolve()] if Path(src.name).is_file() else []
     try:
-        files.update(input_files(prepare(src)))
+        files += list(input_files(prepare(src)).values())
     except UserInputError:
-        pass                                   # the scenario's own error is reported where it is prepared
-    for label, p in files.items():
-        if p == target:
-            raise UserInputError(f"{out}: is the run's own {label} file; the results would replace it: give another "
-                                 "output (-o)")
+        pass
+    return files

@@ -1,5 +1,5 @@
-"""Reading results: the one place that knows the file layout (docs/hdf5.md), for every reader
-(summary, report, plots, compare, resume).
+"""Reading results, for every reader (summary, report, plots, compare, resume): the file's groups by the names
+of vehicle.results.layout (docs/hdf5.md).
 
     open_results(path)        a results file -> ResultsFile (checked first: a damaged file fails fast)
     ResultsView               the read interface shared by files and vehicle.results.sinks.MemorySink:
@@ -35,7 +35,9 @@ from hpsim.errors import UserInputError
 
 from vehicle.physics.outputs import VARIABLES, Split
 from vehicle.results.checkpoint import Checkpoint
-from vehicle.results.variables import DATA_GROUPS, FileVariable, file_variables, group_dataset, require_xarray
+from vehicle.results.layout import (CHECKPOINT, DATA_GROUPS, RECORD_COORDINATES, RECORD_DIM, REQUIRED_GROUPS,
+                                    SCENARIO, SCENARIO_ATTRS, STATS, SUMMARY, TIMESERIES, equilibrium_group)
+from vehicle.results.variables import FileVariable, file_variables, group_dataset, require_xarray
 
 FORMAT = "hpsim-drive"
 FORMAT_VERSION = 2
@@ -229,28 +231,27 @@ class ResultsFile(ResultsView):
         if version > FORMAT_VERSION:
             raise UserInputError(f"{self.path}: written by a newer hpsim (results format {version}, this hpsim reads "
                                  f"up to {FORMAT_VERSION}); update hpsim to read it")
-        sc = f.get("scenario")
+        sc = f.get(SCENARIO)
         if not isinstance(sc, h5py.Group):
-            self._missing("/scenario")
-        for k in ("yaml", "resolved_json", "stations", "axles", "distance_m"):
+            self._missing(f"/{SCENARIO}")
+        for k in SCENARIO_ATTRS:
             if k not in sc.attrs:
-                self._missing(f"/scenario attribute {k!r}")
+                self._missing(f"/{SCENARIO} attribute {k!r}")
         try:
             json.loads(sc.attrs["resolved_json"])
         except (ValueError, TypeError):
-            self._missing("a readable /scenario attribute 'resolved_json'")
+            self._missing(f"a readable /{SCENARIO} attribute 'resolved_json'")
         n_st, n_ax = len(sc.attrs["stations"]), len(sc.attrs["axles"])
         if n_ax < 1 or n_st != 2 * n_ax:
             self._missing(f"a consistent list of stations and axles (got {n_st} stations, {n_ax} axles)")
-        for g in ("equilibrium/before", "timeseries", "stats", "checkpoint"):
+        for g in REQUIRED_GROUPS:
             if not isinstance(f.get(g), h5py.Group):
                 self._missing(f"/{g}")
-        for item in (("timeseries/time", "stats/km") if version >= 2 else ("timeseries/t_s", "stats/distance_end_m")):
+        for item in RECORD_COORDINATES[2 if version >= 2 else 1]:
             if not isinstance(f.get(item), h5py.Dataset):
                 self._missing(f"/{item}")
-        ck = f["checkpoint"]
-        if "slots" not in ck or "pointer" not in ck or "fields" not in ck.attrs:
-            self._missing("the checkpoint (/checkpoint slots, pointer, fields)")
+        if not Checkpoint.complete(f[CHECKPOINT]):
+            self._missing(f"the checkpoint (/{CHECKPOINT} slots, pointer, fields)")
         return version
 
     @contextmanager
@@ -265,11 +266,11 @@ class ResultsFile(ResultsView):
     # ResultsView
     @property
     def stations(self):
-        return [str(s) for s in self.f["scenario"].attrs["stations"]]
+        return [str(s) for s in self.f[SCENARIO].attrs["stations"]]
 
     @property
     def axles(self):
-        return [str(a) for a in self.f["scenario"].attrs["axles"]]
+        return [str(a) for a in self.f[SCENARIO].attrs["axles"]]
 
     @property
     def root_attrs(self) -> dict:
@@ -277,10 +278,10 @@ class ResultsFile(ResultsView):
 
     @property
     def scenario_attrs(self) -> dict:
-        return {k: _attr_value(v) for k, v in self.f["scenario"].attrs.items()}
+        return {k: _attr_value(v) for k, v in self.f[SCENARIO].attrs.items()}
 
     def summary_attrs(self) -> dict:
-        g = self.f.get("summary")
+        g = self.f.get(SUMMARY)
         return {} if g is None else {k: _attr_value(v) for k, v in g.attrs.items()}
 
     def _once(self, key: str, read):
@@ -293,9 +294,9 @@ class ResultsFile(ResultsView):
     def checkpoint(self) -> tuple[dict, dict] | None:
         """The last checkpoint: (DriveState dict, {n_samples, n_stats, wall_s}), or None before the first."""
         def read():
-            with self._reading("/checkpoint"):
-                return Checkpoint(self.f["checkpoint"]).read()
-        return self._once("/checkpoint", read)
+            with self._reading(f"/{CHECKPOINT}"):
+                return Checkpoint(self.f[CHECKPOINT]).read()
+        return self._once(f"/{CHECKPOINT}", read)
 
     def counts(self) -> tuple[int, int]:
         ck = self.checkpoint()
@@ -321,10 +322,10 @@ class ResultsFile(ResultsView):
             return a * v.scale if v.scale != 1.0 else a
 
     def series(self, name: str):
-        return self._record("timeseries", name, self.counts()[0])
+        return self._record(TIMESERIES, name, self.counts()[0])
 
     def stats_series(self, name: str):
-        return self._record("stats", name, self.counts()[1])
+        return self._record(STATS, name, self.counts()[1])
 
     def _v1_keys(self, g: h5py.Group) -> dict:
         """Format 1 equilibria and summary: Equilibrium fields as datasets and scalar attributes -> drive keys."""
@@ -350,7 +351,7 @@ class ResultsFile(ResultsView):
             if self.version < 2:
                 for key, value in self._v1_keys(g).items():
                     a = np.asarray(value, float)
-                    for v in file_variables(key, a.shape, "static", len(self.stations), len(self.axles)):
+                    for v in file_variables(key, a.shape, None, len(self.stations), len(self.axles)):
                         out[v.name] = v.take(a, False) if a.ndim else float(a)
                 return out
             for k, ds in g.items():
@@ -360,30 +361,30 @@ class ResultsFile(ResultsView):
             return out
 
     def equilibrium(self, which: str) -> dict | None:
-        return self._static_group(f"equilibrium/{which}")
+        return self._static_group(equilibrium_group(which))
 
     def summary_values(self) -> dict:
-        return self._static_group("summary") or {}
+        return self._static_group(SUMMARY) or {}
 
     def groups(self) -> list[str]:
-        return ["scenario"] + [g for g in DATA_GROUPS if g in self.f]
+        return [SCENARIO] + [g for g in DATA_GROUPS if g in self.f]
 
     def dataset(self, group: str):
         xr = require_xarray()
-        if group == "scenario":
+        if group == SCENARIO:
             return xr.Dataset(attrs=self.scenario_attrs)
         if group not in self.f:
             raise UserInputError(f"{self.path}: no group /{group} (groups: {', '.join(self.groups())})")
-        attrs = self.summary_attrs() if group == "summary" else {}
+        attrs = self.summary_attrs() if group == SUMMARY else {}
         with self._reading(f"/{group}"):
             if self.version < 2:
-                return group_dataset(group, self._v1_arrays(group), self.stations, self.axles, attrs)
+                return group_dataset(RECORD_DIM.get(group), self._v1_arrays(group), self.stations, self.axles, attrs)
             return self._nc_dataset(group)
 
     def _v1_arrays(self, group: str) -> dict:
         g = self.f[group]
-        if group in ("timeseries", "stats"):
-            n = self.counts()[0 if group == "timeseries" else 1]
+        if group in RECORD_DIM:
+            n = self.counts()[0 if group == TIMESERIES else 1]
             return {k: np.moveaxis(np.asarray(g[k][:min(n, g[k].shape[0])], float), 0, -1) for k in g}
         return self._v1_keys(g)
 
@@ -391,7 +392,8 @@ class ResultsFile(ResultsView):
         """A group as netCDF readers (xarray + h5netcdf) see it, the record dimension cut to the checkpoint."""
         xr = require_xarray()
         g = self.f[group]
-        record = {"timeseries": ("time", self.counts()[0]), "stats": ("km", self.counts()[1])}.get(group)
+        record = {TIMESERIES: (RECORD_DIM[TIMESERIES], self.counts()[0]),
+                  STATS: (RECORD_DIM[STATS], self.counts()[1])}.get(group)
         coord_names = set()
         for ds in g.values():
             if isinstance(ds, h5py.Dataset) and "coordinates" in ds.attrs:

@@ -50,6 +50,7 @@ import numpy as np
 
 from hpsim import __version__
 from hpsim.errors import SimulationError, UserInputError
+from hpsim.outputs import check_not_input
 from hpsim.stages import timed
 from hpsim.threads import beside
 
@@ -360,7 +361,8 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
 def _check_output(out: Path, src: ScenarioSource | None) -> None:
     """Refuse an output that is one of the scenario's inputs, a folder or not a regular file; make its folder."""
     if src is not None:
-        timed("output checked against the inputs", provenance.output_is_input, out, src)  # never replace an input
+        # never replace an input, --overwrite or not: the same check and message as every command's outputs
+        timed("output checked against the inputs", check_not_input, out, "-o/--output", provenance.run_inputs(src))
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():

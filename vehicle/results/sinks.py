@@ -18,6 +18,8 @@ import h5py
 import numpy as np
 
 from vehicle.results.checkpoint import Checkpoint
+from vehicle.results.layout import (CHECKPOINT, RECORD_DIM, SCENARIO, STATS, SUMMARY, TIMESERIES, equilibrium_group,
+                                    labels_of)
 from vehicle.results.reader import ResultsView, drive_key_for
 from vehicle.results.variables import FileVariable, file_variables, group_dataset, require_xarray
 
@@ -31,13 +33,12 @@ class H5Sink:
 
     def __init__(self, f: h5py.File, n_samples: int = 0, n_stats: int = 0, wall_before_s: float = 0.0):
         self.f = f
-        self.ts = f["timeseries"]
-        self.st = f["stats"]
-        self.ck = Checkpoint(f["checkpoint"])
-        stations = [str(s) for s in f["scenario"].attrs["stations"]]
-        axles = [str(a) for a in f["scenario"].attrs["axles"]]
+        self.ts = f[TIMESERIES]
+        self.st = f[STATS]
+        self.ck = Checkpoint(f[CHECKPOINT])
+        stations, axles, _ = labels_of(f)
         self.n_st, self.n_ax = len(stations), len(axles)
-        self.chunk = int(self.ts["time"].chunks[0])
+        self.chunk = int(self.ts[RECORD_DIM[TIMESERIES]].chunks[0])
         self.n_samples = n_samples          # rows written (and covered by the last checkpoint)
         self.n_stats = n_stats
         self.plan: dict[str, list[FileVariable]] = {}
@@ -57,7 +58,8 @@ class H5Sink:
         if k not in self.plan:
             where = self._group(group)
             shape = np.asarray(value, float).shape[:-1]
-            self.plan[k] = [v for v in file_variables(key, shape, group, self.n_st, self.n_ax) if v.name in where]
+            self.plan[k] = [v for v in file_variables(key, shape, RECORD_DIM[group], self.n_st, self.n_ax)
+                            if v.name in where]
         return self.plan[k]
 
     # DriveSink protocol
@@ -69,7 +71,7 @@ class H5Sink:
 
     def samples(self, block: dict) -> None:
         for key, value in block.items():
-            for v in self._vars("timeseries", key, value):
+            for v in self._vars(TIMESERIES, key, value):
                 self.buffer.setdefault(v.name, []).append(v.take(value, True))
         self.n_buffered += len(np.atleast_1d(block["t_s"]))
 
@@ -83,7 +85,7 @@ class H5Sink:
             self.flush()
 
     def _group(self, group: str) -> h5py.Group:
-        return self.ts if group == "timeseries" else self.st
+        return self.ts if group == TIMESERIES else self.st
 
     def _dataset(self, group: str, name: str) -> h5py.Dataset:
         ds = self.datasets.get((group, name))
@@ -99,15 +101,15 @@ class H5Sink:
         """Append the buffered rows, flush, then write the checkpoint that covers them."""
         if self.n_buffered:
             for name, parts in self.buffer.items():
-                self._append(self._dataset("timeseries", name), self.n_samples, np.concatenate(parts, axis=0))
+                self._append(self._dataset(TIMESERIES, name), self.n_samples, np.concatenate(parts, axis=0))
             self.n_samples += self.n_buffered
             self.buffer, self.n_buffered = {}, 0
         if self.stats_buffer:
             n = len(self.stats_buffer)
             for key in self.stats_buffer[0]:
                 value = np.stack([np.asarray(r[key], float) for r in self.stats_buffer], axis=-1)
-                for v in self._vars("stats", key, value):
-                    self._append(self._dataset("stats", v.name), self.n_stats, v.take(value, True))
+                for v in self._vars(STATS, key, value):
+                    self._append(self._dataset(STATS, v.name), self.n_stats, v.take(value, True))
             self.n_stats += n
             self.stats_buffer = []
         self.f.flush()
@@ -166,12 +168,12 @@ class MemorySink(ResultsView):
         return np.concatenate([b[key] for b in self.blocks], axis=-1)
 
     def _group_arrays(self, group: str) -> dict:
-        if group == "timeseries":
+        if group == TIMESERIES:
             return {k: self.drive_series(k) for k in (self.blocks[0] if self.blocks else {})}
-        if group == "stats":
+        if group == STATS:
             return {k: np.stack([np.asarray(r[k], float) for r in self.rows], axis=-1)
                     for k in (self.rows[0] if self.rows else {})}
-        if group == "summary":
+        if group == SUMMARY:
             return dict(self.final.get("summary_values", {}))
         which = group.split("/", 1)[1]
         eq = {**self.info["equilibrium"], **self.final.get("equilibrium", {})}
@@ -211,10 +213,10 @@ class MemorySink(ResultsView):
         return v.take(arrays[key], True)
 
     def series(self, name: str):
-        return self._record("timeseries", name) if self.blocks else None
+        return self._record(TIMESERIES, name) if self.blocks else None
 
     def stats_series(self, name: str):
-        return self._record("stats", name) if self.rows else None
+        return self._record(STATS, name) if self.rows else None
 
     def _static(self, arrays: dict | None) -> dict | None:
         if arrays is None:
@@ -222,33 +224,33 @@ class MemorySink(ResultsView):
         out = {}
         for key, value in arrays.items():
             a = np.asarray(value, float)
-            for v in file_variables(key, a.shape, "static", len(self.stations), len(self.axles)):
+            for v in file_variables(key, a.shape, None, len(self.stations), len(self.axles)):
                 out[v.name] = v.take(a, False) if a.ndim else float(a)
         return out
 
     def equilibrium(self, which: str) -> dict | None:
-        return self._static(self._group_arrays(f"equilibrium/{which}"))
+        return self._static(self._group_arrays(equilibrium_group(which)))
 
     def summary_values(self) -> dict:
-        return self._static(self._group_arrays("summary"))
+        return self._static(self._group_arrays(SUMMARY))
 
     def dataset(self, group: str):
-        if group == "scenario":
+        if group == SCENARIO:
             return require_xarray().Dataset(attrs=self.scenario_attrs)
         arrays = self._group_arrays(group) or {}
-        attrs = self.summary_attrs() if group == "summary" else {}
-        ds = group_dataset(group, arrays, self.stations, self.axles, attrs, self.info.get("seats"))
-        if group == "stats":        # attributes the file's stats variables get at creation (travel-bin edges)
+        attrs = self.summary_attrs() if group == SUMMARY else {}
+        ds = group_dataset(RECORD_DIM.get(group), arrays, self.stations, self.axles, attrs, self.info.get("seats"))
+        if group == STATS:        # attributes the file's stats variables get at creation (travel-bin edges)
             for name, extra in (self.info.get("stats_attrs") or {}).items():
                 if name in ds:
                     ds[name].attrs.update(extra)
         return ds
 
     def groups(self) -> list[str]:
-        out = ["scenario", "timeseries", "stats"]
+        out = [SCENARIO, TIMESERIES, STATS]
         eq = {**self.info["equilibrium"], **self.final.get("equilibrium", {})}
-        out += [f"equilibrium/{e}" for e in ("charged", "before", "after") if e in eq]
-        return out + ["summary"]
+        out += [equilibrium_group(e) for e in ("charged", "before", "after") if e in eq]
+        return out + [SUMMARY]
 
     def close(self) -> None:
         pass

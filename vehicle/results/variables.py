@@ -1,6 +1,6 @@
-"""The results file's layout: its groups and record dimensions, how each drive key of the output table
-(vehicle.physics.outputs) becomes one or more stored variables (names, dimensions, attributes), and the
-same layout as xarray datasets. The HDF5 sinks, the reader and `to_xarray()` all use it."""
+"""How each drive key of the output table (vehicle.physics.outputs) becomes one or more stored variables (names,
+dimensions, attributes), and a group's variables as an xarray dataset. The HDF5 sinks, the reader and
+`to_xarray()` all use it; the groups themselves and their record dimensions are vehicle.results.layout's."""
 from __future__ import annotations
 
 from hpsim.extras import install_hint
@@ -11,11 +11,6 @@ import numpy as np
 
 from vehicle.physics.outputs import AUTO, Split, Var, lookup
 
-# the groups of a results file (docs/hdf5.md) and their record dimension
-RECORD_DIM = {"timeseries": "time", "stats": "km"}
-EQUILIBRIA = ("charged", "before", "after", "before_band", "after_band")
-STATIC_GROUPS = tuple(f"equilibrium/{e}" for e in EQUILIBRIA) + ("summary",)
-DATA_GROUPS = ("timeseries", "stats") + STATIC_GROUPS
 LABEL_DIMS = ("station", "axle")
 # dimensions whose size is the value's width (not the number of stations or axles): the seats of the
 # vehicle file (labelled with their names when known), the strut-travel bins and their edges
@@ -74,11 +69,12 @@ def _width_dim(key: str, var: Var, shape: tuple, n_stations: int, n_axles: int) 
     return (var.dim,)
 
 
-def file_variables(key: str, width_shape: tuple, group: str, n_stations: int, n_axles: int) -> list[FileVariable]:
+def file_variables(key: str, width_shape: tuple, record: str | None, n_stations: int,
+                   n_axles: int) -> list[FileVariable]:
     """The stored variables of one drive key. width_shape: the value's shape without the sample axis
-    ((), (width,) or (k,) for a split)."""
+    ((), (width,) or (k,) for a split); record: the group's record dimension (`layout.RECORD_DIM`), None for a
+    static group."""
     entry = lookup(key)
-    record = RECORD_DIM.get(group)
     lead = (record,) if record else ()
     if isinstance(entry, Split):
         if tuple(width_shape) != (len(entry.parts),):
@@ -94,18 +90,17 @@ def label_attrs(dim: str) -> dict:
             "seat": {"long_name": "seat on the hull (vehicle file's seats)"}}[dim]
 
 
-def group_dataset(group: str, arrays: dict, stations, axles, attrs: dict | None = None, seats=None):
-    """An xarray.Dataset of one group from drive-keyed arrays (record groups: drive-shaped (..., n)
-    arrays; static groups: (width,) or scalars) -- the same names, dims, coordinates and attributes
-    that the HDF5 file holds (tests/test_results_xarray.py checks both)."""
+def group_dataset(record: str | None, arrays: dict, stations, axles, attrs: dict | None = None, seats=None):
+    """An xarray.Dataset of one group from drive-keyed arrays (a record group, whose record dimension is `record`:
+    drive-shaped (..., n) arrays; a static group, record None: (width,) or scalars) -- the same names, dims,
+    coordinates and attributes that the HDF5 file holds (tests/unit/results/test_results_xarray.py checks both)."""
     xr = require_xarray()
-    record = RECORD_DIM.get(group)
     n_st, n_ax = len(stations), len(axles)
     data_vars, coords = {}, {}
     for key, value in arrays.items():
         a = np.asarray(value, float)
         width_shape = a.shape[:-1] if record else a.shape
-        for v in file_variables(key, width_shape, group, n_st, n_ax):
+        for v in file_variables(key, width_shape, record, n_st, n_ax):
             arr = v.take(a, bool(record))
             if v.role == "record":
                 coords[v.name] = ((v.name,), arr, v.attrs)

@@ -86,8 +86,9 @@ def test_a_drive_with_its_libraries_in_the_cache_builds_no_graph(monkeypatch):
     solvers._BLOCK_FUNCTIONS.clear()
     first = Drive(m, road, DriveSettings(**settings)).run().state.x            # compiles when the cache is cold
     graphs = []
-    real_graph, real_outputs = solvers.Ros2._graph, solvers._outputs_function
-    monkeypatch.setattr(solvers.Ros2, "_graph", lambda self, model: graphs.append("block") or real_graph(self, model))
+    real_graph, real_outputs = solvers.Ros2.block_function, solvers._outputs_function
+    monkeypatch.setattr(solvers.Ros2, "block_function",
+                        lambda self, model, K, M: graphs.append("block") or real_graph(self, model, K, M))
     monkeypatch.setattr(solvers, "_outputs_function",
                         lambda model, n: graphs.append("outputs") or real_outputs(model, n))
     monkeypatch.setattr(codegen, "_generate_c", lambda fn, *a, **kw: pytest.fail("C generated for a cached library"))

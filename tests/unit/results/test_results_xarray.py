@@ -112,10 +112,10 @@ def test_memory_sink_and_file_give_identical_datasets(runs):
 
 def test_a_drive_key_missing_from_the_table_is_a_clear_error():
     with pytest.raises(UnknownDriveKey, match="vehicle/physics/outputs.py.*'seal_temperature_K'.*add one line"):
-        file_variables("seal_temperature_K", (8,), "timeseries", 8, 4)
+        file_variables("seal_temperature_K", (8,), "time", 8, 4)
     # a key with the table's default dim gets it from its width: stations or axles
-    assert file_variables("wheel_load", (8,), "timeseries", 8, 4)[0].dims == ("time", "station")
-    assert file_variables("axle_height_change_m", (4,), "stats", 8, 4)[0].dims == ("km", "axle")
+    assert file_variables("wheel_load", (8,), "time", 8, 4)[0].dims == ("time", "station")
+    assert file_variables("axle_height_change_m", (4,), "km", 8, 4)[0].dims == ("km", "axle")
     # every name is unique per quantity: one (units, dims) per variable name across the table
     seen = {}
     for key, entry in VARIABLES.items():
