@@ -434,7 +434,7 @@ class MultiscaleDrive:
             x[self.slow_index] = Phi @ x[self.slow_index] + forced
             x[self.ext_index] = x[self.ext_index] + w.q_rate * tau
             if S.compensation:           # the pump's oil follows the levelling oil's path, not the window's mean rate
-                x[self.model.pump_index] = w.x_end[self.model.pump_index] + total_variation_along(
+                x[self.pump_index] = w.x_end[self.pump_index] + total_variation_along(
                     w.flow, w.x_end[self.slow_index], w.b, tau, self._oil_in_slow)
             w.t_start, w.t_gap_end, w.tau, w.s_start = t0, t_next, tau, c0
             w.s_end, w.s_gap_end = float(self.distance_at(w.t_end)), float(self.distance_at(t_next))

@@ -261,7 +261,7 @@ class BlockRecorder:
         values["strut_temperature_K"] = np.asarray(x[self.T_index], float)          # the surface (pyrometer)
         values["wall_temperature_K"] = np.asarray(x[self.T_wall_index], float)
         values["oil_temperature_K"] = np.asarray(x[self.T_oil_index], float)
-        values["pump_oil_volume_m3"] = np.asarray(x[m.pump_index], float)
+        values["pump_oil_volume_m3"] = np.asarray(x[self.pump_index], float)
         values["oil_added_m3"] = np.asarray(x[self.series_rows["oil_added_m3"]], float)
         if m.ride_metrics:
             values.update(self._ride_row(float(state.t_s), x[self.quad_index], x[m.energy_index["end_stop"]]))

@@ -13,8 +13,7 @@ States (per station i, stations axle-major, left first):
             strut internal states (e.g. T_gas_i, the gas node),
             xf_i (filtered deflection, compensation), V_oil_i (oil added by compensation)
   energy quadratures per station [J]: valve, friction, gas heat, end stop, strut work,
-            tyre work, road work; the ride quadratures; last V_pump_i, the oil volume the
-            levelling pump moved into and out of the strut [m^3].
+            tyre work, road work; the ride quadratures; last V_pump_i (oil the levelling moved, m^3)
 Algebraic: dp_valve_i [Pa] (valve flow balance, incompressible oil: seed 000 eq. 2).
 Inputs u (time-varying), in this order (`INPUTS`; `input_index` gives the positions and
   `input_matrix` builds U from named rows: nothing else hard-codes them):
@@ -221,9 +220,7 @@ class VehicleModel:
                     L.add(f"I_{q}[{i}]")
                 for k in range(1, TRAVEL_BINS):
                     L.add(f"I_above{k}[{i}]")
-        # the oil volume the levelling pump moved per station, int |q| dt (compensation.pumped_volume_rate): last,
-        # so that the states before it keep their places
-        for i in range(self.n):
+        for i in range(self.n):     # last, so the others keep their places: the oil the levelling moved, int |q| dt
             L.add(f"V_pump[{i}]")
         self.layout = L
         self.nx = len(L)
@@ -295,11 +292,6 @@ class VehicleModel:
 
     def idx(self, name: str) -> int:
         return self.layout.index(name)
-
-    @cached_property
-    def pump_index(self) -> np.ndarray:
-        """Indices of the oil volume the levelling pump moved per station (V_pump[i])."""
-        return np.array([self.idx(f"V_pump[{i}]") for i in range(self.n)])
 
     @cached_property
     def energy_index(self) -> dict:
