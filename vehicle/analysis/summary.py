@@ -12,6 +12,9 @@ axles add up to the vehicle's total):
                          before-drive equilibrium (both standing on flat ground)
   N_before_daN / N_after_daN, dN_pct   wheel load in those two equilibria and its change
   energy_dissipated_MJ   valve + friction + gas heat + end-stop energy of the axle's two struts
+  pump_oil_volume_m3     oil volume the levelling pump moved into and out of the axle's two struts (int |q| dt,
+                         vehicle.physics.compensation), oil_added_m3 the net volume added (int q dt, negative when
+                         drained); 0 without compensation, None in files written before the pump's volume
   N_charged_daN, dN_charged_pct   the charged (set-up) wheel load and the after-drive change
                          against it
   dN_band_pct, dh_band_mm  [low, high] of dN_pct and dh_mm that two weighings with seal friction
@@ -19,7 +22,7 @@ axles add up to the vehicle's total):
 Whole vehicle: load_shift_pct = 100 * sum_axles |N_after - N_before| / sum_axles N_before
 (the load redistribution in one number), load_shift_vs_charged_pct (the same against the
 charged loads; equal to load_shift_pct when the struts start at the charging temperature),
-mean_temperature_rise_K.
+mean_temperature_rise_K, pump_oil_volume_m3 and oil_added_m3 (the axles' sums).
 """
 from __future__ import annotations
 
@@ -69,6 +72,13 @@ def dissipated_energy_J(r: ResultsView) -> np.ndarray | None:
     return total
 
 
+def final_station_value(r: ResultsView, name: str):
+    """Per station: a variable's value at the drive's end (/summary, else its last stored sample); None when the
+    file has neither."""
+    v = r.summary_values().get(name)
+    return v if v is not None else _last_row(r, name)
+
+
 def equilibrium_temperature(eq: dict):
     """The standing strut temperature of an equilibrium group (oil_temperature; strut_temperature in files
     written before the heat network)."""
@@ -108,6 +118,8 @@ def report_from(r: ResultsView, name: str) -> dict:
         h1 = np.full(len(axles), np.nan)
     E = dissipated_energy_J(r)
     E_ax = _axle_sum(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
+    oil = {k: final_station_value(r, k) for k in ("pump_oil_volume", "oil_added_volume")}
+    oil_ax = {k: _axle_sum(v) if v is not None else np.full(len(axles), np.nan) for k, v in oil.items()}
     bands = weighing_difference_bands({k: r.equilibrium(k) for k in ("before_band", "after_band")}, len(axles))
     n_done = r.counts()[0]
     dist_km, sim_s = _driven(r, summ, status)
@@ -121,7 +133,9 @@ def report_from(r: ResultsView, name: str) -> dict:
                      "N_before_daN": num(N0[k] / 10.0), "N_after_daN": num(N1[k] / 10.0),
                      "dN_pct": num(100.0 * (N1[k] - N0[k]) / N0[k]), "energy_dissipated_MJ": num(E_ax[k]),
                      "N_charged_daN": num(Nc[k] / 10.0), "dN_charged_pct": num(100.0 * (N1[k] - Nc[k]) / Nc[k]),
-                     "dN_band_pct": bands["dN_band_pct"][k], "dh_band_mm": bands["dh_band_mm"][k]})
+                     "dN_band_pct": bands["dN_band_pct"][k], "dh_band_mm": bands["dh_band_mm"][k],
+                     "pump_oil_volume_m3": num(oil_ax["pump_oil_volume"][k]),
+                     "oil_added_m3": num(oil_ax["oil_added_volume"][k])})
     shift = 100.0 * np.sum(np.abs(N1 - N0)) / np.sum(N0)
     shift_charged = 100.0 * np.sum(np.abs(N1 - Nc)) / np.sum(Nc)
     compensation, ambient_C = _compensation_and_ambient(sc, name)
@@ -134,6 +148,8 @@ def report_from(r: ResultsView, name: str) -> dict:
            "load_shift_vs_charged_pct": num(shift_charged),
            "mean_temperature_rise_K": num(np.mean(T1 - T0)),
            "energy_dissipated_MJ": num(np.sum(E) / 1e6) if E is not None else None,
+           "pump_oil_volume_m3": num(np.sum(oil["pump_oil_volume"])) if oil["pump_oil_volume"] is not None else None,
+           "oil_added_m3": num(np.sum(oil["oil_added_volume"])) if oil["oil_added_volume"] is not None else None,
            "compensation": compensation,
            "ambient_C": ambient_C,
            "hpsim_version": str(sc.get("hpsim_version", ""))}

@@ -28,7 +28,7 @@ from vehicle.engines.linear_proxy import LinearProxy
 from vehicle.engines.slow_manifold import SlowManifold
 from vehicle.engines.window_pair import WindowPair
 from vehicle.engines.slow_flow import (ERROR_COVERAGE, LinearFlow, error_factor, slow_rate_jacobian, slow_rate_library,
-                                       warm_up_correction)
+                                       total_variation_along, warm_up_correction)
 from vehicle.engines.window_estimates import WindowEstimator, WindowRecord
 
 MODE = "multiscale"
@@ -72,6 +72,7 @@ class MultiscaleDrive:
         self.J_slow = slow_rate_jacobian(model, compiled=solver.capabilities.compiled)
         self._J_sums: dict = {}
         self.oil_index = self.manifold.oil_index
+        self._oil_in_slow = np.searchsorted(self.slow_index, self.oil_index)     # V_oil among the slow states
         self.build_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         self._proxy_setup()
@@ -432,6 +433,9 @@ class MultiscaleDrive:
             Phi, forced = w.flow.phi(tau), w.flow.gamma(tau) @ w.b
             x[self.slow_index] = Phi @ x[self.slow_index] + forced
             x[self.ext_index] = x[self.ext_index] + w.q_rate * tau
+            if S.compensation:           # the pump's oil follows the levelling oil's path, not the window's mean rate
+                x[self.pump_index] = w.x_end[self.pump_index] + total_variation_along(
+                    w.flow, w.x_end[self.slow_index], w.b, tau, self._oil_in_slow)
             w.t_start, w.t_gap_end, w.tau, w.s_start = t0, t_next, tau, c0
             w.s_end, w.s_gap_end = float(self.distance_at(w.t_end)), float(self.distance_at(t_next))
             w.s_avg0 = float(self.distance_at(w.t_avg0))

@@ -227,6 +227,7 @@ class BlockRecorder:
         row["rms_strut_velocity_m_per_s"] = np.sqrt(np.maximum(dq[nE * n: nE * n + n], 0) / max(duration, 1e-12))
         row["rms_hull_acceleration"] = np.sqrt(np.maximum(dq[nE * n + n: nE * n + n + len(HULL_ACCELERATIONS)], 0)
                                                / max(duration, 1e-12))
+        row["pump_oil_volume_interval_m3"] = np.asarray(dq[self.pump_slots], float).copy()
         if self.ride_slots:
             row.update(self._ride_row(duration, dq, E[ENERGY_TERMS.index("end_stop")]))
         return row
@@ -260,6 +261,8 @@ class BlockRecorder:
         values["strut_temperature_K"] = np.asarray(x[self.T_index], float)          # the surface (pyrometer)
         values["wall_temperature_K"] = np.asarray(x[self.T_wall_index], float)
         values["oil_temperature_K"] = np.asarray(x[self.T_oil_index], float)
+        values["pump_oil_volume_m3"] = np.asarray(x[self.pump_index], float)
+        values["oil_added_m3"] = np.asarray(x[self.series_rows["oil_added_m3"]], float)
         if m.ride_metrics:
             values.update(self._ride_row(float(state.t_s), x[self.quad_index], x[m.energy_index["end_stop"]]))
             values["strut_travel_bin_edges_m"] = np.asarray(self.travel_bin_edges_m, float)

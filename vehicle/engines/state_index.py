@@ -17,6 +17,9 @@ class StateIndex:
     """quad_index     the quadratures a statistics interval differences: energies per station, int v^2 per station,
                       the hull's squared accelerations, then the ride integrals (VehicleModel.ride_index)
     ride_slots        ride integral name -> its positions in quad_index
+    pump_index        the oil volume the levelling pump moved, per station (V_pump[i]; vehicle.physics.compensation)
+    pump_slots        those states' positions in quad_index
+                      (after the ride integrals)
     node_index        heat node (vehicle.physics.thermal.NODES) -> its state per station
     heat_nodes_index  every heat node's states, node by node in NODES' order (node k // n of station k % n)
     T_index, T_wall_index, T_oil_index   the surface (what a pyrometer reads: "strut temperature" in results),
@@ -28,6 +31,8 @@ class StateIndex:
 
     quad_index: np.ndarray
     ride_slots: dict
+    pump_index: np.ndarray
+    pump_slots: np.ndarray
     node_index: dict
     heat_nodes_index: np.ndarray
     T_index: np.ndarray
@@ -50,12 +55,15 @@ class StateIndex:
             k += idx.size
         if model.ride_index:
             quad = np.concatenate([quad] + [idx.ravel() for idx in model.ride_index.values()])
+        pump = np.array([model.idx(f"V_pump[{i}]") for i in range(n)])
+        pump_slots = len(quad) + np.arange(n)
+        quad = np.concatenate([quad, pump])
         nodes = {node: np.array([model.idx(f"T_{node}[{i}]") for i in range(n)]) for node in thermal.NODES}
         T_gas = np.array([model.idx(f"T_gas[{i}]") if "T_gas" in model.struts[i].state_names
                           else model.idx(f"T_oil[{i}]") for i in range(n)])
         series = {key: v.series for key, v in VARIABLES.items() if v.series is not None}
         rows = {key: r for key, f in series.items() if (r := series_rows(model, nodes, f)) is not None}
-        return cls(quad_index=quad, ride_slots=ride_slots, node_index=nodes,
+        return cls(quad_index=quad, ride_slots=ride_slots, pump_index=pump, pump_slots=pump_slots, node_index=nodes,
                    heat_nodes_index=np.concatenate([nodes[node] for node in thermal.NODES]), T_index=nodes["surface"],
                    T_wall_index=nodes["wall"], T_oil_index=nodes["oil"], T_gas_index=T_gas,
                    heat_index=[model.energy_index[e] for e in DISSIPATION_TERMS], series=series, series_rows=rows)

@@ -13,7 +13,7 @@ States (per station i, stations axle-major, left first):
             strut internal states (e.g. T_gas_i, the gas node),
             xf_i (filtered deflection, compensation), V_oil_i (oil added by compensation)
   energy quadratures per station [J]: valve, friction, gas heat, end stop, strut work,
-            tyre work, road work.
+            tyre work, road work; the ride quadratures; last V_pump_i (oil the levelling moved, m^3)
 Algebraic: dp_valve_i [Pa] (valve flow balance, incompressible oil: seed 000 eq. 2).
 Inputs u (time-varying), in this order (`INPUTS`; `input_index` gives the positions and
   `input_matrix` builds U from named rows: nothing else hard-codes them):
@@ -220,6 +220,8 @@ class VehicleModel:
                     L.add(f"I_{q}[{i}]")
                 for k in range(1, TRAVEL_BINS):
                     L.add(f"I_above{k}[{i}]")
+        for i in range(self.n):     # last, so the others keep their places: the oil the levelling moved, int |q| dt
+            L.add(f"V_pump[{i}]")
         self.layout = L
         self.nx = len(L)
         self.nz = sum(len(st.algebraic_names) for st in self.struts)
@@ -367,6 +369,7 @@ class VehicleModel:
                 rates[f"T_{node}[{i}]"] = dT
             rates[f"xf[{i}]"] = comp.filtered_deflection_rate(xf, xs, P.compensation.filter_time_constant)
             rates[f"V_oil[{i}]"] = q_oil
+            rates[f"V_pump[{i}]"] = comp.pumped_volume_rate(q_oil)
             rates[f"E_valve[{i}]"] = eq["power_valve"]
             rates[f"E_friction[{i}]"] = eq["power_friction"]
             rates[f"E_gas[{i}]"] = eq["heat_gas"]

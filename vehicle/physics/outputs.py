@@ -125,6 +125,9 @@ VARIABLES: dict[str, Var | Split] = {
     "roll_rad": Var("roll", "rad", "hull roll against the charged state", None, series=From("state", "phi", join="state")),
     "oil_added_m3": Var("oil_added_volume", "m3", "oil volume added to the strut by the levelling system", "station",
                          series=From("station_state", "V_oil", join="state")),
+    "pump_oil_volume_m3": Var("pump_oil_volume", "m3", "oil volume the levelling pump moved into and out of the "
+                              "strut since the start (integral of the absolute flow)", "station",
+                              series=From("station_state", "V_pump", join="quadrature")),
     "strut_force": Var("strut_force", "N", "force of the strut (positive pushing its ends apart)", "station",
                         series=From("output", "strut_force", join="output")),
     "strut_deflection": Var("strut_deflection", "m", "strut deflection (0 at full extension)", "station",
@@ -154,6 +157,8 @@ VARIABLES: dict[str, Var | Split] = {
     "estimated_error_load_change_pct": Var("estimated_error_load_change", "percent", "multiscale mode: estimated "
                                            "error (95 % interval) of the wheel load change of the axle; "
                                            "time_parallel: of the correction", "axle"),
+    "pump_oil_volume_interval_m3": Var("pump_oil_volume_interval", "m3", "oil volume the levelling pump moved "
+                                       "into and out of the strut in the interval", "station"),
     "rms_strut_velocity_m_per_s": Var("rms_strut_velocity", "m s-1", "RMS strut velocity over the interval",
                                       "station"),
     # ride and road holding (vehicle.physics.ride, vehicle.analysis.ride_metrics)
