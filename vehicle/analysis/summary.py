@@ -110,16 +110,9 @@ def report_from(r: ResultsView, name: str) -> dict:
     h0 = np.asarray(before["axle_height_change"], float)
     T_end = _end_temperatures(r, after, len(axles))
     T1 = T_end["surface"]
-    if after is not None:
-        N1 = _axle_mean(after["wheel_load"])
-        h1 = np.asarray(after["axle_height_change"], float)
-    else:
-        N1 = np.full(len(axles), np.nan)
-        h1 = np.full(len(axles), np.nan)
-    E = dissipated_energy_J(r)
-    E_ax = _axle_sum(E) / 1e6 if E is not None else np.full(len(axles), np.nan)
-    oil = {k: final_station_value(r, k) for k in ("pump_oil_volume", "oil_added_volume")}
-    oil_ax = {k: _axle_sum(v) if v is not None else np.full(len(axles), np.nan) for k, v in oil.items()}
+    N1, h1 = ((_axle_mean(after["wheel_load"]), np.asarray(after["axle_height_change"], float)) if after is not None
+              else (np.full(len(axles), np.nan),) * 2)       # a run stopped before its after-drive weighing
+    per_axle, totals = _station_totals(r, len(axles))
     bands = weighing_difference_bands({k: r.equilibrium(k) for k in ("before_band", "after_band")}, len(axles))
     n_done = r.counts()[0]
     dist_km, sim_s = _driven(r, summ, status)
@@ -131,11 +124,12 @@ def report_from(r: ResultsView, name: str) -> dict:
                      "T_surface_end_C": num(T_end["surface"][k]), "T_oil_end_C": num(T_end["oil"][k]),
                      "T_gas_end_C": num(T_end["gas"][k]), "dh_mm": num((h1[k] - h0[k]) * 1e3),
                      "N_before_daN": num(N0[k] / 10.0), "N_after_daN": num(N1[k] / 10.0),
-                     "dN_pct": num(100.0 * (N1[k] - N0[k]) / N0[k]), "energy_dissipated_MJ": num(E_ax[k]),
+                     "dN_pct": num(100.0 * (N1[k] - N0[k]) / N0[k]),
+                     "energy_dissipated_MJ": num(per_axle["energy_dissipated_MJ"][k]),
                      "N_charged_daN": num(Nc[k] / 10.0), "dN_charged_pct": num(100.0 * (N1[k] - Nc[k]) / Nc[k]),
                      "dN_band_pct": bands["dN_band_pct"][k], "dh_band_mm": bands["dh_band_mm"][k],
-                     "pump_oil_volume_m3": num(oil_ax["pump_oil_volume"][k]),
-                     "oil_added_m3": num(oil_ax["oil_added_volume"][k])})
+                     "pump_oil_volume_m3": num(per_axle["pump_oil_volume_m3"][k]),
+                     "oil_added_m3": num(per_axle["oil_added_m3"][k])})
     shift = 100.0 * np.sum(np.abs(N1 - N0)) / np.sum(N0)
     shift_charged = 100.0 * np.sum(np.abs(N1 - Nc)) / np.sum(Nc)
     compensation, ambient_C = _compensation_and_ambient(sc, name)
@@ -147,9 +141,7 @@ def report_from(r: ResultsView, name: str) -> dict:
            "max_abs_dN_pct": num(np.max(np.abs(100.0 * (N1 - N0) / N0))),
            "load_shift_vs_charged_pct": num(shift_charged),
            "mean_temperature_rise_K": num(np.mean(T1 - T0)),
-           "energy_dissipated_MJ": num(np.sum(E) / 1e6) if E is not None else None,
-           "pump_oil_volume_m3": num(np.sum(oil["pump_oil_volume"])) if oil["pump_oil_volume"] is not None else None,
-           "oil_added_m3": num(np.sum(oil["oil_added_volume"])) if oil["oil_added_volume"] is not None else None,
+           **totals,
            "compensation": compensation,
            "ambient_C": ambient_C,
            "hpsim_version": str(sc.get("hpsim_version", ""))}
@@ -157,6 +149,20 @@ def report_from(r: ResultsView, name: str) -> dict:
     out.update(_solver_notes(summ))
     out.update(_checks(r))
     return out
+
+
+def _station_totals(r: ResultsView, n_axles: int) -> tuple[dict, dict]:
+    """What the struts accumulated over the drive, per axle (both struts summed) and for the vehicle: dissipated
+    energy [MJ], oil moved by the levelling pump and oil added [m^3]; NaN per axle and None in total where the file
+    does not hold it."""
+    per_station = {"energy_dissipated_MJ": dissipated_energy_J(r),
+                   "pump_oil_volume_m3": final_station_value(r, "pump_oil_volume"),
+                   "oil_added_m3": final_station_value(r, "oil_added_volume")}
+    scale = {"energy_dissipated_MJ": 1e-6, "pump_oil_volume_m3": 1.0, "oil_added_m3": 1.0}
+    per_axle = {k: _axle_sum(v) * scale[k] if v is not None else np.full(n_axles, np.nan)
+                for k, v in per_station.items()}
+    totals = {k: _finite_or_none(np.sum(v) * scale[k]) if v is not None else None for k, v in per_station.items()}
+    return per_axle, totals
 
 
 def _finite_or_none(v) -> float | None:
