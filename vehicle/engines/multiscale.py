@@ -238,9 +238,13 @@ class MultiscaleDrive:
         return run
 
     def _window_times(self, c0: float, c1: float, t_total: float) -> tuple:
-        """(start, warm-up end, end) [s] of the window from c0 to c1 [m]."""
+        """(start, warm-up end, end) [s] of the window from c0 to c1 [m]. A window integrates whole output samples
+        from its start, which lies off the sample grid: its end is held to the last whole sample before t_total
+        [s], so that no window integrates past the drive's end (the slow model carries the rest)."""
         t0 = self.manifold.time_at(c0)
-        t_end = min(self.manifold.time_at(c1), t_total)
+        sample_dt = self.K * self.settings.dt_s
+        within = max(np.floor((t_total - t0) / sample_dt + 1e-9), 1.0) * sample_dt
+        t_end = min(self.manifold.time_at(c1), t0 + within)
         return t0, min(self.manifold.time_at(min(c0 + self.ms.warm_up_m, c1)), t_end), t_end
 
     def _window_arrays(self, t0, t_warm, t_end, run) -> dict:

@@ -91,3 +91,13 @@ def test_the_end_is_the_step_nearest_the_distance_map_time():
     assert (end.whole_samples, end.tail_steps) == (327, 1)
     assert end.steps_left(300.0) == (27, 1)
     assert end.steps_left(end.time_s) == (0, 0)
+
+
+def test_no_multiscale_window_runs_past_the_drives_end():
+    """A window integrates whole output samples from its start; the last one, starting off the sample grid
+    (1530 m at 20 km/h: 275.4 s; systematic placement keeps it there), must stop at or before the drive's end (360 s) and leave the rest to the
+    slow model, not integrate up to one output interval beyond it (the slow states then too warm)."""
+    sink = run_in_memory(_source("20 km/h", {"mode": "multiscale", "window": "470 m", "spacing": "510 m",
+                                             "warm_up": "30 m", "placement": "systematic"}))
+    assert sink.rows[-1]["distance_end_m"] <= DISTANCE_M + 0.5 * DT_S * V_MAX_M_PER_S
+    assert abs(sink.checkpoints[-1]["s_m"] - DISTANCE_M) <= 0.5 * DT_S * V_MAX_M_PER_S
