@@ -43,6 +43,7 @@ neglects the redistribution of dF through the statically indeterminate hull.
 from __future__ import annotations
 
 import copy
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -275,6 +276,7 @@ class WeighingSolver:
                                             b["gas_pressures"], b["deflections"],
                                             [s.p.geometry.stroke for s in model.struts])
         self.remembered: OrderedDict = OrderedDict()
+        self.remembered_lock = threading.Lock()
 
     def bands(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, temperatures_at_stop_K=None) -> dict:
         """`weighing_bands` of this model; a weighing with the same inputs as a recent one returns a copy of its
@@ -284,12 +286,17 @@ class WeighingSolver:
         T_stop = None if temperatures_at_stop_K is None else \
             np.broadcast_to(np.asarray(temperatures_at_stop_K, float), (n,)).copy()
         key = (T.tobytes(), m.tobytes(), dV.tobytes(), None if T_stop is None else T_stop.tobytes())
-        if key not in self.remembered:
-            self.remembered[key] = self._bands(T, m, dV, T_stop)
-            while len(self.remembered) > REMEMBERED_WEIGHINGS:
-                self.remembered.popitem(last=False)
-        self.remembered.move_to_end(key)
-        return copy.deepcopy(self.remembered[key])
+        with self.remembered_lock:
+            found = self.remembered.get(key)
+            if found is not None:
+                self.remembered.move_to_end(key)
+        if found is None:
+            found = self._bands(T, m, dV, T_stop)
+            with self.remembered_lock:          # a shared model may weigh on several threads of a worker
+                self.remembered[key] = found
+                while len(self.remembered) > REMEMBERED_WEIGHINGS:
+                    self.remembered.popitem(last=False)
+        return copy.deepcopy(found)
 
     def _bands(self, T, m, dV, temperatures_at_stop_K) -> dict:
         model = self.model
