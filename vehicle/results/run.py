@@ -308,7 +308,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     parent died); Ctrl-C requests it too. Raises UserInputError (bad scenario, file exists, damaged, locked, cannot
     resume), SimulationError (solver failure after writing status 'failed'; no room on the disk) or RunInterrupted
     (a stop requested, status 'interrupted'). make_solver(dt): the solver of a full drive (an ensemble lane's,
-    `vehicle.engines.build.build_engine`); None: the compiled ROS2. shared: the parts shared with a study's other
+    `vehicle.engines.build.build_engine`); None: the compiled ROS2. `shared`: the parts shared with a study's other
     drives in this process (`vehicle.engines.shared_builds.SharedBuilds`); None: all built for this drive.
     """
     log = log or (lambda msg: None)
