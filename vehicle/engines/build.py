@@ -14,6 +14,7 @@ from vehicle.engines.choice import engine_for
 from vehicle.engines.contract import Engine
 from vehicle.engines.full import Drive
 from vehicle.engines.multiscale import MultiscaleDrive
+from vehicle.engines.shared_builds import OwnBuilds, SharedBuilds
 from vehicle.engines.time_parallel import MIN_SEGMENT_S, TimeParallelDrive
 
 
@@ -51,16 +52,19 @@ def engine_name(prepared) -> str:
     return engine_for(prepared.scenario.solver.mode, _segments(prepared))
 
 
-def build_engine(prepared, make_solver: Callable[[float], object] | None = None) -> tuple[object, Engine]:
+def build_engine(prepared, make_solver: Callable[[float], object] | None = None,
+                 shared: SharedBuilds | None = None) -> tuple[object, Engine]:
     """(model, engine) of a prepared scenario (vehicle.scenario.schema.Prepared), ready to run: its work size checked
     first (refused beyond the limits, before anything is compiled).
 
     make_solver(dt): the solver a full drive steps with (a solver of vehicle.numerics.contract, e.g. an ensemble
-    lane's); None: the compiled ROS2."""
+    lane's); None: the compiled ROS2. shared: the model, vehicle check and road shared with the other drives of a
+    study's worker process (`vehicle.engines.shared_builds`); None: all built for this drive."""
     prepared.check_work()
-    model = timed("build: model", prepared.model)
-    prepared.check_vehicle(model)          # the quiet `hpsim vehicle check`: warnings logged, errors refuse the drive
-    road = timed("road", prepared.road)
+    builds = shared if shared is not None else OwnBuilds()
+    model = timed("build: model", builds.model, prepared)
+    builds.check_vehicle(prepared, model)  # the quiet `hpsim vehicle check`: warnings logged, errors refuse the drive
+    road = timed("road", builds.road, prepared)
     try:
         builder = ENGINES[engine_name(prepared)]
         return model, timed("build: drive (the compile included)", builder, model, road, prepared, make_solver)

@@ -42,6 +42,9 @@ neglects the redistribution of dF through the statically indeterminate hull.
 """
 from __future__ import annotations
 
+import copy
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -58,6 +61,9 @@ from vehicle.physics.tyre import tyre_force
 
 RESIDUAL_TOL = 1e-10        # scaled residual (1e-4 N units) of the Newton solves: ~1e-6 N
 MAX_NEWTON = 100
+# weighings a WeighingSolver remembers: drives of one vehicle from one standing state (a study's cases that share
+# its model, vehicle.engines.shared_builds) weigh the same vehicle before they start
+REMEMBERED_WEIGHINGS = 4
 MAX_VERTEX_CORRECTIONS = 8
 # an output that moves less than this per unit utilisation does not depend on that strut (N, m)
 RESOLUTION = {"N": 1e-6, "m": 1e-11}
@@ -281,11 +287,32 @@ class WeighingSolver:
         self.problem = StaticsProblem.build(q, u, c, b["residual"], groups, units, F_reb, F_comp,
                                             b["gas_pressures"], b["deflections"],
                                             [s.p.geometry.stroke for s in model.struts])
+        self.remembered: OrderedDict = OrderedDict()
+        self.remembered_lock = threading.Lock()
 
     def bands(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, temperatures_at_stop_K=None) -> dict:
+        """`weighing_bands` of this model; a weighing with the same inputs as a recent one returns a copy of its
+        result (the computation is deterministic: the same numbers bit for bit)."""
+        n = self.model.n
+        T, m, dV = statics_inputs(n, temperatures_K, gas_masses_kg, oil_volumes_m3)
+        T_stop = None if temperatures_at_stop_K is None else \
+            np.broadcast_to(np.asarray(temperatures_at_stop_K, float), (n,)).copy()
+        key = (T.tobytes(), m.tobytes(), dV.tobytes(), None if T_stop is None else T_stop.tobytes())
+        with self.remembered_lock:
+            found = self.remembered.get(key)
+            if found is not None:
+                self.remembered.move_to_end(key)
+        if found is None:
+            found = self._bands(T, m, dV, T_stop)
+            with self.remembered_lock:          # a shared model may weigh on several threads of a worker
+                self.remembered[key] = found
+                while len(self.remembered) > REMEMBERED_WEIGHINGS:
+                    self.remembered.popitem(last=False)
+        return copy.deepcopy(found)
+
+    def _bands(self, T, m, dV, temperatures_at_stop_K) -> dict:
         model = self.model
         n = model.n
-        T, m, dV = statics_inputs(n, temperatures_K, gas_masses_kg, oil_volumes_m3)
         eq = self.frictionless.solve(T, m, dV)
         q0 = np.concatenate([[eq.heave_m, eq.pitch_rad, eq.roll_rad], eq.wheel_displacement_m])
         c = np.concatenate([T, m, dV])

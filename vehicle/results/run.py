@@ -302,14 +302,15 @@ def results_status(path: str | Path) -> str | None:
 def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, *, resume: bool = False,
                  overwrite: bool = False, progress: bool = True, log: Callable[[str], None] | None = None,
                  checkpoint_every_blocks: int = 1, cancel: CancelToken | None = None,
-                 make_solver: Callable[[float], object] | None = None) -> dict:
+                 make_solver: Callable[[float], object] | None = None, shared=None) -> dict:
     """Run a scenario into an HDF5 file; returns the summary attributes.
 
     cancel: a token whose request stops the drive at its next checkpoint (a study's scheduler, a worker whose
     parent died); Ctrl-C requests it too. Raises UserInputError (bad scenario, file exists, damaged, locked, cannot
     resume), SimulationError (solver failure after writing status 'failed'; no room on the disk) or RunInterrupted
     (a stop requested, status 'interrupted'). make_solver(dt): the solver of a full drive (an ensemble lane's,
-    `vehicle.engines.build.build_engine`); None: the compiled ROS2.
+    `vehicle.engines.build.build_engine`); None: the compiled ROS2. `shared`: the parts shared with a study's other
+    drives in this process (`vehicle.engines.shared_builds.SharedBuilds`); None: all built for this drive.
     """
     log = log or (lambda msg: None)
     cancel = cancel if cancel is not None else CancelToken()
@@ -334,7 +335,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                 if status != "complete" and version < FORMAT_VERSION:
                     raise UserInputError(f"{out}: written by an older hpsim (results format {version}); it can be "
                                          "read (report, plot, compare) but not resumed: run it again with --overwrite")
-                return _resume(results, src, progress, log, checkpoint_every_blocks, cancel, make_solver)
+                return _resume(results, src, progress, log, checkpoint_every_blocks, cancel, make_solver, shared)
             hint = "--resume to continue it or " if status != "complete" else ""
             raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o "
                                  "another file")
@@ -343,7 +344,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         if resume:
             log(f"{out}: nothing to resume, starting")
         prep = timed("scenario checks", prepare, src)  # every check before any work
-        model, drive = build_engine(prep, make_solver)
+        model, drive = build_engine(prep, make_solver, shared)
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
         if prep.work.get("announce"):
@@ -372,7 +373,7 @@ def _check_output(out: Path, src: ScenarioSource | None) -> None:
 
 
 def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, checkpoint_every_blocks,
-            cancel: CancelToken, make_solver: Callable[[float], object] | None) -> dict:
+            cancel: CancelToken, make_solver: Callable[[float], object] | None, shared=None) -> dict:
     out = results.path
     stored_run = results.stored_run()
     sc = stored_run.scenario_attrs
@@ -396,7 +397,7 @@ def _resume(results: DriveFile, src: ScenarioSource | None, progress, log, check
     point = stored_run.resume_point
     with _room_for(out, "while preparing the resume (the file was not changed)", "resume again"):
         results.truncate_for_resume(point)      # first: a full disk is found before the model is built
-    model, drive = build_engine(prep, make_solver)
+    model, drive = build_engine(prep, make_solver, shared)
     state = None if point.state is None else DriveState.from_dict(point.state)
     if state is not None and state.x.size != model.nx:
         raise UserInputError(f"{out}: its checkpoint holds {state.x.size} states, this hpsim's model has {model.nx} "

@@ -25,6 +25,7 @@ from hpsim.errors import SimulationError, UserInputError
 from hpsim.extras import install_hint
 
 from vehicle.analysis.summary import report
+from vehicle.engines.shared_builds import process_builds
 from vehicle.results.run import RunInterrupted, run_scenario
 from vehicle.scenario.schema import prepare
 from vehicle.studies.cost import format_duration
@@ -57,6 +58,8 @@ class DriveEvaluator:
 
     Each case's scenario is prepared and its vehicle checked (`hpsim vehicle check`'s statics) before it drives;
     a refused or failed drive fails the trial with its reason. A drive left incomplete by a stopped study resumes.
+    The cases of one design drive one vehicle: its model, check and roads are shared in the worker process
+    (`vehicle.engines.shared_builds`).
     """
 
     study: Study
@@ -68,15 +71,18 @@ class DriveEvaluator:
         try:
             folder = Path(self.out_dir) / TRIALS_DIR / f"{number:05d}"
             folder.mkdir(parents=True, exist_ok=True)
+            shared = process_builds()
             for case in self.study.cases:
                 src = self.study.trial_source(case, design, number)
-                prepare(src).check_vehicle()
+                prepared = prepare(src)
+                shared.check_vehicle(prepared, shared.model(prepared))
                 out = folder / f"{case.name}.h5"
                 state = case_state(out, src)
                 if state != "complete":
                     run_scenario(src, out, resume=state == "resume", overwrite=state.startswith("changed"),
-                                 progress=False)
-                reports[case.name] = report(out)
+                                 progress=False, shared=shared)
+                # a drive finished here was written whole by this process: the child-process read check is for others
+                reports[case.name] = report(out, check=state == "complete")
             return {"status": "done", "error": "", "reports": reports, "seconds": time.perf_counter() - t0}
         except (UserInputError, SimulationError) as exc:
             return {"status": "failed", "error": str(exc), "reports": {}, "seconds": time.perf_counter() - t0}

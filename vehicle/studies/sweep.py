@@ -43,6 +43,7 @@ from vehicle.results.validity import summary_cell
 from vehicle.analysis.ride_metrics import axle_rows
 from vehicle.analysis.summary import report
 from vehicle.engines.ensemble import eligible, grouped_jobs
+from vehicle.engines.shared_builds import process_builds
 from vehicle.studies.study_folder import (StudyLock, case_state, check_case_count, check_study_kind, refuse_changed,
                                           safe_names)
 
@@ -150,13 +151,14 @@ def stop_when_orphaned(cancel: CancelToken):
 def run_case(text: str, name: str, base_dir: str, out: str, overwrite: bool = False,
              make_solver: Callable[[float], object] | None = None) -> dict:
     """One case in a worker process: never raises, returns status and message (overwrite: start it again;
-    make_solver: the solver factory of an ensemble lane, `vehicle.engines.ensemble.run_lockstep`)."""
+    make_solver: the solver factory of an ensemble lane, `vehicle.engines.ensemble.run_lockstep`). The model, its
+    vehicle check and the road are shared with the process's other cases (`vehicle.engines.shared_builds`)."""
     t0 = time.perf_counter()
     try:
         src = ScenarioSource(text=text, name=name, base_dir=Path(base_dir), data=parse_yaml(text, name))
         with stop_when_orphaned(CancelToken()) as cancel:
             summary = run_scenario(src, out, resume=not overwrite, overwrite=overwrite, progress=False, cancel=cancel,
-                                   make_solver=make_solver)
+                                   make_solver=make_solver, shared=process_builds())
         return {**summary, "status": "done", "error": "", "seconds": time.perf_counter() - t0}
     except (UserInputError, SimulationError) as exc:
         return {"status": "failed", "error": str(exc), "seconds": time.perf_counter() - t0}
@@ -354,7 +356,8 @@ def summarise(path: Path, out_dir: Path, cases: list[dict], rows: dict) -> dict:
             row[k] = v if isinstance(v, (str, int, float, bool)) else yaml.safe_dump(v, default_flow_style=True).strip()
         if r["status"] in ("done", "skipped"):
             try:
-                rep = report(c["file"])
+                # a case done now was written whole by its worker: the child-process read check is for other files
+                rep = report(c["file"], check=r["status"] != "done")
             except UserInputError as exc:
                 row["status"], row["error"] = "failed", str(exc)
             else:
