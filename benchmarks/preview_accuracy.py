@@ -107,8 +107,9 @@ def run_case(name: str, cache_state: str, work: Path, env: dict) -> Row:
         print(f"{name} ({cache_state}): exit {p.returncode}\n{p.stderr[-3000:]}", file=sys.stderr, flush=True)
         return Row(label, cache_state, float("nan"), wall, load_before, os.getloadavg()[0], f"FAILED (exit {p.returncode})")
     est = ESTIMATE.search(p.stderr)
-    compiled = re.search(r"(\d+) librar(?:y|ies) of (\d+) models? compiled now in ([0-9.]+ (?:s|min))", p.stderr)
-    compiles = (f"{compiled[1]} libraries of {compiled[2]} models, {compiled[3]}" if compiled
+    compiled = re.search(r"(\d+ librar(?:y|ies) of \d+ models?) compiled before the drives in ([0-9.]+ (?:s|min))",
+                         p.stderr)
+    compiles = (f"{compiled[1]}, {compiled[2]}" if compiled
                 else "none" if "nothing compiled" in p.stderr else "not said")
     return Row(label, cache_state, _seconds(est["value"], est["unit"]) if est else float("nan"), wall, load_before,
                os.getloadavg()[0], compiles)

@@ -39,13 +39,14 @@ def read(mode: str) -> dict | None:
 
 
 def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float,
-           compiled_s: float | None = None) -> None:
+           compiled_s: float | None = None, fresh: bool = False) -> None:
     """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written).
-    compiled_s: the compiler's seconds inside build_s (None: all this process compiled so far)."""
+    compiled_s: the compiler's seconds inside build_s (None: all this process compiled so far); fresh: build_s is a
+    whole set-up even if this process drove before (a study's probe drive)."""
     global _setup_recorded
     if not (dt_s > 0 and simulated_s > 0 and wall_s > 0 and build_s >= 0):
         return
-    first, _setup_recorded = _setup_recorded != os.getpid(), os.getpid()
+    first, _setup_recorded = fresh or _setup_recorded != os.getpid(), os.getpid()
     compiled_s = compile_time.compiled_s if compiled_s is None else compiled_s
     build_s = max(build_s - compiled_s, 0.0) if first else 0.0
     old = _entries().get(mode)

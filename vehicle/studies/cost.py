@@ -73,18 +73,23 @@ class DriveCost:
 
 @dataclass(frozen=True)
 class Compiles:
-    """What the preview compiled: libraries, the distinct models they belong to, their wall time [s] (C generated,
-    compiled, loaded)."""
+    """What the command compiled before its drives (the preview's compiles and any before it, e.g. a check's short
+    drive): libraries, the distinct models they belong to, their time [s] (the preview's: C generated, compiled,
+    loaded; before it: the compiler's)."""
 
     libraries: int = 0
     models: int = 0
     seconds: float = 0.0
+    looked: bool = True          # False: a listing, which compiles nothing and does not look
 
     def describe(self) -> str:
+        if not self.looked:
+            return "any compile the cache lacks not included"
         if self.libraries == 0:
             return "nothing compiled (the cache holds every model)"
         return (f"{self.libraries} librar{'ies' if self.libraries > 1 else 'y'} of {self.models} "
-                f"model{'s' if self.models != 1 else ''} compiled now in {format_duration(self.seconds)} (first run only)")
+                f"model{'s' if self.models != 1 else ''} compiled before the drives in {format_duration(self.seconds)} "
+                "(first run only)")
 
 
 @dataclass
@@ -174,7 +179,7 @@ def _probe(prepared) -> dict:
     setup_s = time.perf_counter() - t0 - S["wall_s"]
     scale = windowed_fraction(short_prepared.scenario) / windowed_fraction(prepared.scenario)
     mode, dt = drive_rate.mode_of(prepared.scenario), prepared.scenario.solver.dt
-    drive_rate.record(mode, dt, S["simulated_s"] * scale, S["wall_s"], setup_s, compiled_s=compile_s)
+    drive_rate.record(mode, dt, S["simulated_s"] * scale, S["wall_s"], setup_s, compiled_s=compile_s, fresh=True)
     rate = drive_rate.read(mode)
     if rate is None:              # a cache that cannot be written: the probe's own numbers
         rate = {"steps_per_s": S["simulated_s"] * scale / dt / S["wall_s"], "build_s": max(setup_s - compile_s, 0.0)}
@@ -287,7 +292,9 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     lanes, group = group_size(ensemble, sum(joins), 1 if cluster else workers)
     lanes = lane_count(lanes) if not cluster else 1
     known: dict[int, tuple[DriveCost, str]] = {}        # cases that share a scenario object are estimated once
-    libraries, models, compile_wall, basis = 0, 0, 0.0, ""
+    # what the command compiled before this call (e.g. a check's short drive), then what the preview compiles
+    libraries, compile_wall, basis = compile_time.compiled_libraries, compile_time.compiled_s, ""
+    models = int(libraries > 0)
     for p, joined in zip(prepared, joins):
         if id(p) in known:
             continue
@@ -312,7 +319,8 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     basis += "" if recorded else ", the tables' and figures' time assumed (none recorded yet)"
     before = elapsed_s + time.perf_counter() - t0
     return Estimate(n, w, sum(c.alone_s for c in costs) / n, before + drives + finish, basis, before_s=before,
-                    drives_s=drives, finish_s=finish, compiles=Compiles(libraries, models, compile_wall), lanes=lanes)
+                    drives_s=drives, finish_s=finish, lanes=lanes,
+                    compiles=Compiles(libraries, models, compile_wall, looked=probe))
 
 
 def confirm(est: Estimate | None, what: str, yes: bool, *, stdin=None, stderr=None) -> None:
