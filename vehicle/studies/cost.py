@@ -33,7 +33,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from hpsim.errors import UserInputError
+from hpsim.errors import SimulationError, UserInputError
 
 from vehicle.engines.ensemble import eligible, group_size
 from vehicle.engines.time_parallel import MIN_SEGMENT_S
@@ -298,17 +298,24 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     for p, joined in zip(prepared, joins):
         if id(p) in known:
             continue
-        if probe:                                        # its model (and lane library), if the cache lacks it
-            c0 = time.perf_counter()
-            built = compile_ahead(p, lanes if joined else 1)
-            libraries, models = libraries + built, models + (built > 0)
-            compile_wall += time.perf_counter() - c0 if built else 0.0
-        one = per_drive(p, probe=probe)
+        try:
+            if probe:                                    # its model (and lane library), if the cache lacks it
+                c0 = time.perf_counter()
+                built = compile_ahead(p, lanes if joined else 1)
+                libraries, models = libraries + built, models + (built > 0)
+                compile_wall += time.perf_counter() - c0 if built else 0.0
+            one = per_drive(p, probe=probe)
+        except (UserInputError, SimulationError) as exc:   # the case fails when it runs, the others still run
+            LOG.info(f"{what}: {p.source.name}: not in the estimate ({exc})")
+            continue
         if one is None:
             return None
         known[id(p)] = one
         basis = basis or one[1]
-    costs = [known[id(p)][0] for p in prepared]
+    if not known:
+        return None
+    typical = next(iter(known.values()))[0]              # a case that cannot be built: costed as the first that can
+    costs = [known[id(p)][0] if id(p) in known else typical for p in prepared]
     if cluster:
         basis += "; serial time on this machine: the cluster divides it by its workers"
     w = 1 if cluster else max(1, min(workers or os.cpu_count() or 1, n))
