@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import sys
+import time
 from pathlib import Path
 
 from hpsim.errors import UserInputError
@@ -284,10 +285,11 @@ def cmd_plot(args):
 
 def _sweep_preview(args, prepared) -> None:
     """The number of drives and the estimated wall time of a sweep (vehicle.studies.cost), before it starts."""
+    from vehicle.cli.stages import command_wall_s
     from vehicle.studies import cost
 
-    cost.confirm(cost.estimate(prepared, args.workers,
-                               cluster=bool(args.scheduler)),
+    cost.confirm(cost.estimate(prepared, args.workers, cluster=bool(args.scheduler), ensemble=args.ensemble,
+                               elapsed_s=command_wall_s(), what="hpsim sweep"),
                  "hpsim sweep", args.yes)
 
 
@@ -326,6 +328,7 @@ def cmd_sweep(args):
     result = run_sweep(args.sweep, output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                        ensemble=args.ensemble, log=(lambda m: None) if args.json else logging.getLogger("hpsim").info,
                        before_start=lambda prepared: _sweep_preview(args, prepared), overwrite=args.overwrite)
+    drives_done = time.perf_counter()
     if result["finished_files"]:
         result["plots"].append(str(compare_plot(result["finished_files"], Path(result["output_dir"]) / "compare.png",
                                                 labels=result["finished_labels"])))
@@ -335,4 +338,8 @@ def cmd_sweep(args):
         print(result["summary_csv"])
     else:
         print(format_summary(result))
+    if result["finished_files"]:
+        from vehicle.studies import cost
+
+        cost.record_finish("hpsim sweep", time.perf_counter() - drives_done)
     return 3 if result["failed"] else 0

@@ -8,6 +8,7 @@ command again: the study resumes from DIR/study.db, no finished trial runs again
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 
 from hpsim.errors import UserInputError
@@ -50,12 +51,17 @@ def cmd_optimize(args):
     log = (lambda m: None) if args.json else logging.getLogger("hpsim").info
     summary = optimize(args.study, out, trials=args.trials, workers=args.workers, scheduler=args.scheduler,
                        storage=args.storage, log=log, before_start=lambda n: _preview(args, n))
+    drives_done = time.perf_counter()
     public = {"trials": summary["trials"], "pareto": summary["pareto"], "failed": summary["failed"],
               "violated": summary["violated"], "units": summary["units"], "files": summary["files"]}
     if args.json:
         print_json(public)
     else:
         print(format_front(summary))
+    if summary["trials"]:
+        from vehicle.studies import cost
+
+        cost.record_finish("hpsim optimize", time.perf_counter() - drives_done)
     return 3 if summary["trials"] and len(summary["failed"]) == summary["trials"] else 0
 
 
@@ -67,7 +73,10 @@ def _preview(args, n_trials: int) -> None:
 
     prepared = [prepare(c.source) for c in load_study(args.study, check=False).cases]
     try:
-        est = cost.estimate(prepared * n_trials, args.workers, cluster=bool(args.scheduler))
+        from vehicle.cli.stages import command_wall_s
+
+        est = cost.estimate(prepared * n_trials, args.workers, cluster=bool(args.scheduler),
+                            elapsed_s=command_wall_s(), what="hpsim optimize")
     except UserInputError as exc:       # the rate probe cannot drive this case's mode on its short stretch
         logging.getLogger("hpsim").info(f"hpsim optimize: no cost estimate ({exc})")
         est = None

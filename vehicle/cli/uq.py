@@ -10,6 +10,7 @@ need every case), 130 interrupted (re-run the same command to resume).
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 from hpsim.errors import UserInputError
@@ -80,11 +81,14 @@ def cmd_uq(args):
     if args.samples is None:
         raise UserInputError("--samples: give the sample size (e.g. --samples 16 for sobol), or --list to see the priors")
     log = (lambda m: None) if args.json else (lambda m: print(m, file=sys.stderr, flush=True))
+    from vehicle.studies import cost
+
     summary = run_scenario_study(args.scenario, samples=args.samples, method=args.method, seed=args.seed,
                                  output_dir=args.output_dir, workers=args.workers, scheduler=args.scheduler,
                                  parameters=patterns, distance=args.distance, groups=args.groups,
                                  per_axle_struts=args.per_axle_struts, log=log, ensemble=args.ensemble,
                                  before_start=lambda cases: _preview(args, cases))
+    drives_done = time.perf_counter()
     from vehicle.presentation.uq_plots import study_plots
 
     summary["files"].update(study_plots(summary, Path(summary["study"])))
@@ -96,15 +100,19 @@ def cmd_uq(args):
         print_json(summary)
     else:
         print(format_study(summary))
+    if summary["ran_now"]:
+        cost.record_finish("hpsim uq", time.perf_counter() - drives_done)
     return 3 if summary["failed"] or not summary["nominal_done"] else 0
 
 
 def _preview(args, cases: list, probe: bool = True):
     """The number of drives and the estimated wall time of the prepared cases (vehicle.studies.cost); asks at a
     terminal when long."""
+    from vehicle.cli.stages import command_wall_s
     from vehicle.studies import cost
 
-    est = cost.estimate(cases, args.workers, cluster=bool(args.scheduler), probe=probe)
+    est = cost.estimate(cases, args.workers, cluster=bool(args.scheduler), probe=probe, ensemble=args.ensemble,
+                        elapsed_s=command_wall_s(), what="hpsim uq")
     cost.confirm(est, "hpsim uq", args.yes)
     return est
 
@@ -125,13 +133,16 @@ def _list(args, patterns) -> int:
     if args.samples is not None:
         check_settings(args.method, args.samples, args.groups, len(params))
         runs = n_cases(args.method, args.samples, draws) + 1
+        from vehicle.cli.stages import command_wall_s
         from vehicle.scenario.schema import prepare
         from vehicle.studies import cost
 
-        est = cost.estimate([prepare(src)] * runs, args.workers, cluster=bool(args.scheduler), probe=False)
+        est = cost.estimate([prepare(src)] * runs, args.workers, cluster=bool(args.scheduler), probe=False,
+                            ensemble=args.ensemble, elapsed_s=command_wall_s(), what="hpsim uq")
     if args.json:
         print_json({"parameters": [p.describe() for p in params], "notes": notes, "drives": runs,
-                    "estimated_wall_s": None if est is None else est.wall_s})
+                    "estimated_wall_s": None if est is None else est.wall_s,
+                    "estimated_drives_s": None if est is None else est.drives_s})
         return 0
     grouped = args.groups == "section"
     rows = [[p.name, f"{p.prior.to_unit(p.prior.value):.4g} {p.prior.unit}".strip(), p.prior.describe()]

@@ -18,6 +18,7 @@ LOG = logging.getLogger("hpsim")
 RECORD = "compile_rate.json"
 DEFAULT_BYTES_PER_S = 7.0e4
 compiled_s = 0.0            # compiler wall time spent in this process (a drive's set-up without it: drive_rate)
+compiled_libraries = 0      # libraries this process started to compile (a study's preview counts its own)
 
 
 def _rate(cache: Path) -> float:
@@ -37,7 +38,9 @@ def estimate_s(sizes: list[int], width: int, cache: Path) -> float:
 
 
 def announce(sizes: list[int], width: int, cache: Path) -> None:
-    """The one line before a compile (INFO: shown unless -q)."""
+    """The one line before a compile (INFO: shown unless -q); counts the libraries in `compiled_libraries`."""
+    global compiled_libraries
+    compiled_libraries += len(sizes)
     LOG.info(f"compiling the vehicle model (first run only, ~{max(1, round(estimate_s(sizes, width, cache)))} s)")
 
 

@@ -20,7 +20,7 @@ from vehicle.numerics import compile_time
 from vehicle.numerics.codegen import cache_dir
 
 RECORD = "drive_rate.json"
-_setup_recorded = False        # this process recorded its first drive's set-up
+_setup_recorded = None         # the process (id) that recorded its first drive's set-up: a forked worker has not
 
 
 def _path() -> Path:
@@ -38,27 +38,45 @@ def read(mode: str) -> dict | None:
         return None
 
 
-def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float) -> None:
-    """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written)."""
+def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float,
+           compiled_s: float | None = None, fresh: bool = False) -> None:
+    """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written).
+    compiled_s: the compiler's seconds inside build_s (None: all this process compiled so far); fresh: build_s is a
+    whole set-up even if this process drove before (a study's probe drive)."""
     global _setup_recorded
     if not (dt_s > 0 and simulated_s > 0 and wall_s > 0 and build_s >= 0):
         return
-    first, _setup_recorded = not _setup_recorded, True
-    build_s = max(build_s - compile_time.compiled_s, 0.0) if first else 0.0
-    path = _path()
+    first, _setup_recorded = fresh or _setup_recorded != os.getpid(), os.getpid()
+    compiled_s = compile_time.compiled_s if compiled_s is None else compiled_s
+    build_s = max(build_s - compiled_s, 0.0) if first else 0.0
+    old = _entries().get(mode)
+    build = build_s if first else float(old.get("build_s", 0.0) if isinstance(old, dict) else 0.0)
+    record_entry(mode, {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
+                        "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"), "load": load_average()})
+
+
+def _entries() -> dict:
     try:
-        data = json.loads(path.read_text())
-        data = data if isinstance(data, dict) else {}
+        data = json.loads(_path().read_text())
+        return data if isinstance(data, dict) else {}
     except (OSError, ValueError):
-        data = {}
-    old = data.get(mode) if isinstance(data.get(mode), dict) else {}
-    build = build_s if first else float(old.get("build_s", 0.0))
-    data[mode] = {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
-                  "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"), "load": load_average()}
+        return {}
+
+
+def read_entry(key: str):
+    """Another measurement kept beside the rates (e.g. a study's time after its drives, vehicle.studies.cost)."""
+    return _entries().get(key)
+
+
+def record_entry(key: str, value) -> None:
+    """Keep one entry of the record, the others as they are (best effort: nothing is kept where the cache cannot
+    be written)."""
+    data = _entries()
+    data[key] = value
     try:
-        tmp = path.with_name(f".{RECORD}.{os.getpid()}.tmp")
+        tmp = _path().with_name(f".{RECORD}.{os.getpid()}.tmp")
         tmp.write_text(json.dumps(data))
-        tmp.replace(path)
+        tmp.replace(_path())
     except OSError:
         pass
 

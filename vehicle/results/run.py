@@ -54,7 +54,7 @@ from hpsim.outputs import check_not_input
 from hpsim.stages import timed
 from hpsim.threads import beside
 
-from vehicle.numerics import drive_rate
+from vehicle.numerics import compile_time, drive_rate
 from vehicle.physics.weighing import band_datasets, weighing_bands
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
 from vehicle.engines.build import build_engine
@@ -314,7 +314,7 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     """
     log = log or (lambda msg: None)
     cancel = cancel if cancel is not None else CancelToken()
-    t_start = time.perf_counter()
+    t_start, compiled_before = time.perf_counter(), compile_time.compiled_s
     beside(code_version)             # `git describe` (a child process) looked up while the scenario is prepared
     out = Path(out)
     if resume and overwrite:
@@ -353,9 +353,12 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
             results.create(info, block, row, state, prep.scenario.output.stored(), prep.scenario.output.compression,
                            chunk_rows(prep.scenario))
         summary = _drive(drive, results, ResumePoint.start(), prep, progress, log, checkpoint_every_blocks, cancel)
-        # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies
-        drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
-                          summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"])
+        # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies; not
+        # from an ensemble lane, whose wall is its whole group's
+        if make_solver is None:
+            drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
+                              summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"],
+                              compiled_s=compile_time.compiled_s - compiled_before)
         return summary
 
 
