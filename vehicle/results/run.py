@@ -326,19 +326,8 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
     results = DriveFile(out)
     with OutputLock(out):
         if out.exists() and not overwrite:
-            try:
-                status, version = results.status_to_resume() if resume else results.status()
-            except UserInputError as exc:
-                raise type(exc)(f"{exc}; the file was not touched: start again with --overwrite or -o another "
-                                "file") from None
-            if resume:
-                if status != "complete" and version < FORMAT_VERSION:
-                    raise UserInputError(f"{out}: written by an older hpsim (results format {version}); it can be "
-                                         "read (report, plot, compare) but not resumed: run it again with --overwrite")
-                return _resume(results, src, progress, log, checkpoint_every_blocks, cancel, make_solver, shared)
-            hint = "--resume to continue it or " if status != "complete" else ""
-            raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o "
-                                 "another file")
+            _resumable(results, out, resume)
+            return _resume(results, src, progress, log, checkpoint_every_blocks, cancel, make_solver, shared)
         if src is None:
             raise UserInputError(f"{out}: not found and no scenario given")
         if resume:
@@ -360,6 +349,24 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                               summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"],
                               compiled_s=compile_time.compiled_s - compiled_before)
         return summary
+
+
+def _resumable(results: DriveFile, out: Path, resume: bool) -> None:
+    """Whether the existing file `out` may be continued: returns when --resume was given and the file can be
+    resumed (or is complete); otherwise raises UserInputError saying what to do."""
+    try:
+        status, version = results.status_to_resume() if resume else results.status()
+    except UserInputError as exc:
+        raise type(exc)(f"{exc}; the file was not touched: start again with --overwrite or -o another "
+                        "file") from None
+    if resume:
+        if status != "complete" and version < FORMAT_VERSION:
+            raise UserInputError(f"{out}: written by an older hpsim (results format {version}); it can be "
+                                 "read (report, plot, compare) but not resumed: run it again with --overwrite")
+        return
+    hint = "--resume to continue it or " if status != "complete" else ""
+    raise UserInputError(f"{out}: exists (status {status}); use {hint}--overwrite to start again, or -o "
+                         "another file")
 
 
 def _check_output(out: Path, src: ScenarioSource | None) -> None:
