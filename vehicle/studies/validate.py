@@ -32,6 +32,7 @@ from vehicle.analysis import instruments as inst
 from vehicle.analysis.measurements import (QUANTITIES, Instrument, MeasurementFile, Point, Series, read_measurements,
                                            uncertainty_value)
 from vehicle.analysis.summary import report_from
+from vehicle.studies.uq_files import read_records
 
 BAND = (5.0, 95.0)
 MIN_DRAWS_PER_CASE = 64          # measurement-model draws per drive (a study: at least this many per case)
@@ -238,15 +239,7 @@ def failed_cases(path: str | Path) -> list[str]:
     records = Path(path) / "cases.jsonl"
     if not records.is_file():
         return []
-    last: dict[str, str] = {}
-    for line in records.read_text().splitlines():
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        if isinstance(rec, dict) and "case" in rec:
-            last[str(rec["case"])] = str(rec.get("status"))
-    return [case for case, status in last.items() if status != "done"]
+    return [str(case) for case, rec in read_records(records).items() if rec.get("status") != "done"]
 
 
 def _excluded_note(v: dict) -> list[str]:
