@@ -244,6 +244,6 @@ def test_the_work_per_compiled_call_does_not_grow_with_the_interval():
     from vehicle.numerics.solvers import _pieces
     from vehicle.scenario.work_limits import samples_per_call
 
-    assert _pieces(10_000, 1) == [250] * 40 and samples_per_call(10_000, 10) == 1
-    assert _pieces(250, 1) == [250] and samples_per_call(250, 10) == 10
+    assert _pieces(10_000) == [250] * 40 and samples_per_call(10_000, 10) == 1
+    assert _pieces(250) == [250] and samples_per_call(250, 10) == 10
     assert samples_per_call(1, 10) == 10 and samples_per_call(900_000, 10) == 1
