@@ -46,6 +46,13 @@ def check_range(key: str, value: float, lo: float, hi: float, unit: str = "", sc
         raise UserInputError(f"{key}: {exc}") from None
 
 
+def check_count(key: str, value: int | None, lo: int = 1) -> None:
+    """A count given on the command line (workers, trials): None (not given) or at least `lo`; otherwise a
+    UserInputError '<key>: must be >= <lo>, got <value>'."""
+    if value is not None and value < lo:
+        raise UserInputError(f"{key}: must be >= {lo}, got {value}")
+
+
 def quantity(unit: str, value: Any, where: str | None = None) -> float:
     """A number or a quantity text in SI `unit`; parse_quantity raises UserInputError (a ValueError), which
     pydantic reports at the key's path."""

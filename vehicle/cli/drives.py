@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from hpsim.errors import UserInputError
+from hpsim.validators import check_count
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 from vehicle.cli import response, vehicles
@@ -318,8 +319,7 @@ def cmd_sweep(args):
     from vehicle.presentation.report import format_summary
     from vehicle.studies.sweep import run_sweep
 
-    if args.workers is not None and args.workers < 1:
-        raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
+    check_count("--workers", args.workers)
     check_output_dir(Path(args.sweep).stem if args.output_dir is None else args.output_dir,
                      "-o/--output-dir" if args.output_dir is not None else "output folder (the sweep file's name)")
     from vehicle.engines.ensemble import check_lanes

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from hpsim.errors import UserInputError
+from hpsim.validators import check_count
 from hpsim.outputs import check_output_dir
 
 
@@ -42,10 +43,8 @@ def cmd_optimize(args):
 
     from vehicle.api import optimize
 
-    if args.workers is not None and args.workers < 1:
-        raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
-    if args.trials is not None and args.trials < 1:
-        raise UserInputError(f"--trials: must be >= 1, got {args.trials}")
+    check_count("--workers", args.workers)
+    check_count("--trials", args.trials)
     out = args.output_dir if args.output_dir is not None else Path(args.study).stem
     check_output_dir(out, "-o/--output-dir" if args.output_dir is not None else "output folder (the study file's name)")
     log = (lambda m: None) if args.json else logging.getLogger("hpsim").info

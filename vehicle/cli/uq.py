@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from hpsim.errors import UserInputError
+from hpsim.validators import check_count
 
 
 def register(sub):
@@ -58,8 +59,7 @@ def cmd_uq(args):
 
     from vehicle.studies.uq import run_scenario_study
 
-    if args.workers is not None and args.workers < 1:
-        raise UserInputError(f"--workers: must be >= 1, got {args.workers}")
+    check_count("--workers", args.workers)
     from vehicle.engines.ensemble import check_lanes
 
     check_lanes(args.ensemble)

@@ -31,9 +31,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import ValidationError
 
-from hpsim.config import Model, format_validation_error, load_yaml
+from hpsim.config import Model, load_yaml, validate
 from hpsim.errors import UserInputError
 from hpsim.units import parse_quantity
 
@@ -254,10 +253,7 @@ def load_study(path: str | Path, *, trials: int | None = None, check: bool = Tru
     data = load_yaml(path)
     if not isinstance(data, dict):
         raise UserInputError(f"{path}: expected a mapping with base, design and objectives")
-    try:
-        spec = StudySpec.model_validate(data)
-    except ValidationError as exc:
-        raise UserInputError(format_validation_error(exc, str(path))) from None
+    spec = validate(StudySpec, data, str(path))
     if not spec.design:
         raise UserInputError(f"{path}: design: empty; give at least one scenario key with its bounds, e.g. "
                              "vehicle.overrides.charging.fill_pressure_offset: [-0.8 MPa, 0.8 MPa]")

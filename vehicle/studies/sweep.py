@@ -28,10 +28,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 import yaml
-from pydantic import ValidationError
 
 from hpsim.cancellation import CancelToken
-from hpsim.config import Model, format_validation_error, load_yaml, parse_yaml
+from hpsim.config import Model, load_yaml, parse_yaml, validate
 from hpsim.errors import SimulationError, Terminated, UserInputError
 from hpsim.outputs import atomic_output
 from hpsim.extras import install_hint
@@ -79,10 +78,7 @@ def load_sweep(path: str | Path) -> tuple[SweepSpec, ScenarioSource, list[dict]]
     data = load_yaml(path)
     if not isinstance(data, dict):
         raise UserInputError(f"{path}: expected a mapping with base, grid and/or cases")
-    try:
-        spec = SweepSpec.model_validate(data)
-    except ValidationError as exc:
-        raise UserInputError(format_validation_error(exc, str(path))) from None
+    spec = validate(SweepSpec, data, str(path))
     for k, v in spec.grid.items():
         if not v:
             raise UserInputError(f"{path}: grid.{k}: empty list (give at least one value)")
