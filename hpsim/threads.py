@@ -65,3 +65,21 @@ def one_blas_thread() -> None:
     before NumPy is imported (the libraries read the variables when they load); the study workers inherit it."""
     for name in BLAS_THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
+
+
+class InlineExecutor:
+    """The `submit`/`shutdown` of a ThreadPoolExecutor, each job run at once on the calling thread: for a caller
+    that hands work to an executor where a core would idle, when that work must stay on its thread (an ensemble
+    lane's drive, vehicle.engines.ensemble). The job's exception is its Future's, as on a pool; a Ctrl-C is not
+    held back."""
+
+    def submit(self, fn: Callable[..., R], *args, **kwargs) -> Future:
+        done: Future = Future()
+        try:
+            done.set_result(fn(*args, **kwargs))
+        except Exception as exc:              # a Future carries it to whoever asks for the result
+            done.set_exception(exc)
+        return done
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        """Nothing runs later: every job ran in `submit`."""

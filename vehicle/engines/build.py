@@ -24,7 +24,9 @@ def _full(model, road, prepared, make_solver=None) -> Engine:
 
 
 def _multiscale(model, road, prepared, make_solver=None) -> Engine:
-    return MultiscaleDrive(model, road, prepared.settings(), prepared.scenario.solver.multiscale_settings())
+    settings = prepared.settings()
+    return MultiscaleDrive(model, road, settings, prepared.scenario.solver.multiscale_settings(),
+                           solver=None if make_solver is None else make_solver(settings.dt_s))
 
 
 def _segments(prepared) -> int:
@@ -41,8 +43,8 @@ def _time_parallel(model, road, prepared, make_solver=None) -> Engine:
     return TimeParallelDrive(model, road, prepared.settings(), workers * lanes, lanes=lanes)
 
 
-# engine name -> builder(model, road, prepared, make_solver); only the full drive steps with make_solver (an ensemble
-# lane's solver), the others build their own
+# engine name -> builder(model, road, prepared, make_solver); the full and multiscale drives step with make_solver (an
+# ensemble lane's solver), the time-parallel drive builds its own
 ENGINES = {"full": _full, "multiscale": _multiscale, "time_parallel": _time_parallel}
 
 

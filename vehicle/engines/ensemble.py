@@ -27,6 +27,7 @@ import threading
 import time
 import traceback
 import warnings
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -34,11 +35,13 @@ import numpy as np
 from hpsim.errors import UserInputError
 
 from vehicle.numerics.compiler_processes import kill_running_compilers
+from vehicle.numerics.contract import SolverCapabilities
 from vehicle.numerics.lanes import ISAS, LaneStepper, default_lanes
 from vehicle.scenario.settings import resolve_segments
 from vehicle.engines.choice import engine_for
 from vehicle.numerics.solvers import Ros2
 
+LANE_ENGINES = ("full", "multiscale")      # the engines whose drives step with a lane's solver (`eligible`)
 _STEPPERS: dict = {}         # compiled lane block functions of this process by (structure, dt, lanes, isa)
 _STEPPERS_LOCK = threading.Lock()
 # one lane at a time runs its Python and CasADi work (building models, equilibria, weighing bands, outputs): CasADi's
@@ -168,6 +171,11 @@ class LaneSolver(Ros2):
         self.group, self.slot = group, slot
         self.in_group = False
 
+    @property
+    def capabilities(self) -> SolverCapabilities:
+        """Ros2's, and bound to its lane's thread: its block waits for the other lanes under LANE_LOCK."""
+        return replace(super().capabilities, thread_bound=True)
+
     def block_graph(self, model, steps_per_sample, samples_per_call):
         return None                      # nothing for the scalar block compiler: the lanes' library serves
 
@@ -248,11 +256,12 @@ def run_lockstep(fn: Callable[..., dict], items: list[tuple[str, tuple]], lanes:
 
 
 def eligible(scenario_data: dict) -> bool:
-    """A scenario mapping whose drive can be a lane: one the full engine runs (`choice.engine_for`: the full mode in
-    one segment; solver.time_parallel "auto" counts one segment per CPU)."""
+    """A scenario mapping whose drive can be a lane: one the full or the multiscale engine runs (`choice.engine_for`:
+    not in time-parallel segments, which make lanes of their own; solver.time_parallel "auto" counts one segment per
+    CPU). A multiscale lane integrates its windows one after the other on the lane (no paired windows)."""
     solver = scenario_data.get("solver") or {}
     tp = solver.get("time_parallel")
-    return engine_for(solver.get("mode"), resolve_segments(None if tp is False else tp)) == "full"
+    return engine_for(solver.get("mode"), resolve_segments(None if tp is False else tp)) in LANE_ENGINES
 
 
 # The most lanes one lockstep group may have (`--ensemble K`): four vectors of the widest instruction set (AVX-512,

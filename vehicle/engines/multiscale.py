@@ -13,6 +13,7 @@ import numpy as np
 from hpsim.cancellation import NEVER, CancelToken
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.stages import timed
+from hpsim.threads import InlineExecutor
 
 from vehicle.physics.model import DISSIPATION_TERMS
 from vehicle.scenario.settings import MultiscaleSettings
@@ -62,6 +63,10 @@ class MultiscaleDrive:
         self.M = samples_per_call(self.K, settings.samples_per_block)
         self.end = v.end(self.K)         # the windows end on whole samples, the slow states at `end.time_s`
         solver = solver or Ros2(settings.dt_s)
+        # a solver bound to its thread (an ensemble lane) integrates every window there, one after the other, and
+        # the proxy is set up there too: its graphs are built under the lanes' lock (vehicle.engines.ensemble)
+        self.beside = not solver.capabilities.thread_bound
+        self.paired = self.ms.paired_windows and self.beside
         bound = bind_solver(solver, model, self.K, self.M, libraries=[slow_rate_library(model)])
         self.solver = bound.solver
         self.recorder = BlockRecorder(v, settings.distance_m, self.M, bound.outputs)
@@ -338,7 +343,8 @@ class MultiscaleDrive:
         """The linear-model proxy's first part (`LinearProxy.prepare`) started on a thread of its own when the drive
         is built: it runs beside the output file's set-up and the first window, on the core they leave idle.
         (the thread, the proxy)."""
-        beside = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy")
+        beside = (ThreadPoolExecutor(max_workers=1, thread_name_prefix="hpsim-proxy") if self.beside
+                  else InlineExecutor())
         proxy = LinearProxy(self, self._linear_proxy_inputs())
         beside.submit(timed, "drive: the proxy's set-up", proxy.prepare)
         return beside, proxy
@@ -394,7 +400,7 @@ class MultiscaleDrive:
                 job = pair.submit(0, x, t0, t_warm, t_end)
                 # the last window is integrated from its true start: it ends with the drive, whose short memories
                 # (the oil against its wall, the gas) it simulates rather than samples
-                if self.ms.paired_windows and records and k + 2 < len(windows):
+                if self.paired and records and k + 2 < len(windows):
                     nxt = self._window_times(*windows[k + 1], t_total)
                     pending = pair.submit(1, self._predicted_start(x, t0, records[-1], windows[k + 1][0]), *nxt)
                 if sink is not None:

@@ -12,8 +12,9 @@ class WindowPair:
     """Windows integrated on threads (`integrate`), two at once: slot 0 a window from its true start, slot 1 the
     next one from a predicted start (`paired_windows`), each on a solver of its own (the same compiled step; its
     integration leaves Python's lock). Where the drive's solver has no `refined_solver` (its
-    `capabilities.step_doubling` False: vehicle.numerics.contract), each runs at once on it (the
-    numerics are the same either way: only the wall time differs)."""
+    `capabilities.step_doubling` False: vehicle.numerics.contract), or whose solver is bound to its thread (an ensemble
+    lane: `thread_bound`), each runs at once on it (the numerics are the same either way: only the wall time
+    differs)."""
 
     def __init__(self, drive):
         self.drive = drive               # a MultiscaleDrive: its `integrate`, solver, model and block shape
@@ -23,7 +24,8 @@ class WindowPair:
     def submit(self, slot: int, x0: np.ndarray, t0: float, t_warm: float, t_end: float) -> Future:
         d = self.drive
         # a solver of its own: the same method at the same step (the solver contract's step_doubling capability)
-        if self.pool is None and d.solver.capabilities.step_doubling:
+        caps = d.solver.capabilities
+        if self.pool is None and caps.step_doubling and not caps.thread_bound:
             self.solvers = [d.solver] + [d.solver.refined_solver(1).bind(d.model, d.K, d.M)]
             self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hpsim-window")
         if self.pool is None:

@@ -14,6 +14,9 @@ Optional, by capability:
                          a-posteriori error estimate (vehicle.numerics.error_estimate)
     compiled_outputs     the drive may evaluate its block outputs in one compiled call (False: CasADi's
                          virtual machine)
+    thread_bound         advance only on the thread that bound it (an ensemble lane, whose block waits for the
+                         other lanes under the lanes' lock): the drive keeps its integration and the work that
+                         builds CasADi graphs on that thread (no windows or proxies on threads of their own)
 """
 from __future__ import annotations
 
@@ -28,6 +31,7 @@ class SolverCapabilities:
     compiled: bool = False
     step_doubling: bool = False
     compiled_outputs: bool = False
+    thread_bound: bool = False
 
 
 class Solver(Protocol):
