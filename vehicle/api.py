@@ -287,7 +287,7 @@ def open_results(path: str | Path) -> Results:
 
 def optimize(study: str | Path, output_dir: str | Path | None = None, *, trials: int | None = None,
              workers: int | None = None, scheduler: str | None = None, storage: str | None = None,
-             log=None, before_start=None) -> dict:
+             ensemble: int | None = None, log=None, before_start=None) -> dict:
     """Run an optimisation study file (`hpsim optimize`, docs/optimize.md) into `output_dir` (default: the study
     file's name); returns the summary with its Pareto front.
 
@@ -295,7 +295,8 @@ def optimize(study: str | Path, output_dir: str | Path | None = None, *, trials:
         s["pareto"][0]["design"], s["pareto"][0]["objectives"], s["pareto"][0]["vehicle_file"]
 
     The study resumes from `output_dir` when run again (no finished trial runs twice). storage: an Optuna database
-    URL in place of `<output_dir>/study.db`. log: a function given each progress line. before_start(trials to run)
+    URL in place of `<output_dir>/study.db`. ensemble: the trials K at a time as ensemble lanes (`hpsim optimize
+    --ensemble`; None: chosen, 1: off). log: a function given each progress line. before_start(trials to run)
     is called before any runs. Also writes pareto.png.
     """
     from vehicle.presentation.optimize_plots import pareto_plot
@@ -309,6 +310,6 @@ def optimize(study: str | Path, output_dir: str | Path | None = None, *, trials:
     check_objectives(spec, log)
     out = Path(output_dir) if output_dir is not None else Path(Path(study).stem)
     summary = run_study(spec, out, workers=workers, scheduler=scheduler, storage=storage, log=log,
-                        before_start=before_start)
+                        before_start=before_start, ensemble=ensemble)
     summary["files"]["pareto_png"] = str(pareto_plot(summary, out / "pareto.png"))
     return summary

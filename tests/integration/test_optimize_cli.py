@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from vehicle import cli
+from vehicle.numerics.lanes import LaneStepper
 from vehicle.studies.optimize_runner import DriveEvaluator
 from vehicle.studies.optimize_study import load_study
 
@@ -87,9 +88,31 @@ def test_a_failed_drive_is_a_failed_trial_with_its_reason(tmp_path):
 def finished_study(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("optimize")
     path = _write(tmp, STUDY)
-    code = cli.main(["optimize", str(path), "-o", str(tmp / "out"), "--workers", "1", "--yes", "--json"])
+    code = cli.main(["optimize", str(path), "-o", str(tmp / "out"), "--workers", "1", "--ensemble", "1", "--yes",
+                     "--json"])
     assert code == 0
     return tmp
+
+
+def _trials(folder: Path) -> list[dict]:
+    with open(folder / "trials.csv", newline="") as fh:
+        return [{k: v for k, v in row.items() if k not in ("seconds", "vehicle_file")} for row in csv.DictReader(fh)]
+
+
+def test_a_generation_on_ensemble_lanes_gives_the_trials_of_one_by_one(finished_study, monkeypatch):
+    """The same study with its generation's three trials as the lanes of one vector step (`--ensemble 4`): the same
+    designs, and every objective and margin equal to the trials run one by one to the last printed digit (a lane is
+    the scalar engine bit for bit, tests/unit/engines/test_ensemble.py)."""
+    out = finished_study / "lanes"
+    calls = []                                   # the lane library's block calls: the trials did step together
+    advance = LaneStepper.advance
+    monkeypatch.setattr(LaneStepper, "advance", lambda self, *a: calls.append(1) or advance(self, *a))
+    code = cli.main(["optimize", str(finished_study / "study.yaml"), "-o", str(out), "--workers", "1", "--ensemble",
+                     "4", "--yes", "--json"])
+    assert code == 0
+    lanes, alone = _trials(out), _trials(finished_study / "out")
+    assert len(lanes) == 3 and all(r["status"] == "done" for r in lanes), lanes
+    assert lanes == alone and calls
 
 
 def test_the_json_front_names_designs_objectives_constraints_and_vehicle_files(finished_study, capsys):

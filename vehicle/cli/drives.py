@@ -15,7 +15,7 @@ from hpsim.validators import check_count
 from hpsim.outputs import check_figure_file, check_output_dir, check_output_file
 
 from vehicle.cli import response, vehicles
-from .options import add_overwrite
+from .options import add_ensemble, add_overwrite
 from .stages import command_wall_s, tenths_down
 
 
@@ -91,9 +91,7 @@ def _register_sweep(sub):
     ps.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
     ps.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="run the cases on an existing Dask distributed cluster (needs the 'dask' extra)")
-    ps.add_argument("--ensemble", type=int, default=None, metavar="K",
-                    help="step K full-fidelity drives in lockstep in one vector engine (1: off; default: "
-                         "one vector's lanes (8 with AVX-512, 4 with AVX2) when there are more drives than workers)")
+    add_ensemble(ps)
     ps.add_argument("--json", action="store_true", help="print the summary as JSON only")
     ps.add_argument("--yes", action="store_true",
                     help="start without asking (at a terminal a sweep estimated above 5 min asks first)")

@@ -1,6 +1,6 @@
 """`hpsim optimize`: multi-objective design of struts, vehicle and compensation (docs/optimize.md).
 
-    hpsim optimize STUDY.yaml -o DIR [--trials N] [--workers K] [--scheduler ADDRESS] [--yes] [--json]
+    hpsim optimize STUDY.yaml -o DIR [--trials N] [--workers K] [--scheduler ADDRESS] [--ensemble K] [--yes] [--json]
 
 Exit codes: 0 done, 2 user error (one line naming the key), 3 every trial failed, 130 interrupted (run the same
 command again: the study resumes from DIR/study.db, no finished trial runs again).
@@ -14,6 +14,8 @@ from pathlib import Path
 from hpsim.errors import UserInputError
 from hpsim.validators import check_count
 from hpsim.outputs import check_output_dir
+
+from vehicle.cli.options import add_ensemble
 
 
 def register(sub):
@@ -29,6 +31,7 @@ def register(sub):
     p.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the trials on an existing Dask distributed cluster (needs the 'dask' extra)")
+    add_ensemble(p, "trials (their drives)")
     p.add_argument("--storage", default=None, metavar="URL",
                    help="an Optuna database URL (e.g. postgresql://host/db) to share the study between processes or "
                         "machines (default: SQLite in DIR/study.db)")
@@ -43,13 +46,17 @@ def cmd_optimize(args):
 
     from vehicle.api import optimize
 
+    from vehicle.engines.ensemble import check_lanes
+
     check_count("--workers", args.workers)
     check_count("--trials", args.trials)
+    check_lanes(args.ensemble)
     out = args.output_dir if args.output_dir is not None else Path(args.study).stem
     check_output_dir(out, "-o/--output-dir" if args.output_dir is not None else "output folder (the study file's name)")
     log = (lambda m: None) if args.json else logging.getLogger("hpsim").info
     summary = optimize(args.study, out, trials=args.trials, workers=args.workers, scheduler=args.scheduler,
-                       storage=args.storage, log=log, before_start=lambda n: _preview(args, n))
+                       storage=args.storage, ensemble=args.ensemble, log=log,
+                       before_start=lambda n: _preview(args, n))
     drives_done = time.perf_counter()
     public = {"trials": summary["trials"], "pareto": summary["pareto"], "failed": summary["failed"],
               "violated": summary["violated"], "units": summary["units"], "files": summary["files"]}
@@ -75,7 +82,7 @@ def _preview(args, n_trials: int) -> None:
         from vehicle.cli.stages import command_wall_s
 
         est = cost.estimate(prepared * n_trials, args.workers, cluster=bool(args.scheduler),
-                            elapsed_s=command_wall_s(), what="hpsim optimize")
+                            ensemble=args.ensemble, elapsed_s=command_wall_s(), what="hpsim optimize")
     except UserInputError as exc:       # the rate probe cannot drive this case's mode on its short stretch
         logging.getLogger("hpsim").info(f"hpsim optimize: no cost estimate ({exc})")
         est = None

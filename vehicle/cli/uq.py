@@ -16,6 +16,8 @@ from pathlib import Path
 from hpsim.errors import UserInputError
 from hpsim.validators import check_count
 
+from vehicle.cli.options import add_ensemble
+
 
 def register(sub):
     p = sub.add_parser("uq", help="uncertainty quantification: draw the parameter priors, run the drives, "
@@ -43,9 +45,7 @@ def register(sub):
     p.add_argument("--workers", type=int, default=None, help="parallel local processes (default: CPU count)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the drives on an existing Dask distributed cluster (needs the 'dask' extra)")
-    p.add_argument("--ensemble", type=int, default=None, metavar="K",
-                   help="step K full-fidelity drives in lockstep in one vector engine (1: off; default: "
-                        "one vector's lanes (8 with AVX-512, 4 with AVX2) when there are more drives than workers)")
+    add_ensemble(p)
     p.add_argument("--list", action="store_true",
                    help="list the priors, the number of drives and their estimated wall time, run nothing")
     p.add_argument("--yes", action="store_true",

@@ -9,6 +9,11 @@ stored designs, the finished ones never (no trial runs twice), and the study goe
 An evaluator is a picklable callable `evaluate(number, design) -> dict` that never raises: `status` ("done",
 "failed" or "interrupted"), `error` (the reason of a failure) and `reports` ({case name: report}, the
 `hpsim report --json` of each case's drive). `DriveEvaluator` drives the study's cases; a test may give another.
+
+A generation of `DriveEvaluator` trials runs as ensembles (vehicle.engines.ensemble): the trials K at a time, each
+trial's drives the lanes of one vector step, case after case (every trial drives the same cases in the same order,
+so the lanes meet case by case). Each lane's drive equals the drive on its own (a multiscale lane integrates its
+windows one after the other: docs/engines.md, "Vector lanes").
 """
 from __future__ import annotations
 
@@ -25,6 +30,7 @@ from hpsim.errors import SimulationError, UserInputError
 from hpsim.extras import install_hint
 
 from vehicle.analysis.summary import report
+from vehicle.engines.ensemble import eligible, grouped_jobs
 from vehicle.engines.shared_builds import process_builds
 from vehicle.results.run import RunInterrupted, run_scenario
 from vehicle.scenario.schema import prepare
@@ -65,7 +71,8 @@ class DriveEvaluator:
     study: Study
     out_dir: str
 
-    def __call__(self, number: int, design: dict) -> dict:
+    def __call__(self, number: int, design: dict, make_solver: Callable[[float], object] | None = None) -> dict:
+        """make_solver: an ensemble lane's solver factory (`vehicle.engines.ensemble.run_lockstep`), for every drive."""
         t0 = time.perf_counter()
         reports = {}
         try:
@@ -80,7 +87,7 @@ class DriveEvaluator:
                 state = case_state(out, src)
                 if state != "complete":
                     run_scenario(src, out, resume=state == "resume", overwrite=state.startswith("changed"),
-                                 progress=False, shared=shared)
+                                 progress=False, shared=shared, make_solver=make_solver)
                 # a drive finished here was written whole by this process: the child-process read check is for others
                 reports[case.name] = report(out, check=state == "complete")
             return {"status": "done", "error": "", "reports": reports, "seconds": time.perf_counter() - t0}
@@ -92,6 +99,11 @@ class DriveEvaluator:
             tb = traceback.format_exc().strip().splitlines()[-3:]
             return {"status": "failed", "error": f"{type(exc).__name__}: {exc} ({' | '.join(tb)})", "reports": {},
                     "seconds": time.perf_counter() - t0}
+
+    def can_be_lanes(self) -> bool:
+        """Whether every case's drive can be an ensemble lane (`ensemble.eligible`: not time-parallel; the design
+        keys change values, not the solver section)."""
+        return all(eligible(case.source.data) for case in self.study.cases)
 
 
 def make_sampler(study: Study, generation: int):
@@ -200,13 +212,15 @@ def pending_trials(ostudy) -> list:
 def run_study(study: Study, out_dir: str | Path, *, evaluate: Callable[[int, dict], dict] | None = None,
               trials: int | None = None, workers: int | None = None, scheduler: str | None = None, client=None,
               log: Callable[[str], None] | None = None, before_start: Callable[[int], None] | None = None,
-              storage: str | None = None) -> dict:
+              storage: str | None = None, ensemble: int | None = None) -> dict:
     """Run `study` until `trials` trials (default: the study's) have finished; returns the folder's state
     (vehicle.studies.optimize_pareto.summarise).
 
     evaluate: default DriveEvaluator; workers: local processes (1: in this process); scheduler or client: a Dask
-    cluster. storage: where the Optuna study lives (open_study). before_start(trials to run) is called before any runs (the cost preview may stop it). Ctrl-C leaves
-    the study resumable: run it again with the same folder.
+    cluster. storage: where the Optuna study lives (open_study). before_start(trials to run) is called before any
+    runs (the cost preview may stop it). ensemble: a DriveEvaluator's trials K at a time as ensemble lanes (1: each
+    on its own; None: chosen as `hpsim sweep` chooses, `ensemble.group_size`). Ctrl-C leaves the study resumable:
+    run it again with the same folder.
     """
     log = log or (lambda m: None)
     out_dir = Path(out_dir)
@@ -227,7 +241,7 @@ def run_study(study: Study, out_dir: str | Path, *, evaluate: Callable[[int, dic
         own_client = client is None and scheduler is not None
         client = dask_client(scheduler) if own_client else client
         try:
-            _generations(study, stored, evaluate, budget, workers, client, log, out_dir)
+            _generations(study, stored, evaluate, budget, workers, client, log, out_dir, ensemble)
         except KeyboardInterrupt:
             left = len(pending_trials(ostudy))
             log(f"{study.name}: interrupted; {left} trial(s) of this generation will run again, finished ones are "
@@ -239,7 +253,7 @@ def run_study(study: Study, out_dir: str | Path, *, evaluate: Callable[[int, dic
         return summarise(study, ostudy.get_trials(deepcopy=False), out_dir)
 
 
-def _generations(study, stored, evaluate, budget, workers, client, log, out_dir) -> None:
+def _generations(study, stored, evaluate, budget, workers, client, log, out_dir, ensemble=None) -> None:
     ostudy = stored.optuna
     dist = distributions(study)
     t0, n_run = time.perf_counter(), 0
@@ -272,8 +286,10 @@ def _generations(study, stored, evaluate, budget, workers, client, log, out_dir)
             log(f"[{n_done}/{budget}] trial {number}: {what}{size}; about "
                 f"{format_duration(rate * max(0, budget - n_done))} left")
 
-        execute(evaluate, jobs, workers=workers, client=client, finished=finished,
-                key_prefix=f"hpsim-optimize-{study.name}-{out_dir.name}")
+        lanes = ensemble if isinstance(evaluate, DriveEvaluator) and evaluate.can_be_lanes() else 1
+        fn, jobs, unpack = grouped_jobs(evaluate, jobs, lanes, [True] * len(jobs), workers)
+        execute(fn, jobs, workers=workers, client=client, key_prefix=f"hpsim-optimize-{study.name}-{out_dir.name}",
+                finished=lambda tag, r: [finished(t, rr) for t, rr in unpack(tag, r)])
         if pending_trials(ostudy):
             raise KeyboardInterrupt        # a trial was interrupted: the generation stays resumable
 
