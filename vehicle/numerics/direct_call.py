@@ -2,7 +2,7 @@
 
 `casadi.external(name, library)` called with NumPy arrays converts every argument to a DM first, which
 costs more than the compiled code itself on a drive's block outputs (`vehicle.numerics.solvers.compiled_outputs`;
-figures in docs/engines.md). `DirectFunction` calls the same library's entry point, CasADi's generated C
+CHANGELOG.md, "Measurement history"). `DirectFunction` calls the same library's entry point, CasADi's generated C
 interface (CasADi's code generation guide, "Calling generated code"):
 
     int f(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem)

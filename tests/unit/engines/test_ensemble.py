@@ -217,9 +217,9 @@ def _done(i, make_solver=None) -> dict:
 
 
 def test_groups_and_eligibility():
-    """Only plain full-fidelity drives join; groups: K given, else one vector's lanes when there are more drives
-    than workers (groups as full as the cases allow with every worker busy), else off."""
-    assert eligible({"solver": {"dt": "4 ms"}}) and not eligible({"solver": {"mode": "multiscale"}})
+    """Full and multiscale drives join, time-parallel ones do not; groups: K given, else one vector's lanes when
+    there are more drives than workers (groups as full as the cases allow with every worker busy), else off."""
+    assert eligible({"solver": {"dt": "4 ms"}}) and eligible({"solver": {"mode": "multiscale"}})
     assert not eligible({"solver": {"time_parallel": 2}})
     L = default_lanes()
     assert L in (2, 4, 8)
