@@ -52,6 +52,9 @@ CONFIRM_ABOVE_S = 300.0         # five minutes: longer than a user at a terminal
 # a lane of a lockstep group costs a drive's steps divided by this: the CPU the lanes save (docs/engines.md,
 # "Segments on the lane library"); a masked lane costs as much as a used one
 LANE_GAIN = 2.3
+# a multiscale drive's rate is its whole drive's (the windows' integration and the work between them, which the
+# lanes do not speed up): the CPU a generation of them saves on lanes (benchmarks/ensemble_multiscale.py)
+MULTISCALE_LANE_GAIN = 1.25
 # the tables and figures after a study's last drive, until this machine has recorded its own (FINISH_RECORD):
 # assumed, the order of what benchmarks/preview_accuracy.py measures on an idle 2-core machine
 FINISH_DEFAULT_S = {"hpsim uq": 6.0, "hpsim sweep": 3.0, "hpsim optimize": 3.0}
@@ -65,6 +68,7 @@ class DriveCost:
 
     set_up_s: float
     steps_s: float
+    lane_gain: float = LANE_GAIN      # how much less its steps cost on a lane
 
     @property
     def alone_s(self) -> float:
@@ -221,7 +225,8 @@ def per_drive(prepared, *, probe: bool = True) -> tuple[DriveCost, str] | None:
     steps = simulated_s / prepared.scenario.solver.dt
     basis += (f": {steps:.3g} steps at {float(rate['steps_per_s']):.3g} steps/s measured on this machine "
               f"+ {float(rate['build_s']):.1f} s set-up and summary" + _load_note(rate))
-    return DriveCost(float(rate["build_s"]), steps / float(rate["steps_per_s"])), basis
+    gain = MULTISCALE_LANE_GAIN if mode == "multiscale" else LANE_GAIN
+    return DriveCost(float(rate["build_s"]), steps / float(rate["steps_per_s"]), gain), basis
 
 
 def _load_note(rate: dict) -> str:
@@ -247,13 +252,13 @@ def drives_wall(costs: list[DriveCost], workers: int, *, lanes: int = 1, group: 
                 joins: list[bool] | None = None) -> float:
     """Wall time [s] of the drives `costs` on `workers` local processes. With lanes > 1 the drives that `joins`
     run in lockstep groups of `group` on a library of `lanes` lanes, the others alone (vehicle.engines.ensemble);
-    a group's lanes set up one after the other and step together (LANE_GAIN)."""
+    a group's lanes set up one after the other and step together (each drive's lane_gain)."""
     joins = joins if joins is not None else [True] * len(costs)
     together = [c for c, ok in zip(costs, joins) if ok] if lanes > 1 else []
     jobs = [c.alone_s for c, ok in zip(costs, joins) if not (ok and lanes > 1)]
     for g in range(0, len(together), max(1, group)):
         chunk = together[g: g + max(1, group)]
-        jobs.append(sum(c.set_up_s for c in chunk) + lanes * max(c.steps_s for c in chunk) / LANE_GAIN)
+        jobs.append(sum(c.set_up_s for c in chunk) + lanes * max(c.steps_s / c.lane_gain for c in chunk))
     if not jobs:
         return 0.0
     w = max(1, min(workers, len(jobs)))

@@ -224,7 +224,7 @@ def test_the_preview_appears_in_every_solver_mode_with_nothing_recorded(mode, tm
 
 def test_the_estimate_adds_compiles_drives_on_workers_and_lanes_and_the_finish():
     """The arithmetic of vehicle/studies/cost.py's model, by hand: jobs over workers at the parallel efficiency (never
-    less than the longest job), lockstep groups of lanes (set-ups one after the other, lanes x steps / LANE_GAIN),
+    less than the longest job), lockstep groups of lanes (set-ups one after the other, lanes x steps / the mode's lane gain),
     the whole command's wall as before + drives + finish."""
     e, g = cost.PARALLEL_EFFICIENCY, cost.LANE_GAIN
     drive = cost.DriveCost(set_up_s=2.0, steps_s=4.0)
@@ -237,6 +237,9 @@ def test_the_estimate_adds_compiles_drives_on_workers_and_lanes_and_the_finish()
     # four drives in lockstep groups of 2 on a 4-lane library: two jobs of 2 x 2 s + 4 x 4 s / LANE_GAIN
     group = 2 * 2.0 + 4 * 4.0 / g
     assert cost.drives_wall([drive] * 4, 2, lanes=4, group=2) == pytest.approx(max(2 * group / (2 * e), group))
+    # multiscale drives: their rate counts the work between windows, which lanes do not speed up
+    ms = cost.DriveCost(set_up_s=2.0, steps_s=4.0, lane_gain=cost.MULTISCALE_LANE_GAIN)
+    assert cost.drives_wall([ms] * 2, 1, lanes=2, group=2) == pytest.approx(2 * 2.0 + 2 * 4.0 / 1.25)
     # a drive that cannot be a lane runs alone beside the group
     assert cost.drives_wall([drive] * 3, 1, lanes=4, group=2, joins=[True, True, False]) == pytest.approx(group + 6.0)
     assert [cost.lane_count(k) for k in (1, 2, 3, 4, 5, 8)] == [1, 2, 4, 4, 8, 8]
