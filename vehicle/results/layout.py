@@ -16,6 +16,7 @@ import struct
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import h5py
 import numpy as np
@@ -259,9 +260,11 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
         write_static_group(f, SUMMARY, {}, stations, axles, info["summary"])
 
 
-def finish_file(path: Path, final: dict) -> None:
+def finish_file(path: Path, final: dict, then: Callable[[h5py.File], dict] | None = None) -> None:
     """The after-drive equilibrium and the summary, or a status: written into a copy that replaces the
-    file only when complete, so a kill at any moment leaves the previous file (resumable) in place."""
+    file only when complete, so a kill at any moment leaves the previous file (resumable) in place.
+    then(f): more /summary attributes read from the copy as written (open), written into the same copy (the
+    validity warnings: one copy of the file, not a second one for them)."""
     tmp = path.with_name(path.name + ".final")
     try:
         safe_copy(path, tmp)
@@ -274,6 +277,8 @@ def finish_file(path: Path, final: dict) -> None:
             if arrays is not None:
                 write_static_group(f, SUMMARY, arrays, stations, axles, old, seats)
             for k, v in final.get("summary", {}).items():
+                f[SUMMARY].attrs[k] = v
+            for k, v in (then(f) if then is not None else {}).items():
                 f[SUMMARY].attrs[k] = v
             fault_point("during_final_write")         # test hook: killed with the copy half written
             if "history" in final:

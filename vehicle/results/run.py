@@ -63,10 +63,10 @@ from hpsim.cancellation import CancelToken
 
 from vehicle.results import provenance
 from vehicle.results.layout import fault_point, h5py_releases_quietly, out_of_space, remove_stale
-from vehicle.results.reader import FORMAT, FORMAT_VERSION
+from vehicle.results.reader import FORMAT, FORMAT_VERSION, ResultsFile
 from vehicle.results.results_file import DriveFile, ResumePoint
 from vehicle.results.sinks import MemorySink
-from vehicle.results.validity import check, summary_cell, summary_warnings
+from vehicle.results.validity import check, summary_cell, summary_warnings_of
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 LOG = logging.getLogger("hpsim")
@@ -568,9 +568,10 @@ def _finish(results: DriveFile, drive, res, sink, then: str) -> dict:
     fault_point("before_final_write")
     final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     with _room_for(results.path, "while writing the summary", then):
-        timed("summary: write", results.finish, final)
-        warnings = timed("summary: validity checks", summary_warnings, results.path)
-        timed("summary: write warnings", results.finish, {"summary": warnings})   # in the file (/summary attrs)
+        # the validity warnings are read from the finished copy and recorded in it (/summary attrs) before it
+        # replaces the file
+        timed("summary: write", results.finish, final,
+              lambda f: timed("summary: validity checks", summary_warnings_of, ResultsFile(results.path, f)))
     return {k: v for k, v in final["summary"].items()}
 
 

@@ -45,7 +45,9 @@ class H5Sink:
         # open dataset handles by (group, name): h5py looks a name up in its group anew on every access, and a
         # flush appends to some 50 datasets
         self.datasets: dict[tuple[str, str], h5py.Dataset] = {}
-        self.buffer: dict[str, list] = {}
+        # the blocks as the drive handed them: laid out as stored once per flush (one concatenation per drive key,
+        # not a reshaping of every variable of every block)
+        self.blocks: list[dict] = []
         self.n_buffered = 0
         self.stats_buffer: list[dict] = []
         self.pending_state: dict | None = None
@@ -70,9 +72,7 @@ class H5Sink:
         pass
 
     def samples(self, block: dict) -> None:
-        for key, value in block.items():
-            for v in self._vars(TIMESERIES, key, value):
-                self.buffer.setdefault(v.name, []).append(v.take(value, True))
+        self.blocks.append(block)
         self.n_buffered += len(np.atleast_1d(block["t_s"]))
 
     def stats(self, rows: list[dict]) -> None:
@@ -100,10 +100,13 @@ class H5Sink:
     def flush(self) -> None:
         """Append the buffered rows, flush, then write the checkpoint that covers them."""
         if self.n_buffered:
-            for name, parts in self.buffer.items():
-                self._append(self._dataset(TIMESERIES, name), self.n_samples, np.concatenate(parts, axis=0))
+            for key in self.blocks[0]:
+                value = np.concatenate([b[key] for b in self.blocks], axis=-1)
+                for v in self._vars(TIMESERIES, key, value):
+                    self._append(self._dataset(TIMESERIES, v.name), self.n_samples,
+                                 np.ascontiguousarray(v.take(value, True)))
             self.n_samples += self.n_buffered
-            self.buffer, self.n_buffered = {}, 0
+            self.blocks, self.n_buffered = [], 0
         if self.stats_buffer:
             n = len(self.stats_buffer)
             for key in self.stats_buffer[0]:
@@ -123,7 +126,7 @@ class H5Sink:
         """Drop every handle into the file (before the file is closed after a failure): nothing of it is left for
         the garbage collector to close later, when the HDF5 library may no longer hold the file."""
         self.datasets.clear()
-        self.buffer, self.stats_buffer = {}, []
+        self.blocks, self.stats_buffer = [], []
         self.f = self.ts = self.st = self.ck = None
 
     def wall_s(self) -> float:

@@ -76,8 +76,13 @@ def summary_warnings(path) -> dict:
     as in the sweep CSV) and `warnings_json` (the full list); with them, when the series are dense enough, the
     seats' shock numbers (`seat_shocks_json`)."""
     with open_results(path, check=False) as r:
-        found = check(r)
-        shocks = seat_shocks(r)
+        return summary_warnings_of(r)
+
+
+def summary_warnings_of(view) -> dict:
+    """`summary_warnings` of a results view (a file being finished, vehicle.results.layout.finish_file)."""
+    found = check(view)
+    shocks = seat_shocks(view)
     attrs = {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}
     if shocks:
         attrs["seat_shocks_json"] = json.dumps(shocks)
