@@ -98,7 +98,8 @@ class H5Sink:
         ds[start:] = rows
 
     def flush(self) -> None:
-        """Append the buffered rows, flush, then write the checkpoint that covers them."""
+        """Append the buffered rows, then write the checkpoint that covers them (`Checkpoint.write`: the rows and its
+        slot flushed before its pointer), or flush them."""
         if self.n_buffered:
             for key in self.blocks[0]:
                 value = np.concatenate([b[key] for b in self.blocks], axis=-1)
@@ -115,12 +116,15 @@ class H5Sink:
                     self._append(self._dataset(STATS, v.name), self.n_stats, v.take(value, True))
             self.n_stats += n
             self.stats_buffer = []
-        self.f.flush()
-        if self.pending_state is not None:
-            self.ck.write(self.pending_state, {"n_samples": self.n_samples, "n_stats": self.n_stats,
-                                               "wall_s": self.wall_s()})
-            self.last_state = self.pending_state
-            self.pending_state = None
+        if self.pending_state is None:
+            self.f.flush()
+            return
+        # the checkpoint's first flush writes the rows with its (inactive) slot, its second the pointer to the slot:
+        # the pointer is never on disk before what it covers
+        self.ck.write(self.pending_state, {"n_samples": self.n_samples, "n_stats": self.n_stats,
+                                           "wall_s": self.wall_s()})
+        self.last_state = self.pending_state
+        self.pending_state = None
 
     def release(self) -> None:
         """Drop every handle into the file (before the file is closed after a failure): nothing of it is left for
