@@ -16,6 +16,7 @@ import time
 
 import h5py
 import numpy as np
+from h5py import h5s
 
 from vehicle.results.checkpoint import Checkpoint
 from vehicle.results.layout import (CHECKPOINT, RECORD_DIM, SCENARIO, STATS, SUMMARY, TIMESERIES, equilibrium_group,
@@ -94,8 +95,13 @@ class H5Sink:
         return ds
 
     def _append(self, ds: h5py.Dataset, start: int, rows: np.ndarray) -> None:
-        ds.resize(start + len(rows), axis=0)
-        ds[start:] = rows
+        """rows after the first `start` of ds, through h5py's low-level dataset (a flush appends to some 50
+        datasets: its high-level resize and slicing cost more than the writes)."""
+        rows = np.ascontiguousarray(rows, dtype=np.float64)
+        ds.id.set_extent((start + len(rows),) + ds.shape[1:])
+        selected = ds.id.get_space()
+        selected.select_hyperslab((start,) + (0,) * (rows.ndim - 1), rows.shape)
+        ds.id.write(h5s.create_simple(rows.shape), selected, rows)
 
     def flush(self) -> None:
         """Append the buffered rows, then write the checkpoint that covers them (`Checkpoint.write`: the rows and its
@@ -104,8 +110,7 @@ class H5Sink:
             for key in self.blocks[0]:
                 value = np.concatenate([b[key] for b in self.blocks], axis=-1)
                 for v in self._vars(TIMESERIES, key, value):
-                    self._append(self._dataset(TIMESERIES, v.name), self.n_samples,
-                                 np.ascontiguousarray(v.take(value, True)))
+                    self._append(self._dataset(TIMESERIES, v.name), self.n_samples, v.take(value, True))
             self.n_samples += self.n_buffered
             self.blocks, self.n_buffered = [], 0
         if self.stats_buffer:
