@@ -14,6 +14,7 @@ import os
 import signal
 import struct
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -240,6 +241,7 @@ def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, 
 # variables with their attributes and dimension scales for every case
 _STRUCTURES: dict[bytes, bytes] = {}
 _STRUCTURES_KEPT = 4
+_STRUCTURES_LOCK = threading.Lock()          # the lanes of an ensemble create their files on threads
 
 
 def _structure_key(info: dict, block: dict, row: dict, state: dict, stored: set[str], compression: int,
@@ -284,13 +286,17 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
     time-series and statistics variable and the checkpoint slots (those as the last file of the same structure
     had them, `_STRUCTURES`)."""
     key = _structure_key(info, block, row, state, stored, compression, chunk_rows)
-    if key in _STRUCTURES:
-        _write_new(path, _STRUCTURES[key])
+    with _STRUCTURES_LOCK:
+        structure = _STRUCTURES.get(key)
+    if structure is not None:
+        _write_new(path, structure)
     else:
         _create_structure(path, info, block, row, state, stored, compression, chunk_rows)
-        if len(_STRUCTURES) >= _STRUCTURES_KEPT:
-            _STRUCTURES.pop(next(iter(_STRUCTURES)))
-        _STRUCTURES[key] = path.read_bytes()
+        structure = path.read_bytes()
+        with _STRUCTURES_LOCK:
+            if len(_STRUCTURES) >= _STRUCTURES_KEPT:
+                _STRUCTURES.pop(next(iter(_STRUCTURES)))
+            _STRUCTURES[key] = structure
     stations, axles = info["stations"], info["axles"]
     with h5py.File(path, "r+", libver=LIBVER) as f:
         for k, v in info["attrs"].items():
