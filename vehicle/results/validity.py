@@ -19,6 +19,7 @@ the run.
 """
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass
 
@@ -297,7 +298,7 @@ def _temperatures(data, th):
     for st in data.struts:
         lim, oil = st.get("limits") or {}, st["oil"]
         (T1, nu1), (T2, nu2) = sorted([(oil["viscosity_T1"], oil["viscosity_nu1"]), (oil["viscosity_T2"], oil["viscosity_nu2"])])
-        lo_data, hi_data = viscosity_extrapolation_range(T1, nu1, T2, nu2, th.oil_extrapolation)
+        lo_data, hi_data = _oil_data_range(float(T1), float(nu1), float(T2), float(nu2), float(th.oil_extrapolation))
         checks.append({"seal_temperature": (lim.get("seal_min_temperature"), lim.get("seal_max_temperature")),
                        "oil_temperature": (None, lim.get("oil_max_temperature")),
                        "oil_data_range": (lo_data, hi_data)})
@@ -324,6 +325,13 @@ def _temperatures(data, th):
                                 f"strut {node} temperature {worst - 273.15:.1f} degC is {side} {what} ({lim - 273.15:.0f} degC) "
                                 f"at {struts_text(struts, data.stations)}, first at {km:.3f} km"))
     return out
+
+
+@functools.lru_cache(maxsize=64)
+def _oil_data_range(T1_K: float, nu1_m2_s: float, T2_K: float, nu2_m2_s: float, rel: float) -> tuple[float, float]:
+    """`viscosity_extrapolation_range` of an oil, found once per process (a bisection; every strut of a vehicle and
+    every file of a study usually share their oil)."""
+    return viscosity_extrapolation_range(T1_K, nu1_m2_s, T2_K, nu2_m2_s, rel)
 
 
 def _solver(data, th):
