@@ -178,18 +178,34 @@ class Road:
         z = self.heights(track, pass_index)
         m = self.knot_slopes(track, pass_index)
         s = np.asarray(s_m, dtype=float)
-        x = np.clip(s, 0.0, self.length_m) / self._spacing
-        i = np.clip(x.astype(np.intp), 0, self.n_points - 2)  # NaN in -> NaN out, never a bad index
+        x = np.clip(s.reshape(-1), 0.0, self.length_m)
+        x /= self._spacing
+        i = x.astype(np.intp)
+        np.clip(i, 0, self.n_points - 2, out=i)              # NaN in -> NaN out, never a bad index
         t = x - i
-        z0, z1, m0, m1 = z[i], z[i + 1], m[i] * self._spacing, m[i + 1] * self._spacing
+        if not i.size:
+            return t.reshape(s.shape), t.reshape(s.shape)
+        # the Hermite cubic's coefficients per grid interval, on the stretch the points cover only (a block's
+        # points lie on a few metres of road), then gathered per point: the same operations in the same order
+        lo, hi = int(i.min()), int(i.max()) + 2
+        zs, ms = z[lo:hi], m[lo:hi] * self._spacing
+        dz = zs[1:] - zs[:-1]
+        m0s, m1s = ms[:-1], ms[1:]
+        c2s = 3.0 * dz - 2.0 * m0s - m1s                        # the t^2 and t^3 coefficients
+        c3s = m0s + m1s - 2.0 * dz
+        i -= lo
+        z0, m0, c2, c3 = zs.take(i), m0s.take(i), c2s.take(i), c3s.take(i)
         t2 = t * t
-        t3 = t2 * t
-        dz = z1 - z0
-        c2 = 3.0 * dz - 2.0 * m0 - m1          # the Hermite cubic's t^2 and t^3 coefficients, used twice
-        c3 = m0 + m1 - 2.0 * dz
-        height = z0 + m0 * t + c2 * t2 + c3 * t3
-        slope = (m0 + 2.0 * c2 * t + 3.0 * c3 * t2) / self._spacing
-        return height, slope
+        height = z0 + m0 * t
+        height += c2 * t2
+        height += c3 * (t2 * t)
+        slope = (2.0 * c2) * t
+        slope += m0
+        slope += (3.0 * c3) * t2
+        slope /= self._spacing
+        if not s.ndim:
+            return height[0], slope[0]
+        return height.reshape(s.shape), slope.reshape(s.shape)
 
     def evaluate_axles(self, s_m, offsets_m: Iterable[float], track, passes: bool = False):
         """(height, slope) arrays of shape (n_axles, *shape(s_m)) for axles at s_m - offsets_m[k].

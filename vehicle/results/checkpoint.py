@@ -49,6 +49,8 @@ class Checkpoint:
         return "slots" in g and "pointer" in g and "fields" in g.attrs
 
     def write(self, state: dict, meta: dict) -> None:
+        """The state into the inactive slot, the file flushed (with whatever else was written into it), then the
+        pointer to that slot, flushed: a reader or a resume sees the previous checkpoint until the new one is whole."""
         slot, seq = (int(v) for v in self.g["pointer"][()])
         new = 1 - slot if slot in (0, 1) else 0
         vec = np.zeros(self.g["slots"].shape[1])

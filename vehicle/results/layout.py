@@ -14,8 +14,10 @@ import os
 import signal
 import struct
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import h5py
 import numpy as np
@@ -234,15 +236,69 @@ def _record_group(f: h5py.File, group: str, sample: dict, chunk: int, kw: dict, 
     return plan
 
 
-def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, stored: set[str], compression: int,
-                chunk_rows: int) -> None:
-    """The whole file before the drive starts (SWMR mode cannot create objects): root and /scenario
-    attributes, the charged and before-drive equilibria, /summary (status running), every (empty)
-    time-series and statistics variable and the checkpoint slots."""
+# the empty record groups and checkpoint slots of recent files, by what lays them out (`_structure_key`): the cases
+# of a study that share a vehicle structure share them (one file's bytes, copied), instead of creating some 50
+# variables with their attributes and dimension scales for every case
+_STRUCTURES: dict[bytes, bytes] = {}
+_STRUCTURES_KEPT = 4
+_STRUCTURES_LOCK = threading.Lock()          # the lanes of an ensemble create their files on threads
+
+
+def _structure_key(info: dict, block: dict, row: dict, state: dict, stored: set[str], compression: int,
+                   chunk_rows: int) -> bytes:
+    """What the record groups and the checkpoint slots are made of: labels, variables and their widths, storage,
+    the statistics variables' extra attributes (values included)."""
+    def shapes(d: dict) -> list:
+        return [(k, np.shape(v)) for k, v in d.items()]
+    extra = [(name, sorted((k, np.asarray(v).dtype.str, np.asarray(v).tobytes()) for k, v in attrs.items()))
+             for name, attrs in sorted((info.get("stats_attrs") or {}).items())]
+    return repr((list(info["stations"]), list(info["axles"]), list(info.get("seats") or ()), int(compression),
+                 int(chunk_rows), shapes({k: v for k, v in block.items() if k in stored}), shapes(row),
+                 shapes(state), extra, LIBVER, STATS_CHUNK_ROWS)).encode()
+
+
+def _create_structure(path: Path, info: dict, block: dict, row: dict, state: dict, stored: set[str],
+                      compression: int, chunk_rows: int) -> None:
+    """A new file at `path` holding every (empty) time-series and statistics variable and the checkpoint slots."""
     stations, axles, seats = info["stations"], info["axles"], info.get("seats")
     kw = {"compression": "gzip", "compression_opts": int(compression), "shuffle": True} if compression else {}
     kw["fletcher32"] = True        # a checksum per chunk: damaged data is reported, not read as numbers
     with create_h5(path) as f:
+        _record_group(f, TIMESERIES, {k: v for k, v in block.items() if k in stored}, chunk_rows, kw,
+                      stations, axles, seats)
+        _record_group(f, STATS, {k: np.asarray(v, float)[..., None] for k, v in row.items()}, STATS_CHUNK_ROWS,
+                      kw, stations, axles, seats, info.get("stats_attrs"))
+        Checkpoint.create(f.create_group(CHECKPOINT), state)
+
+
+def _write_new(path: Path, content: bytes) -> None:
+    """`content` as a new file at a temporary path (created exclusively, as `create_h5`)."""
+    remove_stale(path)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(content)
+
+
+def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, stored: set[str], compression: int,
+                chunk_rows: int) -> None:
+    """The whole file before the drive starts (SWMR mode cannot create objects): root and /scenario
+    attributes, the charged and before-drive equilibria, /summary (status running), every (empty)
+    time-series and statistics variable and the checkpoint slots (those as the last file of the same structure
+    had them, `_STRUCTURES`)."""
+    key = _structure_key(info, block, row, state, stored, compression, chunk_rows)
+    with _STRUCTURES_LOCK:
+        structure = _STRUCTURES.get(key)
+    if structure is not None:
+        _write_new(path, structure)
+    else:
+        _create_structure(path, info, block, row, state, stored, compression, chunk_rows)
+        structure = path.read_bytes()
+        with _STRUCTURES_LOCK:
+            if len(_STRUCTURES) >= _STRUCTURES_KEPT:
+                _STRUCTURES.pop(next(iter(_STRUCTURES)))
+            _STRUCTURES[key] = structure
+    stations, axles = info["stations"], info["axles"]
+    with h5py.File(path, "r+", libver=LIBVER) as f:
         for k, v in info["attrs"].items():
             f.attrs[k] = v
         g = f.create_group(SCENARIO)
@@ -251,17 +307,14 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
         e = f.create_group(EQUILIBRIUM)
         for name, arrays in info["equilibrium"].items():
             write_static_group(e, name, arrays, stations, axles)
-        _record_group(f, TIMESERIES, {k: v for k, v in block.items() if k in stored}, chunk_rows, kw,
-                      stations, axles, seats)
-        _record_group(f, STATS, {k: np.asarray(v, float)[..., None] for k, v in row.items()}, STATS_CHUNK_ROWS,
-                      kw, stations, axles, seats, info.get("stats_attrs"))
-        Checkpoint.create(f.create_group(CHECKPOINT), state)
         write_static_group(f, SUMMARY, {}, stations, axles, info["summary"])
 
 
-def finish_file(path: Path, final: dict) -> None:
+def finish_file(path: Path, final: dict, then: Callable[[h5py.File], dict] | None = None) -> None:
     """The after-drive equilibrium and the summary, or a status: written into a copy that replaces the
-    file only when complete, so a kill at any moment leaves the previous file (resumable) in place."""
+    file only when complete, so a kill at any moment leaves the previous file (resumable) in place.
+    then(f): more /summary attributes read from the copy as written (open), written into the same copy (the
+    validity warnings: one copy of the file, not a second one for them)."""
     tmp = path.with_name(path.name + ".final")
     try:
         safe_copy(path, tmp)
@@ -274,6 +327,8 @@ def finish_file(path: Path, final: dict) -> None:
             if arrays is not None:
                 write_static_group(f, SUMMARY, arrays, stations, axles, old, seats)
             for k, v in final.get("summary", {}).items():
+                f[SUMMARY].attrs[k] = v
+            for k, v in (then(f) if then is not None else {}).items():
                 f[SUMMARY].attrs[k] = v
             fault_point("during_final_write")         # test hook: killed with the copy half written
             if "history" in final:

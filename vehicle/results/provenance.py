@@ -9,14 +9,31 @@ replace (`hpsim.outputs.check_not_input`).
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
+import subprocess
 from pathlib import Path
 
+from hpsim import __version__
 from hpsim.errors import UserInputError
 from hpsim.files import MAX_DATA_FILE_BYTES, read_regular_bytes
 
 from vehicle.scenario.schema import resolve_path, prepare, vehicle_data
+
+
+@functools.lru_cache(maxsize=1)
+def code_version() -> str:
+    """hpsim version, plus the git commit when running from a checkout."""
+    here = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=here, capture_output=True,
+                             text=True, timeout=5)
+        if out.returncode == 0 and out.stdout.strip():
+            return f"{__version__} ({out.stdout.strip()})"
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return __version__
 
 
 def _sha256(path: Path) -> str | None:

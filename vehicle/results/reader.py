@@ -29,6 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
+from h5py import h5d, h5ds, h5o, h5s
 import numpy as np
 
 from hpsim.errors import UserInputError
@@ -278,11 +279,14 @@ class ResultsFile(ResultsView):
 
     @property
     def scenario_attrs(self) -> dict:
-        return {k: _attr_value(v) for k, v in self.f[SCENARIO].attrs.items()}
+        return self._once(f"/{SCENARIO} attributes",
+                          lambda: {k: _attr_value(v) for k, v in self.f[SCENARIO].attrs.items()})
 
     def summary_attrs(self) -> dict:
-        g = self.f.get(SUMMARY)
-        return {} if g is None else {k: _attr_value(v) for k, v in g.attrs.items()}
+        def read():
+            g = self.f.get(SUMMARY)
+            return {} if g is None else {k: _attr_value(v) for k, v in g.attrs.items()}
+        return self._once(f"/{SUMMARY} attributes", read)
 
     def _once(self, key: str, read):
         """read() the first time `key` is asked for, the same value afterwards (the file is read, not written,
@@ -354,11 +358,7 @@ class ResultsFile(ResultsView):
                     for v in file_variables(key, a.shape, None, len(self.stations), len(self.axles)):
                         out[v.name] = v.take(a, False) if a.ndim else float(a)
                 return out
-            for k, ds in g.items():
-                if isinstance(ds, h5py.Dataset) and ds.attrs.get("CLASS") != b"DIMENSION_SCALE":
-                    a = np.asarray(ds[()], float)
-                    out[k] = a if a.ndim else float(a)
-            return out
+            return _variables_of(g)
 
     def equilibrium(self, which: str) -> dict | None:
         return self._static_group(equilibrium_group(which))
@@ -422,6 +422,22 @@ class ResultsFile(ResultsView):
             self.f.close()
         except Exception:
             pass
+
+
+def _variables_of(g: h5py.Group) -> dict:
+    """The datasets of a static group that are not dimension scales, as float arrays (scalars as float), in the
+    group's order. Through h5py's low-level objects: a report and the validity checks read some 80 of them, and
+    h5py's high-level Dataset and attribute objects cost about four times as much as the reads."""
+    out = {}
+    for name in g.id:
+        obj = h5o.open(g.id, name)
+        if not isinstance(obj, h5d.DatasetID) or h5ds.is_scale(obj):
+            continue
+        a = np.empty(obj.shape, float)
+        if a.size:
+            obj.read(h5s.ALL, h5s.ALL, a)         # HDF5 converts the stored type to float64
+        out[name.decode()] = a if a.ndim else float(a)
+    return out
 
 
 def open_results(path: str | Path, check: bool = True) -> ResultsFile:

@@ -21,6 +21,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import h5py
 
@@ -183,10 +184,11 @@ class DriveFile:
                 del f
             gc.collect()
 
-    def finish(self, final: dict) -> None:
-        """The after-drive equilibrium and the summary, written into a copy that replaces the file when complete."""
+    def finish(self, final: dict, then: Callable[[h5py.File], dict] | None = None) -> None:
+        """The after-drive equilibrium and the summary, written into a copy that replaces the file when complete;
+        then(f): more /summary attributes read from that copy before it does (`layout.finish_file`)."""
         with h5py_releases_quietly():
-            finish_file(self.path, final)
+            finish_file(self.path, final, then)
 
     def set_status(self, status: str, **attrs) -> None:
         """Record the run's status in /summary (after the drive's writer closed; through a copy, as `finish`)."""

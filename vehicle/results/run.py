@@ -34,13 +34,11 @@ from __future__ import annotations
 
 import datetime as _dt
 import contextlib
-import functools
 import json
 import logging
 import os
 import signal
 import socket
-import subprocess
 import time
 import traceback
 from pathlib import Path
@@ -48,7 +46,6 @@ from typing import Callable
 
 import numpy as np
 
-from hpsim import __version__
 from hpsim.errors import SimulationError, UserInputError
 from hpsim.outputs import check_not_input
 from hpsim.stages import timed
@@ -62,28 +59,15 @@ from vehicle.engines.contract import DriveState
 from hpsim.cancellation import CancelToken
 
 from vehicle.results import provenance
+from vehicle.results.provenance import code_version
 from vehicle.results.layout import fault_point, h5py_releases_quietly, out_of_space, remove_stale
-from vehicle.results.reader import FORMAT, FORMAT_VERSION
+from vehicle.results.reader import FORMAT, FORMAT_VERSION, ResultsFile
 from vehicle.results.results_file import DriveFile, ResumePoint
 from vehicle.results.sinks import MemorySink
-from vehicle.results.validity import check, summary_cell, summary_warnings
+from vehicle.results.validity import check, summary_cell, summary_warnings_of
 
 DISSIPATION = ("valve", "friction", "gas", "end_stop")
 LOG = logging.getLogger("hpsim")
-
-
-@functools.lru_cache(maxsize=1)
-def code_version() -> str:
-    """hpsim version, plus the git commit when running from a checkout."""
-    here = Path(__file__).resolve().parent
-    try:
-        out = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=here, capture_output=True,
-                             text=True, timeout=5)
-        if out.returncode == 0 and out.stdout.strip():
-            return f"{__version__} ({out.stdout.strip()})"
-    except (OSError, subprocess.SubprocessError):
-        pass
-    return __version__
 
 
 def _now() -> str:
@@ -568,9 +552,10 @@ def _finish(results: DriveFile, drive, res, sink, then: str) -> dict:
     fault_point("before_final_write")
     final = timed("summary", final_info, drive, res, sink.n_samples, sink.n_stats, sink.wall_s())
     with _room_for(results.path, "while writing the summary", then):
-        timed("summary: write", results.finish, final)
-        warnings = timed("summary: validity checks", summary_warnings, results.path)
-        timed("summary: write warnings", results.finish, {"summary": warnings})   # in the file (/summary attrs)
+        # the validity warnings are read from the finished copy and recorded in it (/summary attrs) before it
+        # replaces the file
+        timed("summary: write", results.finish, final,
+              lambda f: timed("summary: validity checks", summary_warnings_of, ResultsFile(results.path, f)))
     return {k: v for k, v in final["summary"].items()}
 
 

@@ -16,6 +16,7 @@ import time
 
 import h5py
 import numpy as np
+from h5py import h5s
 
 from vehicle.results.checkpoint import Checkpoint
 from vehicle.results.layout import (CHECKPOINT, RECORD_DIM, SCENARIO, STATS, SUMMARY, TIMESERIES, equilibrium_group,
@@ -45,7 +46,9 @@ class H5Sink:
         # open dataset handles by (group, name): h5py looks a name up in its group anew on every access, and a
         # flush appends to some 50 datasets
         self.datasets: dict[tuple[str, str], h5py.Dataset] = {}
-        self.buffer: dict[str, list] = {}
+        # the blocks as the drive handed them: laid out as stored once per flush (one concatenation per drive key,
+        # not a reshaping of every variable of every block)
+        self.blocks: list[dict] = []
         self.n_buffered = 0
         self.stats_buffer: list[dict] = []
         self.pending_state: dict | None = None
@@ -70,9 +73,7 @@ class H5Sink:
         pass
 
     def samples(self, block: dict) -> None:
-        for key, value in block.items():
-            for v in self._vars(TIMESERIES, key, value):
-                self.buffer.setdefault(v.name, []).append(v.take(value, True))
+        self.blocks.append(block)
         self.n_buffered += len(np.atleast_1d(block["t_s"]))
 
     def stats(self, rows: list[dict]) -> None:
@@ -94,16 +95,24 @@ class H5Sink:
         return ds
 
     def _append(self, ds: h5py.Dataset, start: int, rows: np.ndarray) -> None:
-        ds.resize(start + len(rows), axis=0)
-        ds[start:] = rows
+        """rows after the first `start` of ds, through h5py's low-level dataset (a flush appends to some 50
+        datasets: its high-level resize and slicing cost more than the writes)."""
+        rows = np.ascontiguousarray(rows, dtype=np.float64)
+        ds.id.set_extent((start + len(rows),) + ds.shape[1:])
+        selected = ds.id.get_space()
+        selected.select_hyperslab((start,) + (0,) * (rows.ndim - 1), rows.shape)
+        ds.id.write(h5s.create_simple(rows.shape), selected, rows)
 
     def flush(self) -> None:
-        """Append the buffered rows, flush, then write the checkpoint that covers them."""
+        """Append the buffered rows, then write the checkpoint that covers them (`Checkpoint.write`: the rows and its
+        slot flushed before its pointer), or flush them."""
         if self.n_buffered:
-            for name, parts in self.buffer.items():
-                self._append(self._dataset(TIMESERIES, name), self.n_samples, np.concatenate(parts, axis=0))
+            for key in self.blocks[0]:
+                value = np.concatenate([b[key] for b in self.blocks], axis=-1)
+                for v in self._vars(TIMESERIES, key, value):
+                    self._append(self._dataset(TIMESERIES, v.name), self.n_samples, v.take(value, True))
             self.n_samples += self.n_buffered
-            self.buffer, self.n_buffered = {}, 0
+            self.blocks, self.n_buffered = [], 0
         if self.stats_buffer:
             n = len(self.stats_buffer)
             for key in self.stats_buffer[0]:
@@ -112,18 +121,21 @@ class H5Sink:
                     self._append(self._dataset(STATS, v.name), self.n_stats, v.take(value, True))
             self.n_stats += n
             self.stats_buffer = []
-        self.f.flush()
-        if self.pending_state is not None:
-            self.ck.write(self.pending_state, {"n_samples": self.n_samples, "n_stats": self.n_stats,
-                                               "wall_s": self.wall_s()})
-            self.last_state = self.pending_state
-            self.pending_state = None
+        if self.pending_state is None:
+            self.f.flush()
+            return
+        # the checkpoint's first flush writes the rows with its (inactive) slot, its second the pointer to the slot:
+        # the pointer is never on disk before what it covers
+        self.ck.write(self.pending_state, {"n_samples": self.n_samples, "n_stats": self.n_stats,
+                                           "wall_s": self.wall_s()})
+        self.last_state = self.pending_state
+        self.pending_state = None
 
     def release(self) -> None:
         """Drop every handle into the file (before the file is closed after a failure): nothing of it is left for
         the garbage collector to close later, when the HDF5 library may no longer hold the file."""
         self.datasets.clear()
-        self.buffer, self.stats_buffer = {}, []
+        self.blocks, self.stats_buffer = [], []
         self.f = self.ts = self.st = self.ck = None
 
     def wall_s(self) -> float:

@@ -19,6 +19,7 @@ the run.
 """
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass
 
@@ -76,12 +77,26 @@ def summary_warnings(path) -> dict:
     as in the sweep CSV) and `warnings_json` (the full list); with them, when the series are dense enough, the
     seats' shock numbers (`seat_shocks_json`)."""
     with open_results(path, check=False) as r:
-        found = check(r)
-        shocks = seat_shocks(r)
+        return summary_warnings_of(r)
+
+
+def summary_warnings_of(view) -> dict:
+    """`summary_warnings` of a results view (a file being finished, vehicle.results.layout.finish_file)."""
+    found = check(view)
+    shocks = seat_shocks(view)
     attrs = {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}
     if shocks:
         attrs["seat_shocks_json"] = json.dumps(shocks)
     return attrs
+
+
+def recorded_or_check(view, version: str) -> list[dict]:
+    """The warnings of a results view: those its run recorded in /summary (`summary_warnings`) when the run was made
+    by this hpsim `version` (the same checks of the same data), else `check(view)`."""
+    stored = view.summary_attrs().get("warnings_json")
+    if stored is not None and str(view.scenario_attrs.get("hpsim_version", "")) == version:
+        return [ValidityWarning(w) for w in json.loads(str(stored))]
+    return check(view)
 
 
 SHOCK_KEYS = ("crest_factor", "mtvv_m_s2", "mtvv_ratio", "dose_z_m_s2", "dose_y_m_s2", "sed_MPa", "daily_sed_MPa",
@@ -283,7 +298,7 @@ def _temperatures(data, th):
     for st in data.struts:
         lim, oil = st.get("limits") or {}, st["oil"]
         (T1, nu1), (T2, nu2) = sorted([(oil["viscosity_T1"], oil["viscosity_nu1"]), (oil["viscosity_T2"], oil["viscosity_nu2"])])
-        lo_data, hi_data = viscosity_extrapolation_range(T1, nu1, T2, nu2, th.oil_extrapolation)
+        lo_data, hi_data = _oil_data_range(float(T1), float(nu1), float(T2), float(nu2), float(th.oil_extrapolation))
         checks.append({"seal_temperature": (lim.get("seal_min_temperature"), lim.get("seal_max_temperature")),
                        "oil_temperature": (None, lim.get("oil_max_temperature")),
                        "oil_data_range": (lo_data, hi_data)})
@@ -310,6 +325,13 @@ def _temperatures(data, th):
                                 f"strut {node} temperature {worst - 273.15:.1f} degC is {side} {what} ({lim - 273.15:.0f} degC) "
                                 f"at {struts_text(struts, data.stations)}, first at {km:.3f} km"))
     return out
+
+
+@functools.lru_cache(maxsize=64)
+def _oil_data_range(T1_K: float, nu1_m2_s: float, T2_K: float, nu2_m2_s: float, rel: float) -> tuple[float, float]:
+    """`viscosity_extrapolation_range` of an oil, found once per process (a bisection; every strut of a vehicle and
+    every file of a study usually share their oil)."""
+    return viscosity_extrapolation_range(T1_K, nu1_m2_s, T2_K, nu2_m2_s, rel)
 
 
 def _solver(data, th):

@@ -13,6 +13,7 @@ solver's error estimate) are checked when the rows carry their keys.
 from __future__ import annotations
 
 import csv
+import shutil
 import json
 
 import numpy as np
@@ -150,3 +151,22 @@ def test_sweep_summary_has_a_warnings_column(runs, tmp_path):
         rows = {r["case"]: r for r in csv.DictReader(fh)}
     assert "seal_temperature(all struts@" in rows["hot"]["warnings"]
     assert rows["benign"]["warnings"] == ""
+
+
+def test_the_run_records_its_warnings_and_a_report_by_the_same_hpsim_takes_them(runs, tmp_path):
+    """The run checks the file it finishes and records the warnings in /summary (in the same write as the summary);
+    a report by the hpsim that wrote the file takes them from there, one by another hpsim checks again."""
+    with open_results(runs["hot"]) as r:
+        found = W.check(r)
+        recorded = json.loads(r.summary_attrs()["warnings_json"])
+        version = r.scenario_attrs["hpsim_version"]
+    assert found and recorded == json.loads(json.dumps(found))
+    edited = tmp_path / "edited.h5"                      # a file whose record says: no warnings
+    shutil.copy(runs["hot"], edited)
+    with h5py.File(edited, "r+") as f:
+        f["summary"].attrs["warnings_json"] = "[]"
+    with open_results(edited) as r:
+        assert W.recorded_or_check(r, version) == []
+        assert W.recorded_or_check(r, f"{version} (another)") == found
+    assert report(edited)["warnings"] == []
+    assert report(runs["hot"])["warnings"] == found
