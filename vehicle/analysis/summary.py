@@ -37,7 +37,6 @@ from vehicle.physics.outputs import VARIABLES, Var
 from vehicle.physics.weighing import difference_bands
 from vehicle.results import validity
 from vehicle.results.reader import ResultsView, open_results  # noqa: F401  (re-exported)
-from vehicle.results.provenance import code_version
 from vehicle.analysis import ride_metrics
 from vehicle.analysis.internal_drift import damping_over_drive
 
@@ -219,7 +218,7 @@ def _solver_notes(summ: dict) -> dict:
 
 def _checks(r: ResultsView) -> dict:
     """Ride metrics, validity warnings and (integrated struts with internal maps only) the damping's drift."""
-    out = {"ride": ride_metrics.summarise(r), "warnings": validity.recorded_or_check(r, code_version())}
+    out = {"ride": ride_metrics.summarise(r), "warnings": validity.check(r)}
     drift = damping_over_drive(r)
     if drift is not None:
         out["damping_over_drive"] = drift

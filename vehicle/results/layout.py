@@ -313,8 +313,8 @@ def create_file(path: Path, info: dict, block: dict, row: dict, state: dict, sto
 def finish_file(path: Path, final: dict, then: Callable[[h5py.File], dict] | None = None) -> None:
     """The after-drive equilibrium and the summary, or a status: written into a copy that replaces the
     file only when complete, so a kill at any moment leaves the previous file (resumable) in place.
-    then(f): more /summary attributes read from the copy as written (open), written into the same copy (the
-    validity warnings: one copy of the file, not a second one for them)."""
+    The function then(f) gives more /summary attributes, read from the open copy as written. They go into the same
+    copy: the validity warnings need no second copy of the file."""
     tmp = path.with_name(path.name + ".final")
     try:
         safe_copy(path, tmp)

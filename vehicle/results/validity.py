@@ -90,15 +90,6 @@ def summary_warnings_of(view) -> dict:
     return attrs
 
 
-def recorded_or_check(view, version: str) -> list[dict]:
-    """The warnings of a results view: those its run recorded in /summary (`summary_warnings`) when the run was made
-    by this hpsim `version` (the same checks of the same data), else `check(view)`."""
-    stored = view.summary_attrs().get("warnings_json")
-    if stored is not None and str(view.scenario_attrs.get("hpsim_version", "")) == version:
-        return [ValidityWarning(w) for w in json.loads(str(stored))]
-    return check(view)
-
-
 SHOCK_KEYS = ("crest_factor", "mtvv_m_s2", "mtvv_ratio", "dose_z_m_s2", "dose_y_m_s2", "sed_MPa", "daily_sed_MPa",
               "daily_exposure_s", "sed_assessment", "a_w_unreliable")
 

@@ -153,20 +153,17 @@ def test_sweep_summary_has_a_warnings_column(runs, tmp_path):
     assert rows["benign"]["warnings"] == ""
 
 
-def test_the_run_records_its_warnings_and_a_report_by_the_same_hpsim_takes_them(runs, tmp_path):
+def test_the_run_records_its_warnings_and_a_report_checks_again(runs, tmp_path):
     """The run checks the file it finishes and records the warnings in /summary (in the same write as the summary);
-    a report by the hpsim that wrote the file takes them from there, one by another hpsim checks again."""
+    a report checks the data again rather than believe the record (an edited record saying "no warnings" changes
+    nothing)."""
     with open_results(runs["hot"]) as r:
         found = W.check(r)
         recorded = json.loads(r.summary_attrs()["warnings_json"])
-        version = r.scenario_attrs["hpsim_version"]
     assert found and recorded == json.loads(json.dumps(found))
     edited = tmp_path / "edited.h5"                      # a file whose record says: no warnings
     shutil.copy(runs["hot"], edited)
     with h5py.File(edited, "r+") as f:
         f["summary"].attrs["warnings_json"] = "[]"
-    with open_results(edited) as r:
-        assert W.recorded_or_check(r, version) == []
-        assert W.recorded_or_check(r, f"{version} (another)") == found
-    assert report(edited)["warnings"] == []
+    assert report(edited)["warnings"] == found
     assert report(runs["hot"])["warnings"] == found
