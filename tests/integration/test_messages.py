@@ -114,3 +114,16 @@ def test_a_compile_is_announced_with_an_estimate_and_its_rate_kept(tmp_path, mon
     caplog.clear()
     assert codegen.precompile([fn]) == 0                     # cached: nothing to say
     assert not [r for r in caplog.records if "compiling" in r.getMessage()]
+
+
+def test_a_command_called_inside_a_longer_process_counts_its_time_from_its_call(monkeypatch):
+    """`main` from Python (a notebook, a test) runs inside a process that has done other work: the command's wall
+    time, which a study's cost preview counts as already spent, starts at the call, not at the process start."""
+    from vehicle import cli
+    from vehicle.cli import stages
+
+    seen = []
+    monkeypatch.setattr(cli, "_main", lambda argv: seen.append(stages.command_wall_s()) or 0)
+    time.sleep(0.3)
+    assert cli.main(["--version"]) == 0
+    assert 0.0 <= seen[0] < 0.25

@@ -27,6 +27,7 @@ import warnings
 
 from hpsim.errors import SimulationError, Terminated, UserInputError
 from hpsim.threads import one_blas_thread
+from vehicle.cli import stages
 
 
 class _Parser(argparse.ArgumentParser):
@@ -143,7 +144,11 @@ def _sigterm_raises():
             signal.signal(signal.SIGTERM, previous)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, whole_process: bool = False) -> int:
+    """The command line `argv` (default sys.argv[1:]); its exit code. whole_process: the process is this command
+    (`entry`), whose time then counts from the process start; else from this call (`stages.command_called`)."""
+    if not whole_process:
+        stages.command_called()
     with _sigterm_raises():
         return _main(argv)
 
@@ -158,7 +163,7 @@ def entry() -> None:
     exit code 1. The BLAS library is asked for one thread (`hpsim.threads.one_blas_thread`)."""
     one_blas_thread()
     try:
-        code = main()
+        code = main(whole_process=True)
     except SystemExit as exc:             # argparse's --help, --version and usage errors
         code = exc.code
     if code is not None and not isinstance(code, int):

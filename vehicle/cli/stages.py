@@ -1,7 +1,8 @@
 """The command's own wall time, for the line `hpsim run` ends with: the time printed is the command's.
 
 `command_wall_s()` counts from the process start (Linux: /proc/self/stat, so the imports count too),
-else from the first import of the command line package.
+else from the first import of the command line package; a command called inside a longer-lived process (`main`
+from Python, a test) counts from its call (`command_called`).
 """
 from __future__ import annotations
 
@@ -25,10 +26,19 @@ def _process_age_s() -> float | None:
 
 
 _AGE_AT_IMPORT = _process_age_s()
+_CALLED_AT: float | None = None        # perf_counter() when a command was called inside a longer-lived process
+
+
+def command_called() -> None:
+    """A command starts now inside a process that does other work too: its wall time counts from here."""
+    global _CALLED_AT
+    _CALLED_AT = time.perf_counter()
 
 
 def command_wall_s() -> float:
     """Wall seconds since the command started."""
+    if _CALLED_AT is not None:
+        return time.perf_counter() - _CALLED_AT
     since_import = time.perf_counter() - _IMPORTED
     return since_import + (_AGE_AT_IMPORT or 0.0)
 
