@@ -144,11 +144,10 @@ def _sigterm_raises():
             signal.signal(signal.SIGTERM, previous)
 
 
-def main(argv: list[str] | None = None, *, whole_process: bool = False) -> int:
-    """The command line `argv` (default sys.argv[1:]); its exit code. whole_process: the process is this command
-    (`entry`), whose time then counts from the process start; else from this call (`stages.command_called`)."""
-    if not whole_process:
-        stages.command_called()
+def main(argv: list[str] | None = None) -> int:
+    """The command line `argv` (default sys.argv[1:]); its exit code. Its wall time counts from this call, or from
+    the process start when the process is the command (`entry`; `stages.command_called`)."""
+    stages.command_called()
     with _sigterm_raises():
         return _main(argv)
 
@@ -162,8 +161,9 @@ def entry() -> None:
     as Instagram's `atexit.register(os._exit, 0)`). An error that `main` does not handle (a bug) ends as Python ends: traceback,
     exit code 1. The BLAS library is asked for one thread (`hpsim.threads.one_blas_thread`)."""
     one_blas_thread()
+    stages.process_is_the_command()
     try:
-        code = main(whole_process=True)
+        code = main()
     except SystemExit as exc:             # argparse's --help, --version and usage errors
         code = exc.code
     if code is not None and not isinstance(code, int):

@@ -27,12 +27,21 @@ def _process_age_s() -> float | None:
 
 _AGE_AT_IMPORT = _process_age_s()
 _CALLED_AT: float | None = None        # perf_counter() when a command was called inside a longer-lived process
+_PROCESS_IS_COMMAND = False            # the `hpsim` console script: the command's time is the process's
+
+
+def process_is_the_command() -> None:
+    """This process runs one command (`vehicle.cli.entry`): its time counts from the process start."""
+    global _PROCESS_IS_COMMAND
+    _PROCESS_IS_COMMAND = True
 
 
 def command_called() -> None:
-    """A command starts now inside a process that does other work too: its wall time counts from here."""
+    """A command starts now: inside a process that does other work too (not `process_is_the_command`), its wall time
+    counts from here."""
     global _CALLED_AT
-    _CALLED_AT = time.perf_counter()
+    if not _PROCESS_IS_COMMAND:
+        _CALLED_AT = time.perf_counter()
 
 
 def command_wall_s() -> float:
