@@ -7,6 +7,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
+from hpsim.threads import InlineExecutor
+
 
 class WindowPair:
     """Windows integrated on threads (`integrate`), two at once: slot 0 a window from its true start, slot 1 the
@@ -23,15 +25,15 @@ class WindowPair:
 
     def submit(self, slot: int, x0: np.ndarray, t0: float, t_warm: float, t_end: float) -> Future:
         d = self.drive
-        # a solver of its own: the same method at the same step (the solver contract's step_doubling capability)
-        caps = d.solver.capabilities
-        if self.pool is None and caps.step_doubling and not caps.thread_bound:
-            self.solvers = [d.solver] + [d.solver.refined_solver(1).bind(d.model, d.K, d.M)]
-            self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hpsim-window")
         if self.pool is None:
-            done = Future()
-            done.set_result(d.integrate(d.solver, x0, t0, t_end, t_warm))
-            return done
+            # the second window's solver: the same method at the same step (the solver contract's step_doubling
+            # capability); a drive that keeps its work on its own thread (`beside` False: an ensemble lane)
+            # integrates every window there, at once
+            if d.beside and d.solver.capabilities.step_doubling:
+                self.solvers = [d.solver, d.solver.refined_solver(1).bind(d.model, d.K, d.M)]
+                self.pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hpsim-window")
+            else:
+                self.solvers, self.pool = [d.solver, d.solver], InlineExecutor()
         return self.pool.submit(d.integrate, self.solvers[slot], x0, t0, t_end, t_warm)
 
     def close(self) -> None:
