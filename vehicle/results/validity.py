@@ -28,7 +28,6 @@ import numpy as np
 from struts.oil import viscosity_extrapolation_range
 from vehicle.physics import shocks
 from vehicle.physics.outputs import variable_name
-from vehicle.results.reader import open_results
 
 CODES = ("end_stop_time", "end_stop_energy", "equilibrium_on_stop", "seal_temperature", "oil_temperature",
          "oil_data_range", "tyre_lift_off", "solver_error")
@@ -72,16 +71,10 @@ def check(view, thresholds: Thresholds | None = None) -> list[dict]:
     return out
 
 
-def summary_warnings(path) -> dict:
-    """Check a finished results file: the /summary attributes that record its warnings, `warnings` (the short form,
-    as in the sweep CSV) and `warnings_json` (the full list); with them, when the series are dense enough, the
-    seats' shock numbers (`seat_shocks_json`)."""
-    with open_results(path, check=False) as r:
-        return summary_warnings_of(r)
-
-
 def summary_warnings_of(view) -> dict:
-    """`summary_warnings` of a results view (a file being finished, vehicle.results.layout.finish_file)."""
+    """Check the results of a view (a file being finished, vehicle.results.layout.finish_file): the /summary
+    attributes that record its warnings, `warnings` (the short form, as in the sweep CSV) and `warnings_json` (the
+    full list); with them, when the series are dense enough, the seats' shock numbers (`seat_shocks_json`)."""
     found = check(view)
     shocks = seat_shocks(view)
     attrs = {"warnings": summary_cell(found), "warnings_json": json.dumps(found)}
