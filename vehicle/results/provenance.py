@@ -106,12 +106,13 @@ def compare(stored_json: str | None, prep, out, action: str = "resume") -> None:
                              "with --overwrite (or write to another output)")
 
 
-def run_inputs(src) -> list[Path]:
+def run_inputs(src, prep=None) -> list[Path]:
     """The input files of a run of scenario source `src` (the scenario, vehicle, strut, road and speed files); a
-    scenario that cannot be prepared gives its own file only (its error is reported where it is prepared)."""
+    scenario that cannot be prepared gives its own file only (its error is reported where it is prepared).
+    prep: `src` already prepared (None: prepared here)."""
     files = [Path(src.name).resolve()] if Path(src.name).is_file() else []
     try:
-        files += list(input_files(prepare(src)).values())
+        files += list(input_files(prep if prep is not None else prepare(src)).values())
     except UserInputError:
         pass
     return files

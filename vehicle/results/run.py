@@ -306,7 +306,8 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                              "--overwrite throws it away; give one of them")
     src = scenario if isinstance(scenario, ScenarioSource) else (
         timed("reading", read_scenario, scenario) if scenario is not None else None)
-    _check_output(out, src)
+    prepared, refusal = _prepare_kept(src)
+    _check_output(out, src, prepared)
     results = DriveFile(out)
     with OutputLock(out):
         if out.exists() and not overwrite:
@@ -316,7 +317,9 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
             raise UserInputError(f"{out}: not found and no scenario given")
         if resume:
             log(f"{out}: nothing to resume, starting")
-        prep = timed("scenario checks", prepare, src)  # every check before any work
+        if refusal is not None:                         # every check before any work
+            raise refusal
+        prep = prepared
         model, drive = build_engine(prep, make_solver, shared)
         info = run_info(src, prep, model, drive, drive.initial_equilibrium())
         block, row, state = drive.describe()
@@ -353,11 +356,24 @@ def _resumable(results: DriveFile, out: Path, resume: bool) -> None:
                          "another file")
 
 
-def _check_output(out: Path, src: ScenarioSource | None) -> None:
-    """Refuse an output that is one of the scenario's inputs, a folder or not a regular file; make its folder."""
+def _prepare_kept(src: ScenarioSource | None) -> tuple:
+    """(the prepared scenario or None, its refusal or None): prepared once, for the output's check (its input files)
+    and the drive; a refusal is raised after the output's own checks, where a run checks its scenario."""
+    if src is None:
+        return None, None
+    try:
+        return timed("scenario checks", prepare, src), None
+    except UserInputError as exc:
+        return None, exc
+
+
+def _check_output(out: Path, src: ScenarioSource | None, prep=None) -> None:
+    """Refuse an output that is one of the scenario's inputs, a folder or not a regular file; make its folder.
+    prep: `src` prepared (None: it could not be, and its own file is the one input known)."""
     if src is not None:
         # never replace an input, --overwrite or not: the same check and message as every command's outputs
-        timed("output checked against the inputs", check_not_input, out, "-o/--output", provenance.run_inputs(src))
+        timed("output checked against the inputs", check_not_input, out, "-o/--output",
+              provenance.run_inputs(src, prep))
     if out.is_dir():
         raise UserInputError(f"{out}: is a directory; give a file name with -o")
     if out.exists() and not out.is_file():
