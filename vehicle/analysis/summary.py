@@ -36,7 +36,7 @@ from hpsim.errors import UserInputError
 from vehicle.physics.outputs import VARIABLES, Var
 from vehicle.physics.weighing import difference_bands
 from vehicle.results import validity
-from vehicle.results.reader import ResultsView, open_results  # noqa: F401  (re-exported)
+from vehicle.results.reader import ResultsView, check_files, open_results  # noqa: F401  (re-exported)
 from vehicle.analysis import ride_metrics
 from vehicle.analysis.internal_drift import damping_over_drive
 
@@ -293,7 +293,8 @@ def axle_value(run: dict, k: int, key: str):
 def compare(paths) -> dict:
     """The runs side by side; `n_axles` is the most axles of any run (vehicles of different axle counts are compared
     axle by axle, `axle_value` is None on an axle a vehicle does not have)."""
-    reps = [report(p) for p in paths]
+    check_files(paths)                    # all read whole in one child process, then each opened
+    reps = [report(p, check=False) for p in paths]
     return {"n_axles": max(len(r["axles"]) for r in reps), "runs": [{"file": r["file"], "status": r["status"], "distance_km": r["distance_km"],
                       "compensation": r["compensation"], "load_shift_pct": r["load_shift_pct"],
                       "load_shift_vs_charged_pct": r["load_shift_vs_charged_pct"],

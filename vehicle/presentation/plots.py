@@ -358,10 +358,11 @@ def _ride_rows(f) -> dict:
     return out
 
 
-def _history(path) -> dict:
+def _history(path, check: bool = True) -> dict:
     """Distance [km], mean strut temperature rise [K] and mean hull height change [mm] (moving mean
-    over a tenth of the drive) of one run, from its time series or, if not stored, its rows."""
-    with open_results(path) as f:
+    over a tenth of the drive) of one run, from its time series or, if not stored, its rows. check: as
+    `open_results`."""
+    with open_results(path, check=check) as f:
         before = f.equilibrium("before")
         T0 = np.asarray(equilibrium_temperature(before), float)
         s = f.series("distance")
@@ -388,7 +389,7 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
     n_ax = cmp["n_axles"]
-    hist = [_history(p) for p in paths]
+    hist = [_history(p, check=False) for p in paths]          # `compare` checked every file
     tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     fig = plt.figure(figsize=(max(13, 3 + 1.2 * n_ax * len(runs)), 8.5 if tops else 4.8), constrained_layout=True)

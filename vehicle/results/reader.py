@@ -112,7 +112,6 @@ import os, re, sys, time
 if os.environ.get("HPSIM_FAULT") == "read_hang":     # test hook: a file whose reading never ends
     time.sleep(3600)
 import h5py, numpy as np
-path = sys.argv[1]
 def short(exc):
     text = str(exc)
     m = re.search(r"truncated file: eof = (\d+).*stored_eof = (\d+)", text)
@@ -125,47 +124,51 @@ def short(exc):
 def fail(where, exc):
     print(f"{where}: {short(exc)}" if where else short(exc))
     sys.exit(1)
-try:
+def check(path):
     try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        if "already open for write" not in str(exc):
-            raise
-        f = h5py.File(path, "r", swmr=True)
-except Exception as exc:
-    fail("", exc)
-try:
-    for k in f.attrs:
-        f.attrs[k]
-except Exception as exc:
-    fail("/ attributes", exc)
-names = []
-try:
-    f.visit(names.append)
-except Exception as exc:
-    fail("structure", exc)
-for name in names:
-    try:
-        obj = f[name]
-        for k in obj.attrs:
-            obj.attrs[k]
-        if isinstance(obj, h5py.Dataset):
-            if obj.ndim == 0 or obj.shape[0] == 0:
-                obj[()]
-            else:
-                step = max(1, (1 << 22) // max(1, obj.size // obj.shape[0]))
-                for i in range(0, obj.shape[0], step):
-                    obj[i:i + step]
+        try:
+            f = h5py.File(path, "r")
+        except OSError as exc:
+            if "already open for write" not in str(exc):
+                raise
+            f = h5py.File(path, "r", swmr=True)
     except Exception as exc:
-        fail("/" + name, exc)
-print("ok")
+        fail("", exc)
+    try:
+        for k in f.attrs:
+            f.attrs[k]
+    except Exception as exc:
+        fail("/ attributes", exc)
+    names = []
+    try:
+        f.visit(names.append)
+    except Exception as exc:
+        fail("structure", exc)
+    for name in names:
+        try:
+            obj = f[name]
+            for k in obj.attrs:
+                obj.attrs[k]
+            if isinstance(obj, h5py.Dataset):
+                if obj.ndim == 0 or obj.shape[0] == 0:
+                    obj[()]
+                else:
+                    step = max(1, (1 << 22) // max(1, obj.size // obj.shape[0]))
+                    for i in range(0, obj.shape[0], step):
+                        obj[i:i + step]
+        except Exception as exc:
+            fail("/" + name, exc)
+    f.close()
+for path in sys.argv[1:]:        # one line per file read whole, in order
+    check(path)
+    print("ok", flush=True)
 """
 
 
 def check_file(path: str | Path, timeout_s: float | None = None) -> None:
     """Read the whole file in a child process under a time limit; DamagedResults if anything fails."""
     path = Path(path)
-    timeout_s = float(os.environ.get("HPSIM_READ_TIMEOUT", READ_TIMEOUT_S)) if timeout_s is None else timeout_s
+    timeout_s = _read_timeout_s(timeout_s)
     try:
         r = subprocess.run([sys.executable, "-c", _CHECK, str(path)], capture_output=True, text=True,
                            timeout=timeout_s, stdin=subprocess.DEVNULL)
@@ -176,6 +179,31 @@ def check_file(path: str | Path, timeout_s: float | None = None) -> None:
         what = (r.stdout.strip().splitlines() or [""])[-1] or \
             (r.stderr.strip().splitlines() or ["the check crashed"])[-1][:160]
         raise DamagedResults(f"{path}: damaged results file: {what}")
+
+
+def check_files(paths, timeout_s: float | None = None) -> None:
+    """`check_file` of many files (a study's) in one child process: one interpreter started, not one per file;
+    the caller then opens them with check=False. When that child fails or runs out of time, the files it did not
+    find whole are checked one by one, so that the error names the damaged file as `check_file` does (a damaged
+    file costs one time limit more). A missing file or folder is left to `open_results` to name."""
+    paths = [Path(p) for p in paths if Path(p).is_file()]
+    if len(paths) < 2:
+        for p in paths:
+            check_file(p, timeout_s)
+        return
+    try:
+        r = subprocess.run([sys.executable, "-c", _CHECK, *map(str, paths)], capture_output=True, text=True,
+                           timeout=_read_timeout_s(timeout_s), stdin=subprocess.DEVNULL)
+        lines = r.stdout.splitlines()
+        whole = next((k for k, line in enumerate(lines) if line.strip() != "ok"), len(lines))
+    except subprocess.TimeoutExpired:
+        whole = 0
+    for p in paths[whole:]:
+        check_file(p, timeout_s)
+
+
+def _read_timeout_s(timeout_s: float | None) -> float:
+    return float(os.environ.get("HPSIM_READ_TIMEOUT", READ_TIMEOUT_S)) if timeout_s is None else timeout_s
 
 
 # --- reading a file ---------------------------------------------------------------------------------

@@ -359,3 +359,26 @@ def test_a_reader_holding_a_new_file_does_not_stop_the_run(tmp_path):
     assert p.returncode == 0
     with h5py.File(path, "r") as f:
         np.testing.assert_array_equal(f["x"][:], [1.0, 2.0, 3.0])
+
+
+def test_a_batch_check_names_the_damaged_file_among_whole_ones(work, monkeypatch):
+    """`check_files` reads a study's files in one child process; a damaged one among them is named as
+    `check_file` names it, whole ones pass, and a hang is still cut off per file."""
+    from vehicle.results.reader import DamagedResults, check_file, check_files
+
+    d, ref = work
+    whole = [shutil.copy(ref, d / f"whole{k}.h5") for k in range(3)]
+    check_files(whole)                                             # nothing damaged: no error
+    size = ref.stat().st_size
+    damaged = d / "batch_trunc.h5"
+    shutil.copy(ref, damaged)
+    os.truncate(damaged, size // 2)
+    with pytest.raises(DamagedResults) as batch:
+        check_files([whole[0], damaged, whole[1]])
+    with pytest.raises(DamagedResults) as alone:
+        check_file(damaged)
+    assert str(batch.value) == str(alone.value) and str(damaged) in str(batch.value)
+    monkeypatch.setenv("HPSIM_FAULT", "read_hang")
+    monkeypatch.setenv("HPSIM_READ_TIMEOUT", "1")
+    with pytest.raises(DamagedResults, match="did not finish within 1 s"):
+        check_files(whole)
