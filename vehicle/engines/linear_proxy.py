@@ -15,6 +15,11 @@ from vehicle.engines.control_variate import strut_velocity_from_spectrum
 from vehicle.engines.proxy_roads import PROXY_ROADS, ComputedOnce, proxy_road
 
 
+# the linearisation's Jacobian function by its name (the model's structure: `linear.jacobian_name`), read from the
+# compile cache once per process
+JACOBIANS = ComputedOnce(4)
+
+
 class LinearProxy:
     """The proxy set up in three parts, so that each runs where a core would otherwise idle (`MultiscaleDrive`:
     before and beside the first window, beside its slaving matrix, beside the windows that run alone at the end).
@@ -47,27 +52,28 @@ class LinearProxy:
         t0 = time.perf_counter()
         self.road = proxy_road(self.drive, self.rate_hz, self.PAD_S, self.kept)
         self.t, self.roads, self.spectrum = self.road.t, self.road.roads, self.road.spectrum
-        self.jacobians = self._jacobians()
+        self.vehicles = self._equivalent_vehicles()
         self._linear(self.ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
         self.setup_s += time.perf_counter() - t0
 
-    def _jacobians(self):
-        """The linearisation's Jacobians (`linear.jacobian_graph`) of the equivalent-friction vehicle: one function
-        for every V (the friction enters as a parameter value), kept in the compile cache (`serialized_function`)
-        rather than built from the model's equations in every run."""
-        V = self.ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S
-        model = VehicleModel(linear.equivalent_friction_params(self.drive.model.params, V))
-        return serialized_function(Library(linear.jacobian_name(model),
-                                           ("linear_jacobians", model.structure, linear.LINEARISED_OUTPUTS),
-                                           lambda: linear.jacobian_graph(model)))
+    def _equivalent_vehicles(self) -> linear.EquivalentLinearVehicles:
+        """The linear vehicle at every V from one equivalent-friction model (`linear.EquivalentLinearVehicles`). Its
+        Jacobians (`linear.jacobian_graph`: one function for every V, the friction enters as a parameter value) are
+        kept in the compile cache (`serialized_function`) rather than built from the model's equations in every
+        run, and read once per process and model structure (`JACOBIANS`)."""
+        d = self.drive
+        model = VehicleModel(linear.equivalent_friction_params(d.model.params,
+                                                               self.ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S))
+        name = linear.jacobian_name(model)
+        jacobians = JACOBIANS.get(name, lambda: serialized_function(Library(
+            name, ("linear_jacobians", model.structure, linear.LINEARISED_OUTPUTS),
+            lambda: linear.jacobian_graph(model))))
+        return linear.EquivalentLinearVehicles(model, self.T0, d.gas_masses, self.standing, jacobians)
 
     def _linear(self, V: float):
         lin = self._linearised.get(V)
         if lin is None:
-            d = self.drive
-            lin = self._linearised[V] = linear.linearise(d.model.params, self.T0, friction_velocity_m_s=V,
-                                                         gas_masses=d.gas_masses, equilibrium=self.standing,
-                                                         jacobians=self.jacobians)
+            lin = self._linearised[V] = self.vehicles.at(V)
         return lin
 
     def _velocities(self, V: float, spectrum: tuple) -> np.ndarray:
