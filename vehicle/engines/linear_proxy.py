@@ -11,7 +11,13 @@ import numpy as np
 from vehicle.physics import linear
 from vehicle.physics.model import VehicleModel
 from vehicle.numerics.codegen import Library, serialized_function
-from vehicle.engines.control_variate import on_grid_array, road_spectrum, strut_velocity_from_spectrum
+from vehicle.engines.control_variate import strut_velocity_from_spectrum
+from vehicle.engines.proxy_roads import PROXY_ROADS, ComputedOnce, proxy_road
+
+
+# the linearisation's Jacobian function by its name (the model's structure: `linear.jacobian_name`), read from the
+# compile cache once per process
+JACOBIANS = ComputedOnce(4)
 
 
 class LinearProxy:
@@ -24,12 +30,14 @@ class LinearProxy:
 
     drive: the MultiscaleDrive (its model, station roads, time grid, gas masses and multiscale settings);
     inputs: its `_linear_proxy_inputs()` (the initial strut temperatures and the vehicle standing at them),
-    computed on the drive's thread: they use its equilibrium solver."""
+    computed on the drive's thread: they use its equilibrium solver; kept: where the road part is kept for the
+    process's other drives on the same road (`proxy_roads.PROXY_ROADS`; ComputedOnce(0): computed for this one)."""
 
     PAD_S = 30.0                  # s of road before and after the drive: the linear vehicle's memory
 
-    def __init__(self, drive, inputs: tuple):
+    def __init__(self, drive, inputs: tuple, kept: ComputedOnce = PROXY_ROADS):
         self.drive = drive
+        self.kept = kept
         self.T0, self.standing = inputs
         self.ms = drive.ms
         self.rate_hz = self.ms.LINEAR_PROXY_RATE_HZ
@@ -38,40 +46,34 @@ class LinearProxy:
         self._linearised: dict = {}          # V -> the linear vehicle (the first guess is linearised in `prepare`)
 
     def prepare(self) -> None:
-        """The road under each tyre on the proxy's time grid (the grid heights, linearly interpolated, held at the
-        ends: `on_grid_array`), its spectrum, and the linear vehicle at the first guess of V (its Jacobians read
-        from the compile cache or built: `_jacobians`)."""
+        """The road under each tyre on the proxy's time grid and its spectrum (`proxy_roads.proxy_road`: computed
+        once per process for every drive on the same road), and the linear vehicle at the first guess of V (its
+        Jacobians read from the compile cache or built: `_jacobians`)."""
         t0 = time.perf_counter()
-        d, m, rate = self.drive, self.drive.model, self.rate_hz
-        t_end = float(np.interp(d.settings.distance_m, d.s_grid, d.t_grid))
-        self.t = np.arange(-self.PAD_S, t_end + self.PAD_S, 1.0 / rate)
-        s = np.interp(self.t, d.t_grid, d.s_grid, left=0.0)
-        self.roads = np.empty((m.n, self.t.size))
-        for i in range(m.n):
-            road, track = d.station_roads[i], ("left" if i % 2 == 0 else "right")
-            self.roads[i] = on_grid_array(road.heights(track, m.params.station_axle(i)), road.spacing_m, s - m.a[i])
-        self.spectrum = road_spectrum(self.roads)
-        self.jacobians = self._jacobians()
+        self.road = proxy_road(self.drive, self.rate_hz, self.PAD_S, self.kept)
+        self.t, self.roads, self.spectrum = self.road.t, self.road.roads, self.road.spectrum
+        self.vehicles = self._equivalent_vehicles()
         self._linear(self.ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S)
         self.setup_s += time.perf_counter() - t0
 
-    def _jacobians(self):
-        """The linearisation's Jacobians (`linear.jacobian_graph`) of the equivalent-friction vehicle: one function
-        for every V (the friction enters as a parameter value), kept in the compile cache (`serialized_function`)
-        rather than built from the model's equations in every run."""
-        V = self.ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S
-        model = VehicleModel(linear.equivalent_friction_params(self.drive.model.params, V))
-        return serialized_function(Library(linear.jacobian_name(model),
-                                           ("linear_jacobians", model.structure, linear.LINEARISED_OUTPUTS),
-                                           lambda: linear.jacobian_graph(model)))
+    def _equivalent_vehicles(self) -> linear.EquivalentLinearVehicles:
+        """The linear vehicle at every V from one equivalent-friction model (`linear.EquivalentLinearVehicles`). Its
+        Jacobians (`linear.jacobian_graph`: one function for every V, the friction enters as a parameter value) are
+        kept in the compile cache (`serialized_function`) rather than built from the model's equations in every
+        run, and read once per process and model structure (`JACOBIANS`)."""
+        d = self.drive
+        model = VehicleModel(linear.equivalent_friction_params(d.model.params,
+                                                               self.ms.LINEAR_PROXY_FRICTION_VELOCITY_M_S))
+        name = linear.jacobian_name(model)
+        jacobians = JACOBIANS.get(name, lambda: serialized_function(Library(
+            name, ("linear_jacobians", model.structure, linear.LINEARISED_OUTPUTS),
+            lambda: linear.jacobian_graph(model))))
+        return linear.EquivalentLinearVehicles(model, self.T0, d.gas_masses, self.standing, jacobians)
 
     def _linear(self, V: float):
         lin = self._linearised.get(V)
         if lin is None:
-            d = self.drive
-            lin = self._linearised[V] = linear.linearise(d.model.params, self.T0, friction_velocity_m_s=V,
-                                                         gas_masses=d.gas_masses, equilibrium=self.standing,
-                                                         jacobians=self.jacobians)
+            lin = self._linearised[V] = self.vehicles.at(V)
         return lin
 
     def _velocities(self, V: float, spectrum: tuple) -> np.ndarray:
@@ -94,7 +96,7 @@ class LinearProxy:
         t_a, t_b, target = match
         sl = slice(max(int((t_a + pad) * rate) - int(pad * rate), 0), int((t_b + pad) * rate) + int(pad * rate))
         inside = (self.t[sl] >= t_a) & (self.t[sl] <= t_b)
-        stretch = road_spectrum(self.roads[:, sl])
+        stretch = self.road.stretch_spectrum(sl.start, sl.stop)
 
         def rms(Vx):
             return float(np.sqrt(np.mean(self._velocities(Vx, stretch)[:, inside] ** 2)))

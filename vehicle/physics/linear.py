@@ -159,6 +159,28 @@ def _jacobian_function(model: VehicleModel, outputs: tuple[str, ...]) -> ca.Func
 _JACOBIANS: dict = {}
 
 
+def dense_outputs(J: ca.Function, args: tuple) -> list[np.ndarray]:
+    """J's outputs at the numeric inputs `args` as dense arrays, equal to np.asarray of its DM outputs: evaluated
+    into NumPy buffers (CasADi's `Function.buffer`) and the non-zeros placed by each output's sparsity, which
+    spares the element-by-element conversion of the DM outputs (most of a linearisation's time)."""
+    buf, evaluate = J.buffer()
+    inputs = [np.ascontiguousarray(a, dtype=float) for a in args]
+    for k, a in enumerate(inputs):
+        buf.set_arg(k, memoryview(a))
+    nonzeros = [np.empty(J.nnz_out(k)) for k in range(J.n_out())]
+    for k, nz in enumerate(nonzeros):
+        buf.set_res(k, memoryview(nz))
+    evaluate()
+    out = []
+    for k, nz in enumerate(nonzeros):
+        sp = J.sparsity_out(k)
+        dense = np.zeros((sp.size1(), sp.size2()))
+        rows, cols = sp.get_triplet()
+        dense[rows, cols] = nz
+        out.append(dense)
+    return out
+
+
 def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray,
                      outputs: tuple[str, ...] = ("wheel_load",), J: ca.Function | None = None):
     """(df/dx, df/du, [(dy/dx, dy/du) per output], f) at (x0, u0) for run parameters p; y: the per-station
@@ -173,13 +195,13 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     J = _jacobian_function(model, outputs) if J is None else J
     z0 = np.zeros(model.nz)
     for _ in range(20):                     # the valve pressure drops at the equilibrium (0 at rest)
-        values = [np.asarray(v, float) for v in J(x0, z0, u0, p)]
+        values = dense_outputs(J, (x0, z0, u0, p))
         *_, gx, gz, gu, r, _ = values
         if model.nz == 0 or np.max(np.abs(r)) < 1e-12:
             break                           # the Jacobians at this z0 are the ones wanted
         z0 = z0 - np.linalg.solve(gz, r.ravel())
     else:
-        values = [np.asarray(v, float) for v in J(x0, z0, u0, p)]
+        values = dense_outputs(J, (x0, z0, u0, p))
     fx, fz, fu, yx, yz, yu, gx, gz, gu, _, rates = values
     if model.nz:
         zx, zu = -np.linalg.solve(gz, gx), -np.linalg.solve(gz, gu)
@@ -210,10 +232,17 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
     T = np.full(n, params.charging.temperature) if temperatures_K is None else \
         np.broadcast_to(np.asarray(temperatures_K, float), (n,)).copy()
     eq = EquilibriumSolver(model).solve(T, gas_masses) if equilibrium is None else equilibrium
+    return _linearised(model, model.run_parameters(gas_masses, False), T, gas_masses, eq, friction_velocity_m_s,
+                       speed_m_per_s, jacobians)
+
+
+def _linearised(model: VehicleModel, p: np.ndarray, T: np.ndarray, gas_masses: np.ndarray, eq,
+                friction_velocity_m_s: float | None, speed_m_per_s: float, jacobians) -> LinearVehicle:
+    """`linearise` of `model` at run parameters p (`VehicleModel.run_parameters`), strut temperatures T [K], gas
+    masses [kg] and the standing equilibrium eq there."""
     x0 = model.state_at_rest(eq, gas_masses)
     # standing road, constant speed (no acceleration), ambient = strut temperature: no heat flow
     u0 = model.input_matrix(1, speed=speed_m_per_s, ambient=float(np.mean(T)))[:, 0]
-    p = model.run_parameters(gas_masses, False)
     A, B, ((C, D), (Cv, Dv)), rates = _model_jacobians(model, x0, u0, p, LINEARISED_OUTPUTS, jacobians)
     names = mechanical_states(model)
     keep = [model.idx(nm) for nm in names]
@@ -236,6 +265,41 @@ def linearise(params: VehicleParams, temperatures_K=None, friction_velocity_m_s:
                          temperatures_K=T, static_wheel_loads_N=np.asarray(eq.wheel_loads_N, float),
                          friction_velocity_m_s=friction_velocity_m_s, notes=notes, C_velocity=Cv[:, keep],
                          D_velocity_road=Dv[:, road], D_velocity_rate=Dv[:, rate])
+
+
+class EquivalentLinearVehicles:
+    """`linearise(params, T, friction_velocity_m_s=V, gas_masses=..., equilibrium=..., jacobians=...)` at several
+    friction velocity amplitudes V from one model: V enters the equivalent-friction vehicle
+    (`equivalent_friction_params`) only as the struts' friction smoothing pi V / 4, a parameter value of the one
+    Jacobian function, so each V sets those values in the run parameters instead of building the vehicle's
+    parameters and model again. Equal bit for bit to `linearise` at each V (tests/unit/physics/test_linear_family.py);
+    each LinearVehicle's `model` is the one given (its own smoothing value aside, the same vehicle).
+
+    model: `VehicleModel(equivalent_friction_params(params, V0))` for some V0; temperatures_K, gas_masses, equilibrium:
+    as `linearise` takes them; jacobians: `jacobian_graph(model)` or a kept copy of it (default: built here)."""
+
+    SMOOTHING = ".friction.smoothing_velocity"       # the parameter V sets, per strut model (`symbolic_copy` names)
+
+    def __init__(self, model: VehicleModel, temperatures_K, gas_masses, equilibrium, jacobians=None):
+        self.model = model
+        self.T = np.broadcast_to(np.asarray(temperatures_K, float), (model.n,)).copy()
+        self.gas_masses = np.asarray(gas_masses, float)
+        self.equilibrium = equilibrium
+        self.jacobians = _jacobian_function(model, LINEARISED_OUTPUTS) if jacobians is None else jacobians
+        self.p = model.run_parameters(self.gas_masses, False)
+        self.smoothing = model.n_run + np.array([k for k, nm in enumerate(model.parameters.names)
+                                                 if nm.startswith("strut") and nm.endswith(self.SMOOTHING)], int)
+        if self.smoothing.size == 0:
+            raise ValueError("the model has no seal friction smoothing among its parameters")
+
+    def at(self, V: float) -> LinearVehicle:
+        """The equivalent linear vehicle at strut velocity amplitude V [m/s]."""
+        V = float(V)
+        if not (math.isfinite(V) and V > 0):
+            raise ValueError(f"velocity amplitude must be > 0 m/s, got {V!r}")
+        p = self.p.copy()
+        p[self.smoothing] = math.pi * V / 4.0
+        return _linearised(self.model, p, self.T, self.gas_masses, self.equilibrium, V, 0.0, self.jacobians)
 
 
 # --- modes -----------------------------------------------------------------------------------------
