@@ -2,8 +2,11 @@
 study can say what it will cost before it starts (vehicle.studies.cost).
 
 Every completed `hpsim run` (and so every sweep and UQ case) records, per solver mode, the integration
-steps per second of wall time of its drive (simulated time / dt / the drive's wall, writing the results
-included). It also records the rest of a run in a fresh process with the model compiled (`build_s`: reading,
+steps per second of wall time of its drive (the simulated time it integrates / dt / the drive's wall, writing the
+results included). A multiscale drive integrates only its windows (vehicle.engines.multiscale.integrated_time_s),
+a share of the road that depends on its window plan and distance, so its rate counts those steps: a rate counted
+over the whole road holds only for drives of the same plan. Its entries carry STEPS = "integrated"; one without
+(recorded before, over the whole road) is not read in that mode. It also records the rest of a run in a fresh process with the model compiled (`build_s`: reading,
 checks, road, model, build, file, summary). That is taken from the first run of a process only, as later ones
 reuse the model built in memory, and without the compiler's time (vehicle.numerics.compile_time). A new
 process's imports are not in it.
@@ -20,6 +23,8 @@ from vehicle.numerics import compile_time
 from vehicle.numerics.codegen import cache_dir
 
 RECORD = "drive_rate.json"
+STEPS = "integrated"           # what an entry's steps count: those the drive integrates (see the module docstring)
+WHOLE_ROAD_MODES = ("multiscale",)     # modes whose entries without STEPS counted steps they did not integrate
 _setup_recorded = None         # the process (id) that recorded its first drive's set-up: a forked worker has not
 
 
@@ -28,11 +33,12 @@ def _path() -> Path:
 
 
 def read(mode: str) -> dict | None:
-    """{"steps_per_s", "build_s", "dt_s", "recorded"} of the last drive in this mode, or None."""
+    """{"steps_per_s", "build_s", "dt_s", "recorded", "steps"} of the last drive in this mode, or None."""
     try:
         entry = json.loads(_path().read_text()).get(mode)
         ok = (isinstance(entry, dict) and math.isfinite(float(entry["steps_per_s"])) and float(entry["steps_per_s"]) > 0
-              and math.isfinite(float(entry["build_s"])) and float(entry["build_s"]) >= 0)
+              and math.isfinite(float(entry["build_s"])) and float(entry["build_s"]) >= 0
+              and (entry.get("steps") == STEPS or mode not in WHOLE_ROAD_MODES))
         return entry if ok else None
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
@@ -41,6 +47,7 @@ def read(mode: str) -> dict | None:
 def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: float,
            compiled_s: float | None = None, fresh: bool = False) -> None:
     """Keep the rate of a finished drive (best effort: nothing is kept where the cache cannot be written).
+    simulated_s: the simulated time the drive integrated (a multiscale drive: its windows').
     compiled_s: the compiler's seconds inside build_s (None: all this process compiled so far); fresh: build_s is a
     whole set-up even if this process drove before (a study's probe drive)."""
     global _setup_recorded
@@ -52,7 +59,8 @@ def record(mode: str, dt_s: float, simulated_s: float, wall_s: float, build_s: f
     old = _entries().get(mode)
     build = build_s if first else float(old.get("build_s", 0.0) if isinstance(old, dict) else 0.0)
     record_entry(mode, {"steps_per_s": simulated_s / dt_s / wall_s, "build_s": build, "dt_s": dt_s,
-                        "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"), "load": load_average()})
+                        "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"), "load": load_average(),
+                        "steps": STEPS})
 
 
 def _entries() -> dict:
