@@ -39,9 +39,9 @@ def test_a_multiscale_preview_from_another_window_plan_s_rate_is_near_its_own_dr
     for k in range(2):
         run_scenario(_source("dense", **DENSE), tmp_path / f"dense{k}.h5")
         rate = drive_rate.read("multiscale")
-        assert rate is not None and rate["steps"] == drive_rate.STEPS
+        assert rate is not None
         best = rate if best is None or rate["steps_per_s"] > best["steps_per_s"] else best
-    drive_rate.record_entry("multiscale", best)
+    drive_rate.record_entry(drive_rate.ENTRY["multiscale"], best)
     sparse = prepare(_source("sparse", **SPARSE))
     predicted, basis = cost.per_drive(sparse, probe=False)
     assert "steps of its windows" in basis
@@ -50,15 +50,19 @@ def test_a_multiscale_preview_from_another_window_plan_s_rate_is_near_its_own_dr
     assert 1 / 1.5 < ratio < 1.5, (predicted.steps_s, walls)
 
 
-def test_a_whole_road_multiscale_rate_recorded_before_is_not_read(private_record):
-    """An entry without the steps it counts is from before they were the windows': read in the full mode, where
-    both counts are the same, and not in the multiscale mode."""
+def test_a_whole_road_multiscale_rate_recorded_before_is_neither_read_nor_overwritten(private_record):
+    """The entry an earlier hpsim kept under the mode's name counted the whole road's steps: read in the full mode,
+    where both counts are the same, and in the multiscale mode neither read nor overwritten (that hpsim may share
+    the cache)."""
     old = {"steps_per_s": 1e6, "build_s": 1.0, "dt_s": 0.004, "recorded": "2026-01-01T00:00:00", "load": 0.5}
     drive_rate.record_entry("multiscale", old)
     drive_rate.record_entry("full", old)
     assert drive_rate.read("multiscale") is None
     assert drive_rate.read("full")["steps_per_s"] == 1e6
     assert cost.per_drive(prepare(_source("sparse", **SPARSE)), probe=False) is None
+    drive_rate.record("multiscale", 0.004, 200.0, 1.0, 1.0)
+    assert drive_rate.read("multiscale")["steps_per_s"] == pytest.approx(50000.0)
+    assert drive_rate.read_entry("multiscale") == old
 
 
 def test_the_preview_builds_one_engine_per_model_structure(private_record):
