@@ -99,9 +99,13 @@ def load_average() -> float | None:
 
 
 def mode_of(scenario) -> str:
-    """The record's key for a scenario (vehicle.scenario.schema.Scenario): full, multiscale, time_parallel/P."""
+    """The record's key for a scenario (vehicle.scenario.schema.Scenario): full, multiscale, time_parallel/P, or
+    time_parallel/PxL with L > 1 segments per process given (solver.time_parallel_lanes: they step together on the
+    lane library, so the drive's rate depends on them as on P; "auto" takes one)."""
     solver = scenario.solver
     if solver.mode == "multiscale":
         return "multiscale"
-    P = solver.time_parallel
-    return f"time_parallel/{P}" if P not in (None, 1) else "full"
+    P, lanes = solver.time_parallel, solver.time_parallel_lanes
+    if P in (None, 1):
+        return "full"
+    return f"time_parallel/{P}" + (f"x{lanes}" if isinstance(lanes, int) and lanes > 1 else "")

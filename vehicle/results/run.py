@@ -329,9 +329,10 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
         summary = _drive(drive, results, ResumePoint.start(), prep, progress, log, checkpoint_every_blocks, cancel)
         # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies; not
         # from an ensemble lane, whose wall is its whole group's. The rate counts the steps the drive integrates: a
-        # multiscale drive's windows (as the preview counts them, vehicle.studies.cost)
+        # multiscale drive's windows (as the preview counts them, vehicle.studies.cost); a time-parallel scenario
+        # too short for two segments drove as a full drive
         if make_solver is None:
-            mode = drive_rate.mode_of(prep.scenario)
+            mode = "full" if drive.mode == "full" else drive_rate.mode_of(prep.scenario)
             integrated = (integrated_time_s(prep.settings(), prep.scenario.solver.multiscale_settings())
                           if mode == "multiscale" else summary["simulated_s"])
             drive_rate.record(mode, prep.scenario.solver.dt, integrated,

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 from hpsim.errors import SimulationError, UserInputError
 
+from vehicle.engines.build import engine_name
 from vehicle.engines.ensemble import eligible, group_size
 from vehicle.engines.multiscale import integrated_time_s
 from vehicle.engines.time_parallel import MIN_SEGMENT_S
@@ -170,6 +171,12 @@ def integrated_s(prepared) -> float:
     return settings.speed.statistics(float(prepared.scenario.distance))["duration_s"]
 
 
+def rate_mode(prepared) -> str:
+    """The drive-rate record's key of a prepared scenario (`drive_rate.mode_of`), "full" for a time-parallel one too
+    short for two segments, which drives as a full drive (vehicle.engines.build.engine_name)."""
+    return "full" if engine_name(prepared) == "full" else drive_rate.mode_of(prepared.scenario)
+
+
 def _probe(prepared) -> dict:
     """Measure the rate on a short drive of this scenario (in memory) and record it for its solver mode; its model
     is compiled already (`compile_ahead`), so its set-up is a drive's with the cache warm. The rate counts the steps
@@ -184,7 +191,7 @@ def _probe(prepared) -> dict:
     compile_s = compile_time.compiled_s - compiled_before
     setup_s = time.perf_counter() - t0 - S["wall_s"]
     integrated = integrated_s(short_prepared)
-    mode, dt = drive_rate.mode_of(prepared.scenario), prepared.scenario.solver.dt
+    mode, dt = rate_mode(prepared), prepared.scenario.solver.dt
     drive_rate.record(mode, dt, integrated, S["wall_s"], setup_s, compiled_s=compile_s, fresh=True)
     rate = drive_rate.read(mode)
     if rate is None:              # a cache that cannot be written: the probe's own numbers
@@ -226,7 +233,7 @@ def compile_ahead(prepared, lanes: int = 1) -> int:
 def per_drive(prepared, *, probe: bool = True) -> tuple[DriveCost, str] | None:
     """(cost, basis) of one drive of the prepared scenario (vehicle.scenario.schema.Prepared) alone; None when no
     rate is recorded in its solver mode and probe is False."""
-    mode = drive_rate.mode_of(prepared.scenario)
+    mode = rate_mode(prepared)
     rate = drive_rate.read(mode)
     basis = f"{mode} mode"
     if rate is None:

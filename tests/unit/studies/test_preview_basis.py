@@ -3,6 +3,8 @@ the road depends on the window plan, and the preview builds one engine per set o
 design."""
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from vehicle.numerics import drive_rate
@@ -82,3 +84,18 @@ def test_the_preview_builds_one_engine_per_model_structure(private_record):
     # on ensemble lanes each structure's engine and lane library are built once too
     est = cost.estimate(designs + [other], 1, ensemble=4)
     assert est.lanes == 4 and est.compiles.engine_builds == 2
+
+
+def test_a_time_parallel_rate_is_kept_per_process_and_lane_layout():
+    """A time-parallel drive's rate depends on its processes and on the segments each steps together on the lane
+    library: each layout has its own entry, and a scenario too short for two segments, which drives as a full
+    drive, is costed (and recorded) as one."""
+    layouts = {(2, None): "time_parallel/2", (2, 4): "time_parallel/2x4", (2, 1): "time_parallel/2",
+               ("auto", None): "time_parallel/auto", ("auto", 4): "time_parallel/autox4"}
+    for (P, lanes), key in layouts.items():
+        solver = {"time_parallel": P, **({"time_parallel_lanes": lanes} if lanes is not None else {})}
+        assert drive_rate.mode_of(prepare(_source("tp", distance="20 km", solver=solver)).scenario) == key
+    short = prepare(_source("short", distance="500 m", solver={"time_parallel": "auto"}))   # 90 s: one segment
+    assert drive_rate.mode_of(short.scenario) == "time_parallel/auto" and cost.rate_mode(short) == "full"
+    long = prepare(_source("long", distance="5 km", solver={"time_parallel": "auto"}))    # one segment per CPU
+    assert cost.rate_mode(long) == ("time_parallel/auto" if (os.cpu_count() or 1) > 1 else "full")
