@@ -609,3 +609,24 @@ class MultiscaleDrive:
                       "estimated_error_axle_temperature_K": e["axle_temperature_K"],
                       "estimated_error_load_change_pct": e["load_change_pct"]}
         return {"attrs": attrs, "values": values}
+
+
+def integrated_time_s(settings, multiscale: MultiscaleSettings) -> float:
+    """The simulated time [s] the full model integrates in a multiscale drive, known before the drive is built: its
+    planned windows (`MultiscaleSettings.windows`, warm-ups included), each in whole solver calls of M samples of
+    K steps, as `MultiscaleDrive.integrate` advances them. settings: the drive's `DriveSettings` (distance, speed
+    profile, dt, output interval, samples per block). The weighted placement moves the windows after the first once
+    the first is driven but keeps their number and length, so under a varying speed this is approximate; a paired
+    window integrated again from its true start is not counted."""
+    distance = float(settings.distance_m)
+    s, t = settings.speed.time_grid(distance + 1.0)
+    t_total = float(np.interp(distance, s, t))
+    K = int(round(settings.output_interval_s / settings.dt_s))
+    M = samples_per_call(K, settings.samples_per_block)
+    call_s = K * M * settings.dt_s
+    total = 0.0
+    for c0, c1 in multiscale.windows(distance):
+        t0, t1 = float(np.interp(c0, s, t)), min(float(np.interp(c1, s, t)), t_total)
+        samples = max(int(np.ceil((t1 - t0) / (K * settings.dt_s) - 1e-9)), 1)
+        total += int(np.ceil(samples / M)) * call_s
+    return total

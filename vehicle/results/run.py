@@ -56,6 +56,7 @@ from vehicle.physics.weighing import band_datasets, weighing_bands
 from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario, read_scenario_text
 from vehicle.engines.build import build_engine
 from vehicle.engines.contract import DriveState
+from vehicle.engines.multiscale import integrated_time_s
 from hpsim.cancellation import CancelToken
 
 from vehicle.results import provenance
@@ -330,9 +331,14 @@ def run_scenario(scenario: str | Path | ScenarioSource | None, out: str | Path, 
                            chunk_rows(prep.scenario))
         summary = _drive(drive, results, ResumePoint.start(), prep, progress, log, checkpoint_every_blocks, cancel)
         # this machine's drive rate and the run's set-up (all but the drive), for the cost previews of studies; not
-        # from an ensemble lane, whose wall is its whole group's
+        # from an ensemble lane, whose wall is its whole group's. The rate counts the steps the drive integrates: a
+        # multiscale drive's windows (as the preview counts them, vehicle.studies.cost); a time-parallel scenario
+        # too short for two segments drove as a full drive
         if make_solver is None:
-            drive_rate.record(drive_rate.mode_of(prep.scenario), prep.scenario.solver.dt, summary["simulated_s"],
+            mode = "full" if drive.mode == "full" else drive_rate.mode_of(prep.scenario)
+            integrated = (integrated_time_s(prep.settings(), prep.scenario.solver.multiscale_settings())
+                          if mode == "multiscale" else summary["simulated_s"])
+            drive_rate.record(mode, prep.scenario.solver.dt, integrated,
                               summary["wall_s"], time.perf_counter() - t_start - summary["wall_s"],
                               compiled_s=compile_time.compiled_s - compiled_before)
         return summary

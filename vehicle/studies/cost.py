@@ -4,7 +4,7 @@ command, from its start to its end.
     wall       = before + drives + finish
     before     = the command's start-up + the compiles its cases need + the rate probe (all measured: they are
                  done when the estimate is said)
-    per drive  = set-up + (simulated time / dt) / steps_per_s
+    per drive  = set-up + (integrated simulated time / dt) / steps_per_s   (multiscale: its windows' time)
     drives     = the jobs on the workers: sum(jobs) / (workers x efficiency), at least the longest job;
                  a job is one drive, or a lockstep group of ensemble lanes (the lanes' set-ups one after the
                  other, then lanes x one drive's steps / LANE_GAIN)
@@ -12,8 +12,9 @@ command, from its start to its end.
 
 The rate is this machine's in the study's solver mode (vehicle.numerics.drive_rate: integration steps per second
 of wall, and a drive's set-up with the model cached), recorded by every completed run. Before anything is driven
-each distinct case's libraries are built (`compile_ahead`: once, here, instead of in every worker at once): its
-engine on a short stretch, and the lane library when the study runs ensemble lanes. The nominal case of a UQ study
+the libraries the cases need are built (`compile_ahead`: once, here, instead of in every worker at once): an
+engine on a short stretch, and the lane library when the study runs ensemble lanes, once per model structure, step
+and lanes (`library_key`: designs that differ in parameter values share them). The nominal case of a UQ study
 usually has another model than its draws (a file's zero switches a mechanism off, hpsim.parameters), so a study
 on an empty cache compiles two. Where no rate is recorded, a short probe drive of the study's own scenario then
 measures it (`_probe`, in memory, its model compiled already). The estimate says how many libraries were compiled
@@ -26,6 +27,7 @@ skips the question, and a study started by a script never asks.
 """
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
@@ -35,7 +37,9 @@ from dataclasses import dataclass, field
 
 from hpsim.errors import SimulationError, UserInputError
 
+from vehicle.engines.build import engine_name
 from vehicle.engines.ensemble import eligible, group_size
+from vehicle.engines.multiscale import integrated_time_s
 from vehicle.engines.time_parallel import MIN_SEGMENT_S
 from vehicle.numerics import compile_time, drive_rate
 from vehicle.scenario.schema import MULTISCALE_MIN_WINDOWS, MULTISCALE_RANGES_M, ScenarioSource, prepare
@@ -79,12 +83,13 @@ class DriveCost:
 class Compiles:
     """What the command compiled before its drives (the preview's compiles and any before it, e.g. a check's short
     drive): libraries, the distinct models they belong to, their time [s] (the preview's: C generated, compiled,
-    loaded; before it: the compiler's)."""
+    loaded; before it: the compiler's), and how many engines the preview built for them (one per `library_key`)."""
 
     libraries: int = 0
     models: int = 0
     seconds: float = 0.0
     looked: bool = True          # False: a listing, which compiles nothing and does not look
+    engine_builds: int = 0       # engines the preview built to have their libraries in the cache (`compile_ahead`)
 
     def describe(self) -> str:
         if not self.looked:
@@ -157,21 +162,25 @@ def _probe_data(prepared) -> dict:
     return data
 
 
-def windowed_fraction(scenario) -> float:
-    """The share of a drive's road the full model integrates: 1 in the full and time-parallel modes; in the
-    multiscale mode its windows with their warm-ups, ceil(distance / spacing) of them, over the distance."""
-    if drive_rate.mode_of(scenario) != "multiscale":
-        return 1.0
-    solver, distance = scenario.solver, float(scenario.distance)
-    windows = math.ceil(distance / solver.spacing_m - 1e-9)
-    return min(1.0, windows * (solver.window_m + solver.warm_up_m) / distance)
+def integrated_s(prepared) -> float:
+    """The simulated time [s] a drive of the prepared scenario integrates: the whole drive in the full and
+    time-parallel modes; in the multiscale mode its windows with their warm-ups (`integrated_time_s`)."""
+    settings = prepared.settings()
+    if drive_rate.mode_of(prepared.scenario) == "multiscale":
+        return integrated_time_s(settings, prepared.scenario.solver.multiscale_settings())
+    return settings.speed.statistics(float(prepared.scenario.distance))["duration_s"]
+
+
+def rate_mode(prepared) -> str:
+    """The drive-rate record's key of a prepared scenario (`drive_rate.mode_of`), "full" for a time-parallel one too
+    short for two segments, which drives as a full drive (vehicle.engines.build.engine_name)."""
+    return "full" if engine_name(prepared) == "full" else drive_rate.mode_of(prepared.scenario)
 
 
 def _probe(prepared) -> dict:
     """Measure the rate on a short drive of this scenario (in memory) and record it for its solver mode; its model
-    is compiled already (`compile_ahead`), so its set-up is a drive's with the cache warm. A multiscale rate (steps
-    of the whole drive per second) is the probe's rate on its windows times the share of the real drive that is
-    windowed (`windowed_fraction`)."""
+    is compiled already (`compile_ahead`), so its set-up is a drive's with the cache warm. The rate counts the steps
+    the probe integrates (`integrated_s`: a multiscale probe's windows)."""
     short = _probe_source(prepared)
     short_prepared = prepare(short)
     LOG.info(f"measuring this machine's drive rate on {float(short_prepared.scenario.distance):.0f} m of the scenario "
@@ -181,18 +190,29 @@ def _probe(prepared) -> dict:
     S = run_in_memory(short).final["summary"]
     compile_s = compile_time.compiled_s - compiled_before
     setup_s = time.perf_counter() - t0 - S["wall_s"]
-    scale = windowed_fraction(short_prepared.scenario) / windowed_fraction(prepared.scenario)
-    mode, dt = drive_rate.mode_of(prepared.scenario), prepared.scenario.solver.dt
-    drive_rate.record(mode, dt, S["simulated_s"] * scale, S["wall_s"], setup_s, compiled_s=compile_s, fresh=True)
+    integrated = integrated_s(short_prepared)
+    mode, dt = rate_mode(prepared), prepared.scenario.solver.dt
+    drive_rate.record(mode, dt, integrated, S["wall_s"], setup_s, compiled_s=compile_s, fresh=True)
     rate = drive_rate.read(mode)
     if rate is None:              # a cache that cannot be written: the probe's own numbers
-        rate = {"steps_per_s": S["simulated_s"] * scale / dt / S["wall_s"], "build_s": max(setup_s - compile_s, 0.0)}
+        rate = {"steps_per_s": integrated / dt / S["wall_s"], "build_s": max(setup_s - compile_s, 0.0)}
     return rate
 
 
 def _probe_source(prepared) -> ScenarioSource:
     return ScenarioSource(text=prepared.source.text, name=f"{prepared.source.name} (cost probe)",
                           base_dir=prepared.source.base_dir, data=_probe_data(prepared))
+
+
+def library_key(prepared, lanes: int = 1) -> str:
+    """What the libraries `compile_ahead` builds for a case are made from: vehicle.numerics.codegen keys each by the
+    model's structure (`VehicleModel.structure`: not its parameter values), the step, the block shape and the lanes,
+    which the probe scenario's solver and output settings and `lanes` determine. Cases with equal keys need the
+    same libraries (a study's designs that differ in parameter values only)."""
+    S, probe = prepared.scenario, _probe_data(prepared)
+    settings = [probe.get("solver"), probe.get("output"), S.solver.model_dump(mode="json"),
+                S.output.model_dump(mode="json"), int(lanes)]
+    return prepared.model().structure + json.dumps(settings, sort_keys=True, default=str)
 
 
 def compile_ahead(prepared, lanes: int = 1) -> int:
@@ -213,7 +233,7 @@ def compile_ahead(prepared, lanes: int = 1) -> int:
 def per_drive(prepared, *, probe: bool = True) -> tuple[DriveCost, str] | None:
     """(cost, basis) of one drive of the prepared scenario (vehicle.scenario.schema.Prepared) alone; None when no
     rate is recorded in its solver mode and probe is False."""
-    mode = drive_rate.mode_of(prepared.scenario)
+    mode = rate_mode(prepared)
     rate = drive_rate.read(mode)
     basis = f"{mode} mode"
     if rate is None:
@@ -221,9 +241,9 @@ def per_drive(prepared, *, probe: bool = True) -> tuple[DriveCost, str] | None:
             return None
         rate = _probe(prepared)
         basis += ", rate measured now on a probe drive"
-    simulated_s = prepared.settings().speed.statistics(float(prepared.scenario.distance))["duration_s"]
-    steps = simulated_s / prepared.scenario.solver.dt
-    basis += (f": {steps:.3g} steps at {float(rate['steps_per_s']):.3g} steps/s measured on this machine "
+    steps = integrated_s(prepared) / prepared.scenario.solver.dt
+    of_windows = " of its windows" if mode == "multiscale" else ""
+    basis += (f": {steps:.3g} steps{of_windows} at {float(rate['steps_per_s']):.3g} steps/s measured on this machine "
               f"+ {float(rate['build_s']):.1f} s set-up and summary" + _load_note(rate))
     gain = MULTISCALE_LANE_GAIN if mode == "multiscale" else LANE_GAIN
     return DriveCost(float(rate["build_s"]), steps / float(rate["steps_per_s"]), gain), basis
@@ -300,13 +320,16 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     # what the command compiled before this call (e.g. a check's short drive), then what the preview compiles
     libraries, compile_wall, basis = compile_time.compiled_libraries, compile_time.compiled_s, ""
     models = int(libraries > 0)
+    in_cache: set[str] = set()                          # `library_key`s whose engine was built here
     for p, joined in zip(prepared, joins):
         if id(p) in known:
             continue
         try:
-            if probe:                                    # its model (and lane library), if the cache lacks it
+            key = library_key(p, lanes if joined else 1) if probe else None
+            if probe and key not in in_cache:            # its model (and lane library), if the cache lacks it
                 c0 = time.perf_counter()
                 built = compile_ahead(p, lanes if joined else 1)
+                in_cache.add(key)
                 libraries, models = libraries + built, models + (built > 0)
                 compile_wall += time.perf_counter() - c0 if built else 0.0
             one = per_drive(p, probe=probe)
@@ -332,7 +355,7 @@ def estimate(prepared: list, workers: int | None, *, probe: bool = True, cluster
     before = elapsed_s + time.perf_counter() - t0
     return Estimate(n, w, sum(c.alone_s for c in costs) / n, before + drives + finish, basis, before_s=before,
                     drives_s=drives, finish_s=finish, lanes=lanes,
-                    compiles=Compiles(libraries, models, compile_wall, looked=probe))
+                    compiles=Compiles(libraries, models, compile_wall, looked=probe, engine_builds=len(in_cache)))
 
 
 def confirm(est: Estimate | None, what: str, yes: bool, *, stdin=None, stderr=None) -> None:

@@ -217,8 +217,11 @@ def test_the_preview_appears_in_every_solver_mode_with_nothing_recorded(mode, tm
     assert f"{libraries} libraries of 1 model compiled before the drives" in line and ("ensemble lanes" in line) == (lanes > 1)
     rate = drive_rate.read(rate_mode)
     assert rate is not None and rate["steps_per_s"] > 0 and rate["build_s"] > 0      # the probe's own set-up
-    # one drive is the set-up plus its steps at the recorded rate: 5 km at 20 km/h in 4 ms steps
-    assert est.per_drive_s == pytest.approx(rate["build_s"] + 225000 / rate["steps_per_s"], rel=1e-9)
+    # one drive is the set-up plus its steps at the recorded rate: 5 km at 20 km/h in 4 ms steps (multiscale: the
+    # steps of its windows)
+    steps = 225000 if rate_mode != "multiscale" else cost.integrated_s(prep) / 0.004
+    assert steps < 225000 or rate_mode != "multiscale"
+    assert est.per_drive_s == pytest.approx(rate["build_s"] + steps / rate["steps_per_s"], rel=1e-9)
     assert est.wall_s == pytest.approx(est.before_s + est.drives_s + cost.FINISH_DEFAULT_S["hpsim uq"])
 
 
@@ -253,20 +256,25 @@ def test_the_estimate_adds_compiles_drives_on_workers_and_lanes_and_the_finish()
     assert "not included" in cost.Compiles(looked=False).describe()          # a listing compiles nothing
 
 
-def test_a_multiscale_drive_integrates_its_windows_share_of_the_road():
-    from vehicle.scenario.schema import Scenario
+def test_a_multiscale_drive_integrates_its_windows_in_whole_solver_calls():
+    from vehicle.engines.multiscale import integrated_time_s
+    from vehicle.scenario.schema import ScenarioSource, prepare, read_scenario
 
-    base = {"vehicle": {"name": "apc_8x8"}, "road": {"iso_class": "D"}, "speed": "20 km/h", "ambient_temperature": "25 degC"}
+    src = read_scenario(ROOT / "scenarios" / "quick_demo.yaml")
 
-    def fraction(distance, **solver):
-        return cost.windowed_fraction(Scenario.model_validate({**base, "distance": distance,
-                                                               "solver": {"mode": "multiscale", **solver}}))
-    # 106 km at 5.3 km spacing: 20 windows of 350 m after 30 m of warm-up, 7.6 km of 106 km
-    assert fraction("106 km", window="350 m", spacing="5.3 km", warm_up="30 m") == pytest.approx(20 * 380 / 106e3)
-    # windows back to back: the whole road
-    assert fraction("1140 m", window="350 m", spacing="380 m", warm_up="30 m") == pytest.approx(1.0)
-    full = Scenario.model_validate({**base, "distance": "5 km"})
-    assert cost.windowed_fraction(full) == 1.0
+    def integrated(distance, speed="20 km/h", **solver):
+        data = {**src.data, "distance": distance, "speed": speed, "solver": {"mode": "multiscale", **solver}}
+        return cost.integrated_s(prepare(ScenarioSource(text=src.text, name=src.name, base_dir=src.base_dir, data=data)))
+    # 106 km at 5.3 km spacing: 20 windows of 350 m after 30 m of warm-up; each 380 m at 20 km/h is 68.4 s, integrated
+    # in calls of 10 samples of 1 s: 70 s each
+    assert integrated("106 km", window="350 m", spacing="5.3 km", warm_up="30 m") == pytest.approx(20 * 70.0)
+    # 36 km/h: 38 s per window, 40 s integrated
+    assert integrated("106 km", "36 km/h", window="350 m", spacing="5.3 km", warm_up="30 m") == pytest.approx(20 * 40.0)
+    # windows back to back: the whole road, each window rounded up to whole calls
+    assert integrated("1140 m", window="350 m", spacing="380 m", warm_up="30 m") == pytest.approx(3 * 70.0)
+    full = prepare(src)
+    assert cost.integrated_s(full) == pytest.approx(full.duration_s())
+    assert integrated_time_s(full.settings(), full.scenario.solver.multiscale_settings()) < full.duration_s()
 
 
 def test_a_uq_preview_sees_the_nominal_case_and_a_typical_draw_whose_model_differs(tmp_path):
