@@ -201,14 +201,22 @@ class MultiscaleDrive:
         if dt <= 0:
             return np.zeros(self.model.n)
         if self._proxy_t is not None:
-            tg, c = self._proxy_t
             t0, t1 = self.manifold.time_at(s0_m), self.manifold.time_at(s1_m)
-            return np.array([np.interp(t1, tg, ci) - np.interp(t0, tg, ci) for ci in c]) / dt
+            return (self._cumulative_proxy_at(t1) - self._cumulative_proxy_at(t0)) / dt
         out = np.zeros(self.model.n)
         for i, (h, c) in enumerate(self._proxy_c):
             a = float(self.model.a[i])
             out[i] = (on_grid(c, h, s1_m - a) - on_grid(c, h, s0_m - a)) / dt
         return out
+
+    def _cumulative_proxy_at(self, t: float) -> np.ndarray:
+        """Each station's cumulative proxy C (`_proxy_t`) at time t [s], np.interp(t, grid, C_i), from the two grid
+        points around t: the grid is the shared, read-only proxy road's (vehicle.engines.proxy_roads), and np.interp
+        copies a read-only array whole on every call. The same bracket and arithmetic, so the same bits."""
+        tg, c = self._proxy_t
+        j = int(np.searchsorted(tg, t, side="right"))
+        lo, hi = max(j - 1, 0), min(j + 1, tg.size)
+        return np.array([np.interp(t, tg[lo:hi], ci[lo:hi]) for ci in c])
 
     # --- one window ------------------------------------------------------------------------------
     def integrate(self, solver, x0, t0, t_end, t_warm) -> dict:

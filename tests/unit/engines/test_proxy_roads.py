@@ -118,3 +118,22 @@ def test_a_failed_computation_leaves_nothing_and_the_oldest_key_goes_first():
     kept.get("y", lambda: 2)
     kept.get("z", lambda: 3)                                   # "x" dropped: computed again when asked
     assert kept.get("x", lambda: 4) == 4 and kept.get("z", lambda: 5) == 3 and kept.computed == 4
+
+
+def test_the_proxy_mean_over_a_stretch_reads_the_shared_grid_as_np_interp_would(drives):
+    """`MultiscaleDrive.proxy` on the shared (read-only) grid equals np.interp on writeable copies of it, bit for
+    bit: at grid points, between them and beyond both ends (held)."""
+    d = drives["a"]
+    d._linear_proxy_setup(MATCH)
+    tg, c = d._proxy_t
+    assert not tg.flags.writeable                    # the shared grid: np.interp would copy it whole per call
+    tw, cw = np.array(tg), np.array(c)
+    s_at = lambda t: float(np.interp(t, d.t_grid, d.s_grid))
+    rng = np.random.default_rng(0)
+    k = int(np.searchsorted(tg, 10.0))
+    stretches = [(0.0, 250.0), (s_at(tg[k]), s_at(tg[k + 40])), (1000.0, d.settings.distance_m)]
+    stretches += [tuple(sorted(rng.uniform(0.0, d.settings.distance_m, 2))) for _ in range(20)]
+    for s0, s1 in stretches:
+        t0, t1 = d.manifold.time_at(s0), d.manifold.time_at(s1)
+        alone = np.array([np.interp(t1, tw, ci) - np.interp(t0, tw, ci) for ci in cw]) / (t1 - t0)
+        assert np.array_equal(d.proxy(s0, s1), alone), (s0, s1)
