@@ -54,7 +54,7 @@ from hpsim.errors import UserInputError
 from struts import friction as fr
 
 from vehicle.physics import hull as hull_eq
-from vehicle.physics.equilibrium import equilibrium_solver, static_balance, statics_inputs
+from vehicle.physics.equilibrium import NumericFunction, equilibrium_solver, static_balance, statics_inputs
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY
 from vehicle.physics.tyre import tyre_force
@@ -114,6 +114,19 @@ class StaticsProblem:
     units: dict                    # name -> "N" | "m"
     n_q: int
     n_u: int
+    numeric: dict = field(init=False, repr=False)     # the functions above on NumPy arrays (NumericFunction)
+
+    def __post_init__(self):
+        self.numeric = {name: NumericFunction(getattr(self, name))
+                        for name in ("residual", "jac_q", "outputs", "sens", "limits", "deflections")}
+
+    def values(self, name: str, q, u, c) -> tuple:
+        """The outputs of function `name` (a field above) at (q, u, c) as dense 2-D NumPy arrays."""
+        return self.numeric[name](q, u, c)
+
+    def vectors(self, name: str, q, u, c) -> tuple:
+        """The outputs of function `name` at (q, u, c), each raveled to a vector."""
+        return self.numeric[name].vectors(q, u, c)
 
     @classmethod
     def build(cls, q, u, c, residual, groups: dict, units: dict, F_reb, F_comp, p_gas, deflections, strokes):
@@ -139,19 +152,19 @@ class StaticsProblem:
         """q with R(q, u, c) = 0 by damped Newton from q0."""
         q = np.asarray(q0, float).copy()
         for _ in range(MAX_NEWTON):
-            r = np.asarray(self.residual(q, u, c)).ravel()
+            r, = self.vectors("residual", q, u, c)
             if not np.all(np.isfinite(r)):
                 raise UserInputError("weighing band: the struts cannot carry the vehicle with the seal friction "
                                      "at its band edge (gas volume exhausted)")
             if np.max(np.abs(r)) < RESIDUAL_TOL:
                 return q
-            dq = np.linalg.solve(np.asarray(self.jac_q(q, u, c)), -r)
+            dq = np.linalg.solve(self.values("jac_q", q, u, c)[0], -r)
             q = q + min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30)) * dq
         raise UserInputError("weighing band: the static equilibrium with friction did not converge")
 
     def gradient(self, q, u, c) -> np.ndarray:
         """dy/du [units per utilisation] along the equilibrium manifold (implicit function theorem)."""
-        R_q, R_u, Y_q, Y_u = (np.asarray(M) for M in self.sens(q, u, c))
+        R_q, R_u, Y_q, Y_u = self.values("sens", q, u, c)
         return Y_u - Y_q @ np.linalg.solve(R_q, R_u)
 
     def resolution(self) -> np.ndarray:
@@ -191,7 +204,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     c = np.asarray(c, float)
     u0 = np.zeros(n_u)
     q0 = problem.solve(u0, c, q0)
-    y0 = np.asarray(problem.outputs(q0, u0, c)).ravel()
+    y0, = problem.vectors("outputs", q0, u0, c)
     res = problem.resolution()
     # one-sided gradients at u = 0 (the band levels differ in compression and rebound)
     G_plus = problem.gradient(q0, u0, c)
@@ -207,7 +220,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
         key = u.tobytes()
         if key not in cache:
             q = problem.solve(u, c, q0)
-            cache[key] = (q, np.asarray(problem.outputs(q, u, c)).ravel())
+            cache[key] = (q, problem.vectors("outputs", q, u, c)[0])
         return cache[key]
 
     for j in range(n_y):
@@ -224,7 +237,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
                 out.high[j], out.u_high[j], out.linear_high[j] = y[j], u, linear
             else:
                 out.low[j], out.u_low[j], out.linear_low[j] = y[j], u, linear
-            xs = np.asarray(problem.deflections(q, u, c)).ravel()
+            xs, = problem.vectors("deflections", q, u, c)
             if np.any(xs < 0) or np.any(xs > problem.strokes):
                 out.warnings.append(f"output {j}: a strut is on its end stop at the band edge")
     if np.all(lo <= 0) and np.all(hi >= 0):
@@ -237,7 +250,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
 def _uniform_std(problem: StaticsProblem, q0, u0, c, G_plus, lo, hi) -> np.ndarray:
     """Per output, the linear standard deviation with every friction force uniform over [lo F_reb, hi F_comp]: in
     utilisation units of the + side its variance is (width)^2 / 12 (the rebound side scaled by F_reb/F_comp)."""
-    F_reb, F_comp, _ = (np.asarray(v).ravel() for v in problem.limits(q0, u0, c))
+    F_reb, F_comp, _ = problem.vectors("limits", q0, u0, c)
     ratio = np.where(F_comp > 0, F_reb / np.maximum(F_comp, 1e-300), 1.0)
     width = hi * (hi >= 0) + hi * ratio * (hi < 0) - (lo * (lo >= 0) + lo * ratio * (lo < 0))
     return np.sqrt(np.sum(G_plus ** 2 * width ** 2 / 12.0, axis=1))
@@ -317,7 +330,7 @@ class WeighingSolver:
         q0 = np.concatenate([[eq.heave_m, eq.pitch_rad, eq.roll_rad], eq.wheel_displacement_m])
         c = np.concatenate([T, m, dV])
         u0 = np.zeros(n)
-        F_reb, F_comp, p_gas = (np.asarray(v).ravel() for v in self.problem.limits(q0, u0, c))
+        F_reb, F_comp, p_gas = self.problem.vectors("limits", q0, u0, c)
         lower = None
         settle = np.zeros(n)
         if temperatures_at_stop_K is not None:
@@ -346,7 +359,7 @@ class WeighingSolver:
         # while cooling (the lower end of the heights)
         u_edge = np.ones(n)
         q_edge = self.problem.solve(u_edge, c, q0)
-        y_edge = np.asarray(self.problem.outputs(q_edge, u_edge, c)).ravel()
+        y_edge, = self.problem.vectors("outputs", q_edge, u_edge, c)
         out["compression_edge"] = {name: y_edge[a:b].copy() for name, (a, b) in self.problem.groups.items()}
         return out
 

@@ -105,3 +105,31 @@ def test_a_strut_that_cannot_carry_its_load_is_reported():
 
 def test_gravity_constant_is_standard():
     assert GRAVITY == 9.80665
+
+
+def test_numeric_function_is_the_casadi_evaluation_bit_for_bit(model, solver):
+    """The statics functions on NumPy buffers (NumericFunction) give exactly what calling the Function gives, for a
+    dense vector, a sparse Jacobian and on another thread (each thread its own buffers)."""
+    import threading
+
+    from vehicle.physics.equilibrium import NumericFunction
+
+    masses = charge_gas_masses(model)
+    rng = np.random.default_rng(3)
+    points = [(rng.normal(0.0, 0.01, 3 + model.n), 290.0 + rng.uniform(0.0, 50.0, model.n),
+               masses * rng.uniform(0.95, 1.05, model.n), rng.uniform(0.0, 1e-5, model.n), rng.normal(0.0, 2.0))
+              for _ in range(4)]
+    F, J = NumericFunction(solver.F), NumericFunction(solver.Jf)
+    assert not solver.Jf.sparsity_out(0).is_dense()          # the scatter of a sparse result is exercised
+    for args in points:
+        assert np.array_equal(F(*args)[0], np.asarray(solver.F(*args)))
+        assert np.array_equal(J(*args)[0], np.asarray(solver.Jf(*args)))
+    seen = {}
+
+    def on_thread():
+        seen["J"] = [J(*args)[0] for args in points]
+
+    worker = threading.Thread(target=on_thread)
+    worker.start()
+    worker.join()
+    assert all(np.array_equal(a, np.asarray(solver.Jf(*args))) for a, args in zip(seen["J"], points))
