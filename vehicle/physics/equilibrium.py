@@ -14,7 +14,9 @@ the charged pose is the reference of all displacements (z = theta = phi = 0, w =
 from __future__ import annotations
 
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -108,6 +110,98 @@ class NumericFunction:
     def vectors(self, *args) -> tuple:
         """The results at args raveled (for functions whose outputs are column vectors)."""
         return tuple(v.ravel() for v in self(*args))
+
+
+# statics builds a process keeps (each a few functions of the static balance): the vehicles of a study's designs
+# that share their statics and a few that do not
+MAX_SHARED_STATICS = 8
+_shared_statics: OrderedDict = OrderedDict()
+_statics_reads: dict = {}          # (model structure, kind) -> indices of theta the kind's statics read (None: unknown)
+_first_statics: dict = {}          # (model structure, kind) -> (theta, kinematics, built) of its first model
+_shared_statics_lock = threading.Lock()
+
+
+def _symbolic_view(model: VehicleModel) -> SimpleNamespace:
+    """The model's symbolic twin (`VehicleModel.sym`: its parameters as the symbols theta) where `static_balance`
+    reads a model."""
+    return SimpleNamespace(**vars(model.sym), n=model.n)
+
+
+def _theta_read(model: VehicleModel, kind: str, graph) -> np.ndarray | None:
+    """Indices of the model's parameter vector theta that `graph(view)` (SX expressions of a statics problem
+    built on a model or its symbolic twin) depends on, found once per model structure; None where the graph cannot
+    be built on the symbolic twin (the statics are then built per model)."""
+    key = (model.structure, kind)
+    with _shared_statics_lock:
+        if key in _statics_reads:
+            return _statics_reads[key]
+    try:
+        expressions = ca.vertcat(*graph(_symbolic_view(model)))
+        theta = model.parameters.symbols
+        others = [v for v in ca.symvar(expressions) if not ca.depends_on(theta, v)]
+        reads = ca.Function("reads", [theta, *others], [expressions]).which_depends("i0", ["o0"], 1, False)
+        found = np.flatnonzero(np.asarray(reads, bool))
+    except (RuntimeError, TypeError, ValueError, AttributeError, NotImplementedError):
+        found = None
+    with _shared_statics_lock:
+        _statics_reads[key] = found
+    return found
+
+
+def _statics_key(kind: str, structure: str, reads: np.ndarray, theta: np.ndarray, kinematics: tuple) -> tuple:
+    return (kind, structure, reads.tobytes(), theta[reads].tobytes(), *kinematics)
+
+
+def _remember_statics(key: tuple, built) -> None:
+    with _shared_statics_lock:
+        _shared_statics[key] = built
+        while len(_shared_statics) > MAX_SHARED_STATICS:
+            _shared_statics.popitem(last=False)
+
+
+def shared_statics(model: VehicleModel, kind: str, graph, build):
+    """`build(model)`, or what it returned for an earlier model of this process whose statics read the same numbers.
+
+    graph(view) -> list of SX expressions: everything `build` evaluates, built on `view` (the model or its symbolic
+    twin). The key is the model's structure (`VehicleModel.structure`: strut types, gas laws, mechanisms, every
+    zero) with the values of the parameters the graph depends on, and the numbers of the model's kinematics: all
+    that a numeric build reads, so the shared functions are the ones the model's own build would make, instruction
+    for instruction. A design study's vehicles that differ in what the standing vehicle does not feel (a valve's
+    bleed, the fill pressure, which only sets the gas masses fed to the functions) build their statics once. The
+    first model of a structure builds its own and is only remembered: a single drive builds no symbolic graph.
+    """
+    if not isinstance(model, VehicleModel):
+        return build(model)
+    group = (model.structure, kind)
+    theta = model.parameters.numeric()
+    kinematics = tuple(np.asarray(v, float).tobytes() for v in (
+        model.a, model.y, model.r, model.m_u, model.tyre_static_deflection, model.link_drive, model.link_brake,
+        [model.a_cg, model.y_cg, model.M, model.x_charged, model.pitch_per_acceleration]))
+    with _shared_statics_lock:
+        first = _first_statics.get(group) if group not in _statics_reads else None
+        if first is None and group not in _statics_reads:
+            _first_statics[group] = None          # claimed: this model builds the structure's first statics
+    if first is None and group not in _statics_reads:
+        built = build(model)
+        with _shared_statics_lock:
+            _first_statics[group] = (theta, kinematics, built)
+        return built
+    reads = _theta_read(model, kind, graph)
+    if reads is None:
+        return build(model)
+    with _shared_statics_lock:
+        first = _first_statics.pop(group, None)
+    if first is not None:
+        _remember_statics(_statics_key(kind, group[0], reads, first[0], first[1]), first[2])
+    key = _statics_key(kind, group[0], reads, theta, kinematics)
+    with _shared_statics_lock:
+        found = _shared_statics.get(key)
+        if found is not None:
+            _shared_statics.move_to_end(key)
+            return found
+    found = build(model)
+    _remember_statics(key, found)
+    return found
 
 
 def charge_gas_masses(model: VehicleModel) -> np.ndarray:
@@ -246,27 +340,46 @@ def statics_inputs(n: int, temperatures_K, gas_masses_kg, oil_volumes_m3=None):
     return T, np.asarray(gas_masses_kg, float), dV
 
 
+def _equilibrium_graph(model) -> tuple:
+    """(inputs q, T, m, dV, acc; residual; outputs wheel loads, strut forces, deflections) of the static balance of
+    `model` (a VehicleModel or its symbolic twin) in q = (z, theta, phi, w_i)."""
+    n = model.n
+    q = ca.SX.sym("q", 3 + n)           # z, theta, phi, w_i
+    T = ca.SX.sym("T", n)
+    m = ca.SX.sym("m", n)
+    dV = ca.SX.sym("dV", n)
+    acc = ca.SX.sym("acc")
+    b = static_balance(model, q, T, m, dV, acceleration_m_s2=acc)
+    outputs = [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]), ca.vertcat(*b["deflections"])]
+    return [q, T, m, dV, acc], ca.vertcat(*b["residual"]), outputs
+
+
+def _equilibrium_expressions(model) -> list:
+    """Everything the equilibrium's functions evaluate (`_equilibrium_graph`'s residual and outputs)."""
+    _, res, outputs = _equilibrium_graph(model)
+    return [res, *outputs]
+
+
+def equilibrium_functions(model: VehicleModel) -> dict:
+    """F (residual), Jf (its Jacobian in q), out (outputs) of `_equilibrium_graph` and their NumericFunctions."""
+    args, res, outputs = _equilibrium_graph(model)
+    F = ca.Function("eq_res", args, [res])
+    Jf = ca.Function("eq_jac", args, [ca.jacobian(res, args[0])])
+    out = ca.Function("eq_out", args, outputs)
+    return {"F": F, "Jf": Jf, "out": out, "numeric_residual": NumericFunction(F),
+            "numeric_jacobian": NumericFunction(Jf), "numeric_out": NumericFunction(out)}
+
+
 class EquilibriumSolver:
     """Newton solve of the static balances for given temperatures, gas masses and oil volumes (and a steady
     longitudinal acceleration: the settled state of a vehicle braking or accelerating at a constant rate)."""
 
     def __init__(self, model: VehicleModel):
         self.model = model
-        n = model.n
-        q = ca.SX.sym("q", 3 + n)           # z, theta, phi, w_i
-        T = ca.SX.sym("T", n)
-        m = ca.SX.sym("m", n)
-        dV = ca.SX.sym("dV", n)
-        acc = ca.SX.sym("acc")
-        b = static_balance(model, q, T, m, dV, acceleration_m_s2=acc)
-        res = ca.vertcat(*b["residual"])
-        args = [q, T, m, dV, acc]
-        self.F = ca.Function("eq_res", args, [res])
-        self.Jf = ca.Function("eq_jac", args, [ca.jacobian(res, q)])
-        self.out = ca.Function("eq_out", args, [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]),
-                                                ca.vertcat(*b["deflections"])])
+        built = shared_statics(model, "equilibrium", _equilibrium_expressions, equilibrium_functions)
+        self.F, self.Jf, self.out = built["F"], built["Jf"], built["out"]
         self.numeric_residual, self.numeric_jacobian, self.numeric_out = \
-            NumericFunction(self.F), NumericFunction(self.Jf), NumericFunction(self.out)
+            built["numeric_residual"], built["numeric_jacobian"], built["numeric_out"]
 
     def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None,
               acceleration_m_s2: float = 0.0) -> Equilibrium:

@@ -54,7 +54,8 @@ from hpsim.errors import UserInputError
 from struts import friction as fr
 
 from vehicle.physics import hull as hull_eq
-from vehicle.physics.equilibrium import NumericFunction, equilibrium_solver, static_balance, statics_inputs
+from vehicle.physics.equilibrium import (NumericFunction, equilibrium_solver, shared_statics, static_balance,
+                                         statics_inputs)
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY
 from vehicle.physics.tyre import tyre_force
@@ -275,31 +276,50 @@ def _settled_vertex(problem: StaticsProblem, c, j: int, sense: float, u, lo, hi,
 
 
 # --- the vehicle ----------------------------------------------------------------------------------
+def _weighing_graph(model) -> dict:
+    """The statics of `model` (a VehicleModel or its symbolic twin) with seal friction utilisations u: the
+    arguments of `StaticsProblem.build`."""
+    n, P = model.n, model.params
+    q = ca.SX.sym("q", 3 + n)
+    u = ca.SX.sym("u", n)
+    c = ca.SX.sym("c", 3 * n)            # T [K], m [kg], dV [m^3] per strut
+    T, m, dV = c[:n], c[n:2 * n], c[2 * n:]
+    F_reb, F_comp = [None] * n, [None] * n
+
+    def offset(i, p_gas):
+        F_reb[i], F_comp[i] = static_friction_limits(model.struts[i].p.friction, p_gas)
+        return held_friction(u[i], F_reb[i], F_comp[i])
+
+    b = static_balance(model, q, T, m, dV, strut_force_offset=offset)
+    axle_loads = [0.5 * (b["wheel_loads"][2 * k] + b["wheel_loads"][2 * k + 1]) for k in range(P.n_axles)]
+    groups = {"wheel_loads": b["wheel_loads"], "axle_loads": axle_loads,
+              "station_heights": b["station_heights"], "axle_heights": b["axle_heights"]}
+    units = {"wheel_loads": "N", "axle_loads": "N", "station_heights": "m", "axle_heights": "m"}
+    return {"q": q, "u": u, "c": c, "residual": b["residual"], "groups": groups, "units": units, "F_reb": F_reb,
+            "F_comp": F_comp, "p_gas": b["gas_pressures"], "deflections": b["deflections"],
+            "strokes": [s.p.geometry.stroke for s in model.struts]}
+
+
+def _weighing_expressions(model) -> list:
+    """Every expression and number of `_weighing_graph` (what the weighing's functions read)."""
+    g = _weighing_graph(model)
+    return [*g["residual"], *(e for v in g["groups"].values() for e in v), *g["F_reb"], *g["F_comp"], *g["p_gas"],
+            *g["deflections"], *(ca.SX(v) for v in g["strokes"])]
+
+
+def weighing_problem(model: VehicleModel) -> StaticsProblem:
+    g = _weighing_graph(model)
+    return StaticsProblem.build(g["q"], g["u"], g["c"], g["residual"], g["groups"], g["units"], g["F_reb"],
+                                g["F_comp"], g["p_gas"], g["deflections"], g["strokes"])
+
+
 class WeighingSolver:
     """Bands of the standing 8x8 (or any VehicleModel) for given temperatures, gas masses and oil volumes."""
 
     def __init__(self, model: VehicleModel):
         self.model = model
         self.frictionless = equilibrium_solver(model)
-        n, P = model.n, model.params
-        q = ca.SX.sym("q", 3 + n)
-        u = ca.SX.sym("u", n)
-        c = ca.SX.sym("c", 3 * n)            # T [K], m [kg], dV [m^3] per strut
-        T, m, dV = c[:n], c[n:2 * n], c[2 * n:]
-        F_reb, F_comp = [None] * n, [None] * n
-
-        def offset(i, p_gas):
-            F_reb[i], F_comp[i] = static_friction_limits(model.struts[i].p.friction, p_gas)
-            return held_friction(u[i], F_reb[i], F_comp[i])
-
-        b = static_balance(model, q, T, m, dV, strut_force_offset=offset)
-        axle_loads = [0.5 * (b["wheel_loads"][2 * k] + b["wheel_loads"][2 * k + 1]) for k in range(P.n_axles)]
-        groups = {"wheel_loads": b["wheel_loads"], "axle_loads": axle_loads,
-                  "station_heights": b["station_heights"], "axle_heights": b["axle_heights"]}
-        units = {"wheel_loads": "N", "axle_loads": "N", "station_heights": "m", "axle_heights": "m"}
-        self.problem = StaticsProblem.build(q, u, c, b["residual"], groups, units, F_reb, F_comp,
-                                            b["gas_pressures"], b["deflections"],
-                                            [s.p.geometry.stroke for s in model.struts])
+        self.problem = shared_statics(model, "weighing", _weighing_expressions, weighing_problem)
         self.remembered: OrderedDict = OrderedDict()
         self.remembered_lock = threading.Lock()
 
