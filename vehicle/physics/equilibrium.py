@@ -121,6 +121,34 @@ _first_statics: dict = {}          # (model structure, kind) -> (theta, kinemati
 _shared_statics_lock = threading.Lock()
 
 
+def lockstep_newton(residual, jacobian, Q: np.ndarray, tol: float, steps: int, exhausted: str, failed: str):
+    """Damped Newton on every row of Q at once, in place: residual(rows) -> R (len(rows), n) and jacobian(rows) ->
+    J (len(rows), n, n) at Q[rows]. Each row stops when its own largest residual is below tol and moves at most
+    0.02 per step (as `EquilibriumSolver.solve`): a row ends where its Newton alone ends, bit for bit. Raises
+    UserInputError(exhausted) at a non-finite residual, UserInputError(failed) after `steps` steps."""
+    active = np.arange(len(Q))
+    for _ in range(steps):
+        R = residual(active)
+        if not np.all(np.isfinite(R)):
+            raise UserInputError(exhausted)
+        going = np.max(np.abs(R), axis=1) >= tol
+        active, R = active[going], R[going]
+        if active.size == 0:
+            return Q
+        dQ = np.linalg.solve(jacobian(active), -R[:, :, None])[:, :, 0]
+        scale = np.minimum(1.0, 0.02 / np.maximum(np.max(np.abs(dQ), axis=1), 1e-30))
+        Q[active] = Q[active] + scale[:, None] * dQ
+    raise UserInputError(failed)
+
+
+def mapped_function(maps: dict, function: ca.Function, columns: int) -> NumericFunction:
+    """`function` evaluated on `columns` columns at once (each column the instructions of one call), kept in `maps`."""
+    found = maps.get((function.name(), columns))
+    if found is None:
+        found = maps[(function.name(), columns)] = NumericFunction(function.map(columns, "serial"))
+    return found
+
+
 def _symbolic_view(model: VehicleModel) -> SimpleNamespace:
     """The model's symbolic twin (`VehicleModel.sym`: its parameters as the symbols theta) where `static_balance`
     reads a model."""
@@ -367,7 +395,12 @@ def equilibrium_functions(model: VehicleModel) -> dict:
     Jf = ca.Function("eq_jac", args, [ca.jacobian(res, args[0])])
     out = ca.Function("eq_out", args, outputs)
     return {"F": F, "Jf": Jf, "out": out, "numeric_residual": NumericFunction(F),
-            "numeric_jacobian": NumericFunction(Jf), "numeric_out": NumericFunction(out)}
+            "numeric_jacobian": NumericFunction(Jf), "numeric_out": NumericFunction(out), "maps": {}}
+
+
+EXHAUSTED = ("static equilibrium: the struts cannot carry the vehicle at these temperatures and charges (gas volume "
+             "exhausted)")
+NOT_CONVERGED = "static equilibrium did not converge (check temperatures and charges)"
 
 
 class EquilibriumSolver:
@@ -380,6 +413,7 @@ class EquilibriumSolver:
         self.F, self.Jf, self.out = built["F"], built["Jf"], built["out"]
         self.numeric_residual, self.numeric_jacobian, self.numeric_out = \
             built["numeric_residual"], built["numeric_jacobian"], built["numeric_out"]
+        self.maps = built["maps"]
 
     def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None,
               acceleration_m_s2: float = 0.0) -> Equilibrium:
@@ -392,8 +426,7 @@ class EquilibriumSolver:
         for it in range(100):
             r, = self.numeric_residual.vectors(q, T, m, dV, a)
             if not np.all(np.isfinite(r)):
-                raise UserInputError("static equilibrium: the struts cannot carry the vehicle at these "
-                                     "temperatures and charges (gas volume exhausted)")
+                raise UserInputError(EXHAUSTED)
             if np.max(np.abs(r)) < 1e-10:
                 break
             J, = self.numeric_jacobian(q, T, m, dV, a)
@@ -402,7 +435,36 @@ class EquilibriumSolver:
             scale = min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30))
             q = q + scale * dq
         else:
-            raise UserInputError("static equilibrium did not converge (check temperatures and charges)")
+            raise UserInputError(NOT_CONVERGED)
+        return self._standing(q, T, m, dV, a)
+
+    def solve_many(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None) -> list[Equilibrium]:
+        """`solve` standing (from the charged pose) for each row of temperatures_K and oil_volumes_m3 (rows of n
+        per strut), the rows' Newton steps taken together (`lockstep_newton`): each the same as its `solve`."""
+        n = self.model.n
+        T = np.atleast_2d(np.asarray(temperatures_K, float))
+        dV = np.zeros_like(T) if oil_volumes_m3 is None else np.atleast_2d(np.asarray(oil_volumes_m3, float))
+        m = np.asarray(gas_masses_kg, float)
+        M = np.repeat(m[:, None], len(T), axis=1)
+        Q = np.zeros((len(T), 3 + n))
+
+        def inputs(rows):
+            return Q[rows].T, T[rows].T, M[:, rows], dV[rows].T, np.zeros((1, rows.size))
+
+        def residual(rows):
+            return mapped_function(self.maps, self.F, rows.size)(*inputs(rows))[0].T
+
+        def jacobian(rows):
+            J = mapped_function(self.maps, self.Jf, rows.size)(*inputs(rows))[0]
+            return J.reshape(3 + n, rows.size, 3 + n).transpose(1, 0, 2)
+
+        lockstep_newton(residual, jacobian, Q, 1e-10, 100, EXHAUSTED, NOT_CONVERGED)
+        return [self._standing(Q[k].copy(), T[k].copy(), m, dV[k].copy(), 0.0) for k in range(len(T))]
+
+    def _standing(self, q, T, m, dV, a) -> Equilibrium:
+        """The Equilibrium at the solution q (strut on an end stop: UserInputError)."""
+        model = self.model
+        n = model.n
         Ft, Fs, xs = self.numeric_out.vectors(q, T, m, dV, a)
         for i in range(n):
             stroke = model.struts[i].p.geometry.stroke

@@ -54,8 +54,8 @@ from hpsim.errors import UserInputError
 from struts import friction as fr
 
 from vehicle.physics import hull as hull_eq
-from vehicle.physics.equilibrium import (NumericFunction, equilibrium_solver, shared_statics, static_balance,
-                                         statics_inputs)
+from vehicle.physics.equilibrium import (NumericFunction, equilibrium_solver, lockstep_newton, mapped_function,
+                                         shared_statics, static_balance, statics_inputs)
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY
 from vehicle.physics.tyre import tyre_force
@@ -66,6 +66,9 @@ MAX_NEWTON = 100
 # its model, vehicle.engines.shared_builds) weigh the same vehicle before they start
 REMEMBERED_WEIGHINGS = 4
 MAX_VERTEX_CORRECTIONS = 8
+EXHAUSTED = ("weighing band: the struts cannot carry the vehicle with the seal friction at its band edge (gas volume "
+             "exhausted)")
+NOT_CONVERGED = "weighing band: the static equilibrium with friction did not converge"
 # an output that moves less than this per unit utilisation does not depend on that strut (N, m)
 RESOLUTION = {"N": 1e-6, "m": 1e-11}
 
@@ -116,10 +119,12 @@ class StaticsProblem:
     n_q: int
     n_u: int
     numeric: dict = field(init=False, repr=False)     # the functions above on NumPy arrays (NumericFunction)
+    numeric_maps: dict = field(init=False, repr=False)  # functions mapped over columns (`mapped_function`)
 
     def __post_init__(self):
         self.numeric = {name: NumericFunction(getattr(self, name))
                         for name in ("residual", "jac_q", "outputs", "sens", "limits", "deflections")}
+        self.numeric_maps = {}
 
     def values(self, name: str, q, u, c) -> tuple:
         """The outputs of function `name` (a field above) at (q, u, c) as dense 2-D NumPy arrays."""
@@ -155,13 +160,29 @@ class StaticsProblem:
         for _ in range(MAX_NEWTON):
             r, = self.vectors("residual", q, u, c)
             if not np.all(np.isfinite(r)):
-                raise UserInputError("weighing band: the struts cannot carry the vehicle with the seal friction "
-                                     "at its band edge (gas volume exhausted)")
+                raise UserInputError(EXHAUSTED)
             if np.max(np.abs(r)) < RESIDUAL_TOL:
                 return q
             dq = np.linalg.solve(self.values("jac_q", q, u, c)[0], -r)
             q = q + min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30)) * dq
-        raise UserInputError("weighing band: the static equilibrium with friction did not converge")
+        raise UserInputError(NOT_CONVERGED)
+
+    def solve_many(self, U, c, q0) -> np.ndarray:
+        """Row k: q with R(q, U[k], c) = 0 by `solve`'s damped Newton from q0. The rows iterate together (one mapped
+        evaluation per step, `lockstep_newton`) and each stops where it would alone: row k is `solve(U[k], c, q0)`
+        bit for bit."""
+        U = np.atleast_2d(np.asarray(U, float))
+        C = np.repeat(np.asarray(c, float)[:, None], len(U), axis=1)
+        Q = np.tile(np.asarray(q0, float), (len(U), 1))
+
+        def residual(rows):
+            return mapped_function(self.numeric_maps, self.residual, rows.size)(Q[rows].T, U[rows].T, C[:, rows])[0].T
+
+        def jacobian(rows):
+            J = mapped_function(self.numeric_maps, self.jac_q, rows.size)(Q[rows].T, U[rows].T, C[:, rows])[0]
+            return J.reshape(self.n_q, rows.size, self.n_q).transpose(1, 0, 2)
+
+        return lockstep_newton(residual, jacobian, Q, RESIDUAL_TOL, MAX_NEWTON, EXHAUSTED, NOT_CONVERGED)
 
     def gradient(self, q, u, c) -> np.ndarray:
         """dy/du [units per utilisation] along the equilibrium manifold (implicit function theorem)."""
@@ -215,22 +236,28 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     out = Extremes(nominal=y0, low=np.empty(n_y), high=np.empty(n_y), u_low=np.empty((n_y, n_u)),
                    u_high=np.empty((n_y, n_u)), linear_low=np.empty(n_y), linear_high=np.empty(n_y),
                    std_uniform=std)
-    cache: dict[bytes, tuple] = {}
+    cache: dict[bytes, list] = {}        # vertex -> [q, outputs, gradient (once asked for)]
 
     def evaluate(u):
         key = u.tobytes()
         if key not in cache:
             q = problem.solve(u, c, q0)
-            cache[key] = (q, problem.vectors("outputs", q, u, c)[0])
+            cache[key] = [q, problem.vectors("outputs", q, u, c)[0], None]
         return cache[key]
 
+    # the first vertices of all outputs solved together (`solve_many`: each as its own solve)
+    firsts = {}
+    for j in range(n_y):
+        for sense in (+1.0, -1.0):
+            u = _linear_vertex(G_plus[j], G_minus[j], sense, lo, hi, res[j])
+            firsts.setdefault(u.tobytes(), u)
+    U = np.array(list(firsts.values()))
+    for u, q in zip(U, problem.solve_many(U, c, q0)):
+        cache[u.tobytes()] = [q.copy(), problem.vectors("outputs", q, u, c)[0], None]
     for j in range(n_y):
         for sense in (+1.0, -1.0):
             # 1. the vertex of the linear programme
-            g = sense * np.where(G_plus[j] >= 0, G_plus[j], G_minus[j])
-            u = np.where(g > 0, hi, lo)
-            u = np.where(np.abs(g) * np.maximum(np.abs(lo), np.abs(hi)) <= res[j], 0.0, u)
-            u = np.clip(u, lo, hi)
+            u = _linear_vertex(G_plus[j], G_minus[j], sense, lo, hi, res[j])
             linear = y0[j] + np.sum(np.where(u >= 0, G_plus[j], G_minus[j]) * u)
             # 2.-3. nonlinear solve, vertex correction until the gradient agrees with the vertex
             u, q, y = _settled_vertex(problem, c, j, sense, u, lo, hi, res[j], evaluate, out)
@@ -248,6 +275,15 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     return out
 
 
+def _linear_vertex(G_plus_j, G_minus_j, sense: float, lo, hi, res_j: float) -> np.ndarray:
+    """Step 1 of `band_extremes` for one output: the vertex of the box where the linearised output is extreme in
+    direction `sense` (utilisations it does not depend on, at resolution res_j, left at 0)."""
+    g = sense * np.where(G_plus_j >= 0, G_plus_j, G_minus_j)
+    u = np.where(g > 0, hi, lo)
+    u = np.where(np.abs(g) * np.maximum(np.abs(lo), np.abs(hi)) <= res_j, 0.0, u)
+    return np.clip(u, lo, hi)
+
+
 def _uniform_std(problem: StaticsProblem, q0, u0, c, G_plus, lo, hi) -> np.ndarray:
     """Per output, the linear standard deviation with every friction force uniform over [lo F_reb, hi F_comp]: in
     utilisation units of the + side its variance is (width)^2 / 12 (the rebound side scaled by F_reb/F_comp)."""
@@ -263,8 +299,11 @@ def _settled_vertex(problem: StaticsProblem, c, j: int, sense: float, u, lo, hi,
     moved to the vertex the gradient there points to, until they agree (corrections and a failure counted in
     `out`)."""
     for _ in range(MAX_VERTEX_CORRECTIONS):
-        q, y = evaluate(u)
-        gj = sense * problem.gradient(q, u, c)[j]
+        found = evaluate(u)
+        q, y = found[0], found[1]
+        if found[2] is None:
+            found[2] = problem.gradient(q, u, c)
+        gj = sense * found[2][j]
         want = np.where(np.abs(gj) * np.maximum(np.abs(lo), np.abs(hi)) <= res_j, u, np.where(gj > 0, hi, lo))
         if np.array_equal(want, u):
             break
