@@ -245,15 +245,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
             cache[key] = [q, problem.vectors("outputs", q, u, c)[0], None]
         return cache[key]
 
-    # the first vertices of all outputs solved together (`solve_many`: each as its own solve)
-    firsts = {}
-    for j in range(n_y):
-        for sense in (+1.0, -1.0):
-            u = _linear_vertex(G_plus[j], G_minus[j], sense, lo, hi, res[j])
-            firsts.setdefault(u.tobytes(), u)
-    U = np.array(list(firsts.values()))
-    for u, q in zip(U, problem.solve_many(U, c, q0)):
-        cache[u.tobytes()] = [q.copy(), problem.vectors("outputs", q, u, c)[0], None]
+    cache.update(_first_vertices(problem, c, q0, G_plus, G_minus, lo, hi, res))
     for j in range(n_y):
         for sense in (+1.0, -1.0):
             # 1. the vertex of the linear programme
@@ -273,6 +265,19 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
         out.low = np.minimum(out.low, y0)
         out.high = np.maximum(out.high, y0)
     return out
+
+
+def _first_vertices(problem: StaticsProblem, c, q0, G_plus, G_minus, lo, hi, res) -> dict:
+    """{vertex bytes: [q, outputs, None]} at the first vertex (step 1) of every output's extremes, all solved together
+    (`solve_many`: each as its own solve)."""
+    firsts = {}
+    for j in range(len(G_plus)):
+        for sense in (+1.0, -1.0):
+            u = _linear_vertex(G_plus[j], G_minus[j], sense, lo, hi, res[j])
+            firsts.setdefault(u.tobytes(), u)
+    U = np.array(list(firsts.values()))
+    return {u.tobytes(): [q.copy(), problem.vectors("outputs", q, u, c)[0], None]
+            for u, q in zip(U, problem.solve_many(U, c, q0))}
 
 
 def _linear_vertex(G_plus_j, G_minus_j, sense: float, lo, hi, res_j: float) -> np.ndarray:
