@@ -39,6 +39,16 @@ class SlowManifold:
     def rest_state(self, x_prev: np.ndarray) -> np.ndarray:
         """The vehicle standing in equilibrium at x_prev's slow states, with x_prev's slow states and quadratures."""
         eq = self.equilibrium.solve(x_prev[self.T_oil_index], self.gas_masses, x_prev[self.oil_index])
+        return self._at_rest(eq, x_prev)
+
+    def rest_states(self, xs: list) -> list:
+        """`rest_state` of each x in xs, their equilibria solved together (`EquilibriumSolver.solve_many`: the same
+        numbers as one by one)."""
+        eqs = self.equilibrium.solve_many([x[self.T_oil_index] for x in xs], self.gas_masses,
+                                          [x[self.oil_index] for x in xs])
+        return [self._at_rest(eq, x) for eq, x in zip(eqs, xs)]
+
+    def _at_rest(self, eq, x_prev: np.ndarray) -> np.ndarray:
         x = self.model.state_at_rest(eq, self.gas_masses)
         x[self.slow_index] = x_prev[self.slow_index]
         x[self.ext_index] = x_prev[self.ext_index]
@@ -55,17 +65,20 @@ class SlowManifold:
         """
         if self._slaving_matrix is not None:
             return self._slaving_matrix
-        base = self.rest_state(x)
         S = np.zeros((self.model.nx, len(self.slow_index)))
         standing_inputs = set(self.T_oil_index.tolist()) | set(self.oil_index.tolist())
+        moved = []                      # (column, step, perturbed state) of the standing vehicle's inputs
         for k, j in enumerate(self.slow_index):
             h = 1e-4 * max(abs(x[j]), 1e-3)
             xp = x.copy()
             xp[j] += h
             if j in standing_inputs:
-                S[:, k] = (self.rest_state(xp) - base) / h
+                moved.append((k, h, xp))
             else:
-                S[j, k] = (xp[j] - base[j]) / h
+                S[j, k] = (xp[j] - x[j]) / h
+        base, *rests = self.rest_states([x] + [xp for _, _, xp in moved])
+        for (k, h, _), rest in zip(moved, rests):
+            S[:, k] = (rest - base) / h
         self._slaving_matrix = S
         return S
 
@@ -82,18 +95,16 @@ class SlowManifold:
         N0 = W_ax @ np.asarray(loads_before_N, float)
         T, V = x_end[self.T_oil_index].copy(), x_end[self.oil_index].copy()
         N1 = W_ax @ np.asarray(after.wheel_loads_N, float)
-        cols = []
-        for i in range(m.n):
-            Tp = T.copy()
-            Tp[i] += dT
-            e = self.equilibrium.solve(Tp, self.gas_masses, V)
-            cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dT)
+        T_rows, V_rows = np.tile(T, (m.n, 1)), np.tile(V, (m.n, 1))
+        T_rows[np.arange(m.n), np.arange(m.n)] += dT
+        steps = [dT] * m.n
         if compensation:
-            for i in range(m.n):
-                Vp = V.copy()
-                Vp[i] += dV
-                e = self.equilibrium.solve(T, self.gas_masses, Vp)
-                cols.append(100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / dV)
-        else:
+            V_plus = np.tile(V, (m.n, 1))
+            V_plus[np.arange(m.n), np.arange(m.n)] += dV
+            T_rows, V_rows = np.vstack([T_rows, np.tile(T, (m.n, 1))]), np.vstack([V_rows, V_plus])
+            steps += [dV] * m.n
+        cols = [100.0 * (W_ax @ np.asarray(e.wheel_loads_N, float) - N1) / N0 / h
+                for e, h in zip(self.equilibrium.solve_many(T_rows, self.gas_masses, V_rows), steps)]
+        if not compensation:
             cols += [np.zeros(len(N0))] * m.n
         return np.array(cols).T

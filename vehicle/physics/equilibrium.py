@@ -13,7 +13,10 @@ the charged pose is the reference of all displacements (z = theta = phi = 0, w =
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -42,6 +45,191 @@ class Equilibrium:
 
     def as_dict(self) -> dict:
         return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
+
+
+class NumericFunction:
+    """A CasADi Function evaluated on NumPy arrays through evaluation buffers of its own, one set per thread.
+
+    Called with NumPy arguments a Function converts every argument and result to a DM: for the small statics
+    functions here that costs ~10x their evaluation. The buffers hand the arrays' memory to the same evaluation
+    (the same instructions on the same numbers: the results are the same bit for bit). Inputs must be dense;
+    returns a tuple of dense 2-D arrays (as `np.asarray` of the DM results).
+    """
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        for k in range(function.n_in()):
+            if not function.sparsity_in(k).is_dense():
+                raise ValueError(f"{function.name()}: input {k} is not dense")
+        # where each result's nonzeros (column-major) go in the dense row-major array; None: dense already
+        self.out_shapes, self.out_places = [], []
+        for k in range(function.n_out()):
+            sp = function.sparsity_out(k)
+            rows, cols = sp.get_triplet()
+            self.out_shapes.append((sp.size1(), sp.size2()))
+            self.out_places.append(None if sp.is_dense() else
+                                   np.asarray(rows, np.intp) * sp.size2() + np.asarray(cols, np.intp))
+        self.local = threading.local()
+
+    def __reduce__(self):
+        return (NumericFunction, (self.function,))
+
+    def _buffers(self) -> tuple:
+        held = getattr(self.local, "held", None)
+        if held is None:
+            f = self.function
+            buffer, evaluate = f.buffer()
+            args = [np.zeros(f.nnz_in(k)) for k in range(f.n_in())]
+            results = [np.zeros(f.nnz_out(k)) for k in range(f.n_out())]
+            for k, a in enumerate(args):
+                buffer.set_arg(k, memoryview(a))
+            for k, r in enumerate(results):
+                buffer.set_res(k, memoryview(r))
+            held = self.local.held = (buffer, evaluate, args, results)   # the buffer reads and writes these arrays
+        return held
+
+    def __call__(self, *args) -> tuple:
+        _, evaluate, inputs, results = self._buffers()
+        if len(args) != len(inputs):
+            raise TypeError(f"{self.function.name()} takes {len(inputs)} arguments, got {len(args)}")
+        for held, given in zip(inputs, args):
+            given = np.asarray(given, float)
+            held[:] = given.ravel(order="F") if given.ndim > 1 else given
+        evaluate()
+        out = []
+        for (n1, n2), places, r in zip(self.out_shapes, self.out_places, results):
+            if places is None:
+                dense = r.reshape(n2, n1).T.copy() if n2 > 1 else r.reshape(n1, 1).copy()
+            else:
+                dense = np.zeros(n1 * n2)
+                dense[places] = r
+                dense = dense.reshape(n1, n2)
+            out.append(dense)
+        return tuple(out)
+
+    def vectors(self, *args) -> tuple:
+        """The results at args raveled (for functions whose outputs are column vectors)."""
+        return tuple(v.ravel() for v in self(*args))
+
+
+# statics builds a process keeps (each a few functions of the static balance): the vehicles of a study's designs
+# that share their statics and a few that do not
+MAX_SHARED_STATICS = 8
+_shared_statics: OrderedDict = OrderedDict()
+_statics_reads: dict = {}          # (model structure, kind) -> indices of theta the kind's statics read (None: unknown)
+_first_statics: dict = {}          # (model structure, kind) -> (theta, kinematics, built) of its first model
+_shared_statics_lock = threading.Lock()
+
+
+def lockstep_newton(residual, jacobian, Q: np.ndarray, tol: float, steps: int, exhausted: str, failed: str):
+    """Damped Newton on every row of Q at once, in place: residual(rows) -> R (len(rows), n) and jacobian(rows) ->
+    J (len(rows), n, n) at Q[rows]. Each row stops when its own largest residual is below tol and moves at most
+    0.02 per step (as `EquilibriumSolver.solve`): a row ends where its Newton alone ends, bit for bit. Raises
+    UserInputError(exhausted) at a non-finite residual, UserInputError(failed) after `steps` steps."""
+    active = np.arange(len(Q))
+    for _ in range(steps):
+        R = residual(active)
+        if not np.all(np.isfinite(R)):
+            raise UserInputError(exhausted)
+        going = np.max(np.abs(R), axis=1) >= tol
+        active, R = active[going], R[going]
+        if active.size == 0:
+            return Q
+        dQ = np.linalg.solve(jacobian(active), -R[:, :, None])[:, :, 0]
+        scale = np.minimum(1.0, 0.02 / np.maximum(np.max(np.abs(dQ), axis=1), 1e-30))
+        Q[active] = Q[active] + scale[:, None] * dQ
+    raise UserInputError(failed)
+
+
+def mapped_function(maps: dict, function: ca.Function, columns: int) -> NumericFunction:
+    """`function` evaluated on `columns` columns at once (each column the instructions of one call), kept in `maps`."""
+    found = maps.get((function.name(), columns))
+    if found is None:
+        found = maps[(function.name(), columns)] = NumericFunction(function.map(columns, "serial"))
+    return found
+
+
+def _symbolic_view(model: VehicleModel) -> SimpleNamespace:
+    """The model's symbolic twin (`VehicleModel.sym`: its parameters as the symbols theta) where `static_balance`
+    reads a model."""
+    return SimpleNamespace(**vars(model.sym), n=model.n)
+
+
+def _theta_read(model: VehicleModel, kind: str, graph) -> np.ndarray | None:
+    """Indices of the model's parameter vector theta that `graph(view)` (SX expressions of a statics problem
+    built on a model or its symbolic twin) depends on, found once per model structure; None where the graph cannot
+    be built on the symbolic twin (the statics are then built per model)."""
+    key = (model.structure, kind)
+    with _shared_statics_lock:
+        if key in _statics_reads:
+            return _statics_reads[key]
+    try:
+        expressions = ca.vertcat(*graph(_symbolic_view(model)))
+        theta = model.parameters.symbols
+        others = [v for v in ca.symvar(expressions) if not ca.depends_on(theta, v)]
+        reads = ca.Function("reads", [theta, *others], [expressions]).which_depends("i0", ["o0"], 1, False)
+        found = np.flatnonzero(np.asarray(reads, bool))
+    except (RuntimeError, TypeError, ValueError, AttributeError, NotImplementedError):
+        found = None
+    with _shared_statics_lock:
+        _statics_reads[key] = found
+    return found
+
+
+def _statics_key(kind: str, structure: str, reads: np.ndarray, theta: np.ndarray, kinematics: tuple) -> tuple:
+    return (kind, structure, reads.tobytes(), theta[reads].tobytes(), *kinematics)
+
+
+def _remember_statics(key: tuple, built) -> None:
+    with _shared_statics_lock:
+        _shared_statics[key] = built
+        while len(_shared_statics) > MAX_SHARED_STATICS:
+            _shared_statics.popitem(last=False)
+
+
+def shared_statics(model: VehicleModel, kind: str, graph, build):
+    """`build(model)`, or what it returned for an earlier model of this process whose statics read the same numbers.
+
+    graph(view) -> list of SX expressions: everything `build` evaluates, built on `view` (the model or its symbolic
+    twin). The key is the model's structure (`VehicleModel.structure`: strut types, gas laws, mechanisms, every
+    zero) with the values of the parameters the graph depends on, and the numbers of the model's kinematics: all
+    that a numeric build reads, so the shared functions are the ones the model's own build would make, instruction
+    for instruction. A design study's vehicles that differ in what the standing vehicle does not feel (a valve's
+    bleed, the fill pressure, which only sets the gas masses fed to the functions) build their statics once. The
+    first model of a structure builds its own and is only remembered: a single drive builds no symbolic graph.
+    """
+    if not isinstance(model, VehicleModel):
+        return build(model)
+    group = (model.structure, kind)
+    theta = model.parameters.numeric()
+    kinematics = tuple(np.asarray(v, float).tobytes() for v in (
+        model.a, model.y, model.r, model.m_u, model.tyre_static_deflection, model.link_drive, model.link_brake,
+        [model.a_cg, model.y_cg, model.M, model.x_charged, model.pitch_per_acceleration]))
+    with _shared_statics_lock:
+        first = _first_statics.get(group) if group not in _statics_reads else None
+        if first is None and group not in _statics_reads:
+            _first_statics[group] = None          # claimed: this model builds the structure's first statics
+    if first is None and group not in _statics_reads:
+        built = build(model)
+        with _shared_statics_lock:
+            _first_statics[group] = (theta, kinematics, built)
+        return built
+    reads = _theta_read(model, kind, graph)
+    if reads is None:
+        return build(model)
+    with _shared_statics_lock:
+        first = _first_statics.pop(group, None)
+    if first is not None:
+        _remember_statics(_statics_key(kind, group[0], reads, first[0], first[1]), first[2])
+    key = _statics_key(kind, group[0], reads, theta, kinematics)
+    with _shared_statics_lock:
+        found = _shared_statics.get(key)
+        if found is not None:
+            _shared_statics.move_to_end(key)
+            return found
+    found = build(model)
+    _remember_statics(key, found)
+    return found
 
 
 def charge_gas_masses(model: VehicleModel) -> np.ndarray:
@@ -180,25 +368,52 @@ def statics_inputs(n: int, temperatures_K, gas_masses_kg, oil_volumes_m3=None):
     return T, np.asarray(gas_masses_kg, float), dV
 
 
+def _equilibrium_graph(model) -> tuple:
+    """(inputs q, T, m, dV, acc; residual; outputs wheel loads, strut forces, deflections) of the static balance of
+    `model` (a VehicleModel or its symbolic twin) in q = (z, theta, phi, w_i)."""
+    n = model.n
+    q = ca.SX.sym("q", 3 + n)           # z, theta, phi, w_i
+    T = ca.SX.sym("T", n)
+    m = ca.SX.sym("m", n)
+    dV = ca.SX.sym("dV", n)
+    acc = ca.SX.sym("acc")
+    b = static_balance(model, q, T, m, dV, acceleration_m_s2=acc)
+    outputs = [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]), ca.vertcat(*b["deflections"])]
+    return [q, T, m, dV, acc], ca.vertcat(*b["residual"]), outputs
+
+
+def _equilibrium_expressions(model) -> list:
+    """Everything the equilibrium's functions evaluate (`_equilibrium_graph`'s residual and outputs)."""
+    _, res, outputs = _equilibrium_graph(model)
+    return [res, *outputs]
+
+
+def equilibrium_functions(model: VehicleModel) -> dict:
+    """F (residual), Jf (its Jacobian in q), out (outputs) of `_equilibrium_graph` and their NumericFunctions."""
+    args, res, outputs = _equilibrium_graph(model)
+    F = ca.Function("eq_res", args, [res])
+    Jf = ca.Function("eq_jac", args, [ca.jacobian(res, args[0])])
+    out = ca.Function("eq_out", args, outputs)
+    return {"F": F, "Jf": Jf, "out": out, "numeric_residual": NumericFunction(F),
+            "numeric_jacobian": NumericFunction(Jf), "numeric_out": NumericFunction(out), "maps": {}}
+
+
+EXHAUSTED = ("static equilibrium: the struts cannot carry the vehicle at these temperatures and charges (gas volume "
+             "exhausted)")
+NOT_CONVERGED = "static equilibrium did not converge (check temperatures and charges)"
+
+
 class EquilibriumSolver:
     """Newton solve of the static balances for given temperatures, gas masses and oil volumes (and a steady
     longitudinal acceleration: the settled state of a vehicle braking or accelerating at a constant rate)."""
 
     def __init__(self, model: VehicleModel):
         self.model = model
-        n = model.n
-        q = ca.SX.sym("q", 3 + n)           # z, theta, phi, w_i
-        T = ca.SX.sym("T", n)
-        m = ca.SX.sym("m", n)
-        dV = ca.SX.sym("dV", n)
-        acc = ca.SX.sym("acc")
-        b = static_balance(model, q, T, m, dV, acceleration_m_s2=acc)
-        res = ca.vertcat(*b["residual"])
-        args = [q, T, m, dV, acc]
-        self.F = ca.Function("eq_res", args, [res])
-        self.Jf = ca.Function("eq_jac", args, [ca.jacobian(res, q)])
-        self.out = ca.Function("eq_out", args, [ca.vertcat(*b["wheel_loads"]), ca.vertcat(*b["strut_forces"]),
-                                                ca.vertcat(*b["deflections"])])
+        built = shared_statics(model, "equilibrium", _equilibrium_expressions, equilibrium_functions)
+        self.F, self.Jf, self.out = built["F"], built["Jf"], built["out"]
+        self.numeric_residual, self.numeric_jacobian, self.numeric_out = \
+            built["numeric_residual"], built["numeric_jacobian"], built["numeric_out"]
+        self.maps = built["maps"]
 
     def solve(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None, q0=None,
               acceleration_m_s2: float = 0.0) -> Equilibrium:
@@ -209,20 +424,48 @@ class EquilibriumSolver:
         T, m, dV = statics_inputs(n, temperatures_K, gas_masses_kg, oil_volumes_m3)
         q = np.zeros(3 + n) if q0 is None else np.asarray(q0, float).copy()
         for it in range(100):
-            r = np.asarray(self.F(q, T, m, dV, a)).ravel()
+            r, = self.numeric_residual.vectors(q, T, m, dV, a)
             if not np.all(np.isfinite(r)):
-                raise UserInputError("static equilibrium: the struts cannot carry the vehicle at these "
-                                     "temperatures and charges (gas volume exhausted)")
+                raise UserInputError(EXHAUSTED)
             if np.max(np.abs(r)) < 1e-10:
                 break
-            J = np.asarray(self.Jf(q, T, m, dV, a))
+            J, = self.numeric_jacobian(q, T, m, dV, a)
             dq = np.linalg.solve(J, -r)
             # damped Newton: limit wheel/hull moves to 20 mm per iteration
             scale = min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30))
             q = q + scale * dq
         else:
-            raise UserInputError("static equilibrium did not converge (check temperatures and charges)")
-        Ft, Fs, xs = (np.asarray(v).ravel() for v in self.out(q, T, m, dV, a))
+            raise UserInputError(NOT_CONVERGED)
+        return self._standing(q, T, m, dV, a)
+
+    def solve_many(self, temperatures_K, gas_masses_kg, oil_volumes_m3=None) -> list[Equilibrium]:
+        """`solve` standing (from the charged pose) for each row of temperatures_K and oil_volumes_m3 (rows of n
+        per strut), the rows' Newton steps taken together (`lockstep_newton`): each the same as its `solve`."""
+        n = self.model.n
+        T = np.atleast_2d(np.asarray(temperatures_K, float))
+        dV = np.zeros_like(T) if oil_volumes_m3 is None else np.atleast_2d(np.asarray(oil_volumes_m3, float))
+        m = np.asarray(gas_masses_kg, float)
+        M = np.repeat(m[:, None], len(T), axis=1)
+        Q = np.zeros((len(T), 3 + n))
+
+        def inputs(rows):
+            return Q[rows].T, T[rows].T, M[:, rows], dV[rows].T, np.zeros((1, rows.size))
+
+        def residual(rows):
+            return mapped_function(self.maps, self.F, rows.size)(*inputs(rows))[0].T
+
+        def jacobian(rows):
+            J = mapped_function(self.maps, self.Jf, rows.size)(*inputs(rows))[0]
+            return J.reshape(3 + n, rows.size, 3 + n).transpose(1, 0, 2)
+
+        lockstep_newton(residual, jacobian, Q, 1e-10, 100, EXHAUSTED, NOT_CONVERGED)
+        return [self._standing(Q[k].copy(), T[k].copy(), m, dV[k].copy(), 0.0) for k in range(len(T))]
+
+    def _standing(self, q, T, m, dV, a) -> Equilibrium:
+        """The Equilibrium at the solution q (strut on an end stop: UserInputError)."""
+        model = self.model
+        n = model.n
+        Ft, Fs, xs = self.numeric_out.vectors(q, T, m, dV, a)
         for i in range(n):
             stroke = model.struts[i].p.geometry.stroke
             if not -1e-3 <= xs[i] <= stroke + 1e-3:

@@ -54,7 +54,8 @@ from hpsim.errors import UserInputError
 from struts import friction as fr
 
 from vehicle.physics import hull as hull_eq
-from vehicle.physics.equilibrium import equilibrium_solver, static_balance, statics_inputs
+from vehicle.physics.equilibrium import (NumericFunction, equilibrium_solver, lockstep_newton, mapped_function,
+                                         shared_statics, static_balance, statics_inputs)
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import GRAVITY
 from vehicle.physics.tyre import tyre_force
@@ -65,6 +66,9 @@ MAX_NEWTON = 100
 # its model, vehicle.engines.shared_builds) weigh the same vehicle before they start
 REMEMBERED_WEIGHINGS = 4
 MAX_VERTEX_CORRECTIONS = 8
+EXHAUSTED = ("weighing band: the struts cannot carry the vehicle with the seal friction at its band edge (gas volume "
+             "exhausted)")
+NOT_CONVERGED = "weighing band: the static equilibrium with friction did not converge"
 # an output that moves less than this per unit utilisation does not depend on that strut (N, m)
 RESOLUTION = {"N": 1e-6, "m": 1e-11}
 
@@ -114,6 +118,21 @@ class StaticsProblem:
     units: dict                    # name -> "N" | "m"
     n_q: int
     n_u: int
+    numeric: dict = field(init=False, repr=False)     # the functions above on NumPy arrays (NumericFunction)
+    numeric_maps: dict = field(init=False, repr=False)  # functions mapped over columns (`mapped_function`)
+
+    def __post_init__(self):
+        self.numeric = {name: NumericFunction(getattr(self, name))
+                        for name in ("residual", "jac_q", "outputs", "sens", "limits", "deflections")}
+        self.numeric_maps = {}
+
+    def values(self, name: str, q, u, c) -> tuple:
+        """The outputs of function `name` (a field above) at (q, u, c) as dense 2-D NumPy arrays."""
+        return self.numeric[name](q, u, c)
+
+    def vectors(self, name: str, q, u, c) -> tuple:
+        """The outputs of function `name` at (q, u, c), each raveled to a vector."""
+        return self.numeric[name].vectors(q, u, c)
 
     @classmethod
     def build(cls, q, u, c, residual, groups: dict, units: dict, F_reb, F_comp, p_gas, deflections, strokes):
@@ -139,19 +158,35 @@ class StaticsProblem:
         """q with R(q, u, c) = 0 by damped Newton from q0."""
         q = np.asarray(q0, float).copy()
         for _ in range(MAX_NEWTON):
-            r = np.asarray(self.residual(q, u, c)).ravel()
+            r, = self.vectors("residual", q, u, c)
             if not np.all(np.isfinite(r)):
-                raise UserInputError("weighing band: the struts cannot carry the vehicle with the seal friction "
-                                     "at its band edge (gas volume exhausted)")
+                raise UserInputError(EXHAUSTED)
             if np.max(np.abs(r)) < RESIDUAL_TOL:
                 return q
-            dq = np.linalg.solve(np.asarray(self.jac_q(q, u, c)), -r)
+            dq = np.linalg.solve(self.values("jac_q", q, u, c)[0], -r)
             q = q + min(1.0, 0.02 / max(np.max(np.abs(dq)), 1e-30)) * dq
-        raise UserInputError("weighing band: the static equilibrium with friction did not converge")
+        raise UserInputError(NOT_CONVERGED)
+
+    def solve_many(self, U, c, q0) -> np.ndarray:
+        """Row k: q with R(q, U[k], c) = 0 by `solve`'s damped Newton from q0. The rows iterate together (one mapped
+        evaluation per step, `lockstep_newton`) and each stops where it would alone: row k is `solve(U[k], c, q0)`
+        bit for bit."""
+        U = np.atleast_2d(np.asarray(U, float))
+        C = np.repeat(np.asarray(c, float)[:, None], len(U), axis=1)
+        Q = np.tile(np.asarray(q0, float), (len(U), 1))
+
+        def residual(rows):
+            return mapped_function(self.numeric_maps, self.residual, rows.size)(Q[rows].T, U[rows].T, C[:, rows])[0].T
+
+        def jacobian(rows):
+            J = mapped_function(self.numeric_maps, self.jac_q, rows.size)(Q[rows].T, U[rows].T, C[:, rows])[0]
+            return J.reshape(self.n_q, rows.size, self.n_q).transpose(1, 0, 2)
+
+        return lockstep_newton(residual, jacobian, Q, RESIDUAL_TOL, MAX_NEWTON, EXHAUSTED, NOT_CONVERGED)
 
     def gradient(self, q, u, c) -> np.ndarray:
         """dy/du [units per utilisation] along the equilibrium manifold (implicit function theorem)."""
-        R_q, R_u, Y_q, Y_u = (np.asarray(M) for M in self.sens(q, u, c))
+        R_q, R_u, Y_q, Y_u = self.values("sens", q, u, c)
         return Y_u - Y_q @ np.linalg.solve(R_q, R_u)
 
     def resolution(self) -> np.ndarray:
@@ -191,7 +226,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     c = np.asarray(c, float)
     u0 = np.zeros(n_u)
     q0 = problem.solve(u0, c, q0)
-    y0 = np.asarray(problem.outputs(q0, u0, c)).ravel()
+    y0, = problem.vectors("outputs", q0, u0, c)
     res = problem.resolution()
     # one-sided gradients at u = 0 (the band levels differ in compression and rebound)
     G_plus = problem.gradient(q0, u0, c)
@@ -201,22 +236,20 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     out = Extremes(nominal=y0, low=np.empty(n_y), high=np.empty(n_y), u_low=np.empty((n_y, n_u)),
                    u_high=np.empty((n_y, n_u)), linear_low=np.empty(n_y), linear_high=np.empty(n_y),
                    std_uniform=std)
-    cache: dict[bytes, tuple] = {}
+    cache: dict[bytes, list] = {}        # vertex -> [q, outputs, gradient (once asked for)]
 
     def evaluate(u):
         key = u.tobytes()
         if key not in cache:
             q = problem.solve(u, c, q0)
-            cache[key] = (q, np.asarray(problem.outputs(q, u, c)).ravel())
+            cache[key] = [q, problem.vectors("outputs", q, u, c)[0], None]
         return cache[key]
 
+    cache.update(_first_vertices(problem, c, q0, G_plus, G_minus, lo, hi, res))
     for j in range(n_y):
         for sense in (+1.0, -1.0):
             # 1. the vertex of the linear programme
-            g = sense * np.where(G_plus[j] >= 0, G_plus[j], G_minus[j])
-            u = np.where(g > 0, hi, lo)
-            u = np.where(np.abs(g) * np.maximum(np.abs(lo), np.abs(hi)) <= res[j], 0.0, u)
-            u = np.clip(u, lo, hi)
+            u = _linear_vertex(G_plus[j], G_minus[j], sense, lo, hi, res[j])
             linear = y0[j] + np.sum(np.where(u >= 0, G_plus[j], G_minus[j]) * u)
             # 2.-3. nonlinear solve, vertex correction until the gradient agrees with the vertex
             u, q, y = _settled_vertex(problem, c, j, sense, u, lo, hi, res[j], evaluate, out)
@@ -224,7 +257,7 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
                 out.high[j], out.u_high[j], out.linear_high[j] = y[j], u, linear
             else:
                 out.low[j], out.u_low[j], out.linear_low[j] = y[j], u, linear
-            xs = np.asarray(problem.deflections(q, u, c)).ravel()
+            xs, = problem.vectors("deflections", q, u, c)
             if np.any(xs < 0) or np.any(xs > problem.strokes):
                 out.warnings.append(f"output {j}: a strut is on its end stop at the band edge")
     if np.all(lo <= 0) and np.all(hi >= 0):
@@ -234,10 +267,32 @@ def band_extremes(problem: StaticsProblem, c, q0, u_lower=None, u_upper=None) ->
     return out
 
 
+def _first_vertices(problem: StaticsProblem, c, q0, G_plus, G_minus, lo, hi, res) -> dict:
+    """{vertex bytes: [q, outputs, None]} at the first vertex (step 1) of every output's extremes, all solved together
+    (`solve_many`: each as its own solve)."""
+    firsts = {}
+    for j in range(len(G_plus)):
+        for sense in (+1.0, -1.0):
+            u = _linear_vertex(G_plus[j], G_minus[j], sense, lo, hi, res[j])
+            firsts.setdefault(u.tobytes(), u)
+    U = np.array(list(firsts.values()))
+    return {u.tobytes(): [q.copy(), problem.vectors("outputs", q, u, c)[0], None]
+            for u, q in zip(U, problem.solve_many(U, c, q0))}
+
+
+def _linear_vertex(G_plus_j, G_minus_j, sense: float, lo, hi, res_j: float) -> np.ndarray:
+    """Step 1 of `band_extremes` for one output: the vertex of the box where the linearised output is extreme in
+    direction `sense` (utilisations it does not depend on, at resolution res_j, left at 0)."""
+    g = sense * np.where(G_plus_j >= 0, G_plus_j, G_minus_j)
+    u = np.where(g > 0, hi, lo)
+    u = np.where(np.abs(g) * np.maximum(np.abs(lo), np.abs(hi)) <= res_j, 0.0, u)
+    return np.clip(u, lo, hi)
+
+
 def _uniform_std(problem: StaticsProblem, q0, u0, c, G_plus, lo, hi) -> np.ndarray:
     """Per output, the linear standard deviation with every friction force uniform over [lo F_reb, hi F_comp]: in
     utilisation units of the + side its variance is (width)^2 / 12 (the rebound side scaled by F_reb/F_comp)."""
-    F_reb, F_comp, _ = (np.asarray(v).ravel() for v in problem.limits(q0, u0, c))
+    F_reb, F_comp, _ = problem.vectors("limits", q0, u0, c)
     ratio = np.where(F_comp > 0, F_reb / np.maximum(F_comp, 1e-300), 1.0)
     width = hi * (hi >= 0) + hi * ratio * (hi < 0) - (lo * (lo >= 0) + lo * ratio * (lo < 0))
     return np.sqrt(np.sum(G_plus ** 2 * width ** 2 / 12.0, axis=1))
@@ -249,8 +304,11 @@ def _settled_vertex(problem: StaticsProblem, c, j: int, sense: float, u, lo, hi,
     moved to the vertex the gradient there points to, until they agree (corrections and a failure counted in
     `out`)."""
     for _ in range(MAX_VERTEX_CORRECTIONS):
-        q, y = evaluate(u)
-        gj = sense * problem.gradient(q, u, c)[j]
+        found = evaluate(u)
+        q, y = found[0], found[1]
+        if found[2] is None:
+            found[2] = problem.gradient(q, u, c)
+        gj = sense * found[2][j]
         want = np.where(np.abs(gj) * np.maximum(np.abs(lo), np.abs(hi)) <= res_j, u, np.where(gj > 0, hi, lo))
         if np.array_equal(want, u):
             break
@@ -262,31 +320,50 @@ def _settled_vertex(problem: StaticsProblem, c, j: int, sense: float, u, lo, hi,
 
 
 # --- the vehicle ----------------------------------------------------------------------------------
+def _weighing_graph(model) -> dict:
+    """The statics of `model` (a VehicleModel or its symbolic twin) with seal friction utilisations u: the
+    arguments of `StaticsProblem.build`."""
+    n, P = model.n, model.params
+    q = ca.SX.sym("q", 3 + n)
+    u = ca.SX.sym("u", n)
+    c = ca.SX.sym("c", 3 * n)            # T [K], m [kg], dV [m^3] per strut
+    T, m, dV = c[:n], c[n:2 * n], c[2 * n:]
+    F_reb, F_comp = [None] * n, [None] * n
+
+    def offset(i, p_gas):
+        F_reb[i], F_comp[i] = static_friction_limits(model.struts[i].p.friction, p_gas)
+        return held_friction(u[i], F_reb[i], F_comp[i])
+
+    b = static_balance(model, q, T, m, dV, strut_force_offset=offset)
+    axle_loads = [0.5 * (b["wheel_loads"][2 * k] + b["wheel_loads"][2 * k + 1]) for k in range(P.n_axles)]
+    groups = {"wheel_loads": b["wheel_loads"], "axle_loads": axle_loads,
+              "station_heights": b["station_heights"], "axle_heights": b["axle_heights"]}
+    units = {"wheel_loads": "N", "axle_loads": "N", "station_heights": "m", "axle_heights": "m"}
+    return {"q": q, "u": u, "c": c, "residual": b["residual"], "groups": groups, "units": units, "F_reb": F_reb,
+            "F_comp": F_comp, "p_gas": b["gas_pressures"], "deflections": b["deflections"],
+            "strokes": [s.p.geometry.stroke for s in model.struts]}
+
+
+def _weighing_expressions(model) -> list:
+    """Every expression and number of `_weighing_graph` (what the weighing's functions read)."""
+    g = _weighing_graph(model)
+    return [*g["residual"], *(e for v in g["groups"].values() for e in v), *g["F_reb"], *g["F_comp"], *g["p_gas"],
+            *g["deflections"], *(ca.SX(v) for v in g["strokes"])]
+
+
+def weighing_problem(model: VehicleModel) -> StaticsProblem:
+    g = _weighing_graph(model)
+    return StaticsProblem.build(g["q"], g["u"], g["c"], g["residual"], g["groups"], g["units"], g["F_reb"],
+                                g["F_comp"], g["p_gas"], g["deflections"], g["strokes"])
+
+
 class WeighingSolver:
     """Bands of the standing 8x8 (or any VehicleModel) for given temperatures, gas masses and oil volumes."""
 
     def __init__(self, model: VehicleModel):
         self.model = model
         self.frictionless = equilibrium_solver(model)
-        n, P = model.n, model.params
-        q = ca.SX.sym("q", 3 + n)
-        u = ca.SX.sym("u", n)
-        c = ca.SX.sym("c", 3 * n)            # T [K], m [kg], dV [m^3] per strut
-        T, m, dV = c[:n], c[n:2 * n], c[2 * n:]
-        F_reb, F_comp = [None] * n, [None] * n
-
-        def offset(i, p_gas):
-            F_reb[i], F_comp[i] = static_friction_limits(model.struts[i].p.friction, p_gas)
-            return held_friction(u[i], F_reb[i], F_comp[i])
-
-        b = static_balance(model, q, T, m, dV, strut_force_offset=offset)
-        axle_loads = [0.5 * (b["wheel_loads"][2 * k] + b["wheel_loads"][2 * k + 1]) for k in range(P.n_axles)]
-        groups = {"wheel_loads": b["wheel_loads"], "axle_loads": axle_loads,
-                  "station_heights": b["station_heights"], "axle_heights": b["axle_heights"]}
-        units = {"wheel_loads": "N", "axle_loads": "N", "station_heights": "m", "axle_heights": "m"}
-        self.problem = StaticsProblem.build(q, u, c, b["residual"], groups, units, F_reb, F_comp,
-                                            b["gas_pressures"], b["deflections"],
-                                            [s.p.geometry.stroke for s in model.struts])
+        self.problem = shared_statics(model, "weighing", _weighing_expressions, weighing_problem)
         self.remembered: OrderedDict = OrderedDict()
         self.remembered_lock = threading.Lock()
 
@@ -317,7 +394,7 @@ class WeighingSolver:
         q0 = np.concatenate([[eq.heave_m, eq.pitch_rad, eq.roll_rad], eq.wheel_displacement_m])
         c = np.concatenate([T, m, dV])
         u0 = np.zeros(n)
-        F_reb, F_comp, p_gas = (np.asarray(v).ravel() for v in self.problem.limits(q0, u0, c))
+        F_reb, F_comp, p_gas = self.problem.vectors("limits", q0, u0, c)
         lower = None
         settle = np.zeros(n)
         if temperatures_at_stop_K is not None:
@@ -346,7 +423,7 @@ class WeighingSolver:
         # while cooling (the lower end of the heights)
         u_edge = np.ones(n)
         q_edge = self.problem.solve(u_edge, c, q0)
-        y_edge = np.asarray(self.problem.outputs(q_edge, u_edge, c)).ravel()
+        y_edge, = self.problem.vectors("outputs", q_edge, u_edge, c)
         out["compression_edge"] = {name: y_edge[a:b].copy() for name, (a, b) in self.problem.groups.items()}
         return out
 

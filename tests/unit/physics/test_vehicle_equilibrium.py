@@ -105,3 +105,61 @@ def test_a_strut_that_cannot_carry_its_load_is_reported():
 
 def test_gravity_constant_is_standard():
     assert GRAVITY == 9.80665
+
+
+def test_numeric_function_is_the_casadi_evaluation_bit_for_bit(model, solver):
+    """The statics functions on NumPy buffers (NumericFunction) give exactly what calling the Function gives, for a
+    dense vector, a sparse Jacobian and on another thread (each thread its own buffers)."""
+    import threading
+
+    from vehicle.physics.equilibrium import NumericFunction
+
+    masses = charge_gas_masses(model)
+    rng = np.random.default_rng(3)
+    points = [(rng.normal(0.0, 0.01, 3 + model.n), 290.0 + rng.uniform(0.0, 50.0, model.n),
+               masses * rng.uniform(0.95, 1.05, model.n), rng.uniform(0.0, 1e-5, model.n), rng.normal(0.0, 2.0))
+              for _ in range(4)]
+    F, J = NumericFunction(solver.F), NumericFunction(solver.Jf)
+    assert not solver.Jf.sparsity_out(0).is_dense()          # the scatter of a sparse result is exercised
+    for args in points:
+        assert np.array_equal(F(*args)[0], np.asarray(solver.F(*args)))
+        assert np.array_equal(J(*args)[0], np.asarray(solver.Jf(*args)))
+    seen = {}
+
+    def on_thread():
+        seen["J"] = [J(*args)[0] for args in points]
+
+    worker = threading.Thread(target=on_thread)
+    worker.start()
+    worker.join()
+    assert all(np.array_equal(a, np.asarray(solver.Jf(*args))) for a, args in zip(seen["J"], points))
+
+
+def _charged_with(P, fill_pressure_offset_Pa):
+    return VehicleModel(P.model_copy(update={"charging": P.charging.model_copy(
+        update={"fill_pressure_offset": fill_pressure_offset_Pa})}))
+
+
+def test_statics_functions_are_shared_by_vehicles_whose_standing_reads_the_same_numbers():
+    """Designs that differ only in what the standing vehicle does not feel (the fill pressure sets the gas masses,
+    fed to the functions) share one build of the statics functions, and it is instruction for instruction the
+    build each would make alone; a vehicle with another tyre stiffness gets its own."""
+    from vehicle.physics import equilibrium, weighing
+
+    P = load_vehicle("apc_8x8")
+    designs = [_charged_with(P, dp) for dp in (-0.3e6, 0.2e6, 0.4e6)]
+    solvers = [EquilibriumSolver(m) for m in designs]
+    problems = [weighing.WeighingSolver(m).problem for m in designs]
+    assert solvers[1].F is solvers[2].F and solvers[1].Jf is solvers[2].Jf and problems[1] is problems[2]
+    for m, s, pr in zip(designs, solvers, problems):
+        alone = equilibrium.equilibrium_functions(m)
+        assert all(s_f.serialize() == alone[k].serialize() for k, s_f in (("F", s.F), ("Jf", s.Jf), ("out", s.out)))
+        own = weighing.weighing_problem(m)
+        assert pr.residual.serialize() == own.residual.serialize() and pr.sens.serialize() == own.sens.serialize()
+    stiffer = P.tyre.model_copy(update={"stiffness": 1.3 * P.tyre.stiffness})
+    stiff_tyre = VehicleModel(P.model_copy(update={"charging": designs[2].params.charging, "tyre": stiffer}))
+    other = EquilibriumSolver(stiff_tyre)
+    assert other.F is not solvers[2].F
+    masses = charge_gas_masses(stiff_tyre)
+    assert not np.allclose(other.solve(320.0, masses).wheel_displacement_m,
+                           solvers[2].solve(320.0, masses).wheel_displacement_m, rtol=0, atol=1e-9)

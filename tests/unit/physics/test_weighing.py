@@ -168,6 +168,22 @@ def test_bands_are_the_extremes_over_every_friction_vertex(apc):
         assert np.all(y <= ex.high + 1e-6) and np.all(y >= ex.low - 1e-6)
 
 
+def test_solving_many_friction_states_together_is_solving_each_alone_bit_for_bit(apc):
+    """`solve_many` (all rows' Newton steps at once, mapped) gives each row what its own `solve` gives, exactly: the
+    corners of the box, which take different numbers of steps, and interior states."""
+    model, solver, masses = apc
+    pr = solver.problem
+    c = np.concatenate([HOT, masses, np.full(model.n, 2e-6)])
+    eq = solver.frictionless.solve(HOT, masses, np.full(model.n, 2e-6))
+    q0 = np.concatenate([[eq.heave_m, eq.pitch_rad, eq.roll_rad], eq.wheel_displacement_m])
+    U = np.array(list(itertools.product((-1.0, 1.0), repeat=model.n))[::5]
+                 + list(np.random.default_rng(7).uniform(-1, 1, (6, model.n))) + [np.zeros(model.n)])
+    Q = pr.solve_many(U, c, q0)
+    alone = np.array([pr.solve(u, c, q0) for u in U])
+    assert np.array_equal(Q, alone)
+    assert not np.array_equal(alone[0], alone[-1])       # the states stand differently
+
+
 def test_difference_band_combines_independent_weighings():
     before = {"axle_loads_low_N": [9.0], "axle_loads_high_N": [11.0], "axle_loads_nominal_N": [10.0],
               "axle_height_change_low_m": [-0.001], "axle_height_change_high_m": [0.002]}
