@@ -242,7 +242,7 @@ def test_the_estimate_adds_compiles_drives_on_workers_and_lanes_and_the_finish()
     assert cost.drives_wall([drive] * 4, 2, lanes=4, group=2) == pytest.approx(max(2 * group / (2 * e), group))
     # multiscale drives: their rate counts the work between windows, which lanes do not speed up
     ms = cost.DriveCost(set_up_s=2.0, steps_s=4.0, lane_gain=cost.MULTISCALE_LANE_GAIN)
-    assert cost.drives_wall([ms] * 2, 1, lanes=2, group=2) == pytest.approx(2 * 2.0 + 2 * 4.0 / 1.25)
+    assert cost.drives_wall([ms] * 2, 1, lanes=2, group=2) == pytest.approx(2 * 2.0 + 2 * 4.0 / cost.MULTISCALE_LANE_GAIN)
     # a drive that cannot be a lane runs alone beside the group
     assert cost.drives_wall([drive] * 3, 1, lanes=4, group=2, joins=[True, True, False]) == pytest.approx(group + 6.0)
     assert [cost.lane_count(k) for k in (1, 2, 3, 4, 5, 8)] == [1, 2, 4, 4, 8, 8]
