@@ -381,25 +381,35 @@ def _history(path, check: bool = True) -> dict:
         return out
 
 
-def compare_plot(paths, out: str | Path, labels=None) -> Path:
-    """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs
-    distance) over grouped bars per axle (wheel-load change, height change, temperature rise)."""
-    plt = pyplot()
-    cmp = compare(paths)
-    runs = cmp["runs"]
-    labels = labels or [Path(r["file"]).stem for r in runs]
-    n_ax = cmp["n_axles"]
-    hist = [_history(p, check=False) for p in paths]          # `compare` checked every file
-    tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    fig = plt.figure(figsize=(max(13, 3 + 1.2 * n_ax * len(runs)), 8.5 if tops else 4.8), constrained_layout=True)
-    grid = fig.add_gridspec(2 if tops else 1, 6)
+# Above this many runs the comparison puts the runs along the x axis (one line per axle) instead of one bar per run
+# and axle: a figure of fixed size, and colours that stay tellable apart (a sequential map, not a 10-colour cycle).
+MANY_RUNS = 8
+MAX_WIDTH_IN = 22.0          # the bar figure's width cap: 2420 px at save_figure's 110 dpi
+MAX_RUN_TICKS = 20           # run labels per axis before they are thinned (rotated 7 pt labels in ~4.5 in)
+AXLE_PANELS = (("dN_pct", "wheel load change dN [%]", "load redistribution (after vs before)"),
+               ("dh_mm", "height change dh [mm]", "height change (after vs before)"),
+               ("rise_K", "strut temperature rise [K]", "temperature rise over the drive"))
+
+
+def _axle_values(run, key, n_ax) -> list:
+    """One per-axle quantity of a compared run (`AXLE_PANELS` keys), NaN where a value or the axle is missing (a
+    vehicle of fewer axles: nothing drawn on the axles it lacks)."""
+    if key == "rise_K":
+        y = [np.nan if a["T_end_C"] is None or a["T_start_C"] is None else a["T_end_C"] - a["T_start_C"]
+             for a in run["axles"]]
+    else:
+        y = [np.nan if a[key] is None else a[key] for a in run["axles"]]
+    return y + [np.nan] * (n_ax - len(y))
+
+
+def _history_panels(fig, grid, hist, tops, style) -> list:
+    """The top row: the runs' histories (temperature rise, height change vs distance), run i drawn with style(i, n)."""
+    axes = []
     for j, key in enumerate(tops):
         a = fig.add_subplot(grid[0, j * (6 // len(tops)):(j + 1) * (6 // len(tops))])
         for i, hh in enumerate(hist):
-            if key in hh:        # identical runs stay visible: each its own dash, the first ones wider below
-                a.plot(*hh[key], color=colors[i % len(colors)], marker="o" if len(hh[key][0]) < 30 else None, ms=3,
-                       ls=("-", "--", "-.", ":")[i % 4], lw=max(0.9, 2.6 - 0.5 * i), zorder=2 + i)
+            if key in hh:
+                a.plot(*hh[key], **style(i, len(hh[key][0])))
         a.axhline(0, color="k", lw=0.6)
         a.set(xlabel="distance [km]", **({"ylabel": "strut temperature rise [K]",
                                           "title": "mean strut temperature rise (all struts)"} if key == "T" else
@@ -407,21 +417,29 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
                                           "title": "mean hull height change vs before-drive\nequilibrium (moving mean)"}))
         a.title.set_fontsize(10)
         a.grid(alpha=0.3)
+        axes.append(a)
+    return axes
+
+
+def _compare_bars(plt, cmp, hist, tops, warned):
+    """Few runs: histories in the colour cycle, each its own dash, over grouped bars per axle (one bar per run)."""
+    runs, n_ax = cmp["runs"], cmp["n_axles"]
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    width = min(MAX_WIDTH_IN, max(13, 3 + 1.2 * n_ax * len(runs)))
+    fig = plt.figure(figsize=(width, 8.5 if tops else 4.8), constrained_layout=True)
+    grid = fig.add_gridspec(2 if tops else 1, 6)
+
+    def style(i, n_points):       # identical runs stay visible: each its own dash, the first ones wider below
+        return dict(color=colors[i % len(colors)], marker="o" if n_points < 30 else None, ms=3,
+                    ls=("-", "--", "-.", ":")[i % 4], lw=max(0.9, 2.6 - 0.5 * i), zorder=2 + i)
+
+    _history_panels(fig, grid, hist, tops, style)
     x = np.arange(n_ax)
     w = 0.8 / max(len(runs), 1)
-    row = 1 if tops else 0
-    for c, (key, ylabel, title) in enumerate((("dN_pct", "wheel load change dN [%]", "load redistribution (after vs before)"),
-                                              ("dh_mm", "height change dh [mm]", "height change (after vs before)"),
-                                              ("rise_K", "strut temperature rise [K]", "temperature rise over the drive"))):
-        panel = fig.add_subplot(grid[row, 2 * c:2 * c + 2])
+    for c, (key, ylabel, title) in enumerate(AXLE_PANELS):
+        panel = fig.add_subplot(grid[1 if tops else 0, 2 * c:2 * c + 2])
         for j, r in enumerate(runs):
-            if key == "rise_K":
-                y = [np.nan if a["T_end_C"] is None or a["T_start_C"] is None else a["T_end_C"] - a["T_start_C"]
-                     for a in r["axles"]]
-            else:
-                y = [np.nan if a[key] is None else a[key] for a in r["axles"]]
-            y += [np.nan] * (n_ax - len(y))             # a vehicle of fewer axles: no bar on the axles it lacks
-            panel.bar(x - 0.4 + w * (j + 0.5), y, w, color=colors[j % len(colors)])
+            panel.bar(x - 0.4 + w * (j + 0.5), _axle_values(r, key, n_ax), w, color=colors[j % len(colors)])
         panel.set_xticks(x, [f"axle {k + 1}" for k in range(n_ax)])
         panel.set(ylabel=ylabel, title=title)
         panel.title.set_fontsize(10)
@@ -429,11 +447,77 @@ def compare_plot(paths, out: str | Path, labels=None) -> Path:
         panel.grid(alpha=0.3, axis="y")
     handles = [plt.Line2D([], [], color=colors[j % len(colors)], ls=("-", "--", "-.", ":")[j % 4],
                           lw=max(0.9, 2.6 - 0.5 * j), marker="s", ms=7) for j in range(len(runs))]
+    fig.legend(handles, warned, loc="outside lower center", ncol=min(len(runs), 4), fontsize=8, frameon=False)
+    return fig
+
+
+def _run_ticks(n: int) -> np.ndarray:
+    """The run indices that get a label: all up to MAX_RUN_TICKS, else every k-th; the last run always (it takes the
+    place of a k-th one closer than k to it, so no two labels crowd)."""
+    step = int(np.ceil(n / MAX_RUN_TICKS))
+    ticks = np.arange(0, n, step)
+    return ticks if ticks[-1] == n - 1 else np.append(ticks[:-1] if n - 1 - ticks[-1] < step else ticks, n - 1)
+
+
+def _short(label: str, chars: int = 22) -> str:
+    return label if len(label) <= chars else label[:chars - 1] + "…"
+
+
+def _compare_lines(plt, cmp, hist, tops, warned):
+    """Many runs, in a fixed-size figure: histories thin in a sequential colour map (colour bar: run) over the
+    per-axle quantities against the run, one line per axle."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    runs, n_ax, n = cmp["runs"], cmp["n_axles"], len(cmp["runs"])
+    fig = plt.figure(figsize=(15, 9.5 if tops else 5.5), constrained_layout=True)
+    grid = fig.add_gridspec(2 if tops else 1, 6, height_ratios=[1, 1.15] if tops else None)
+    cmap = plt.get_cmap("viridis").resampled(n)
+    ticks = _run_ticks(n)
+    tick_labels = [_short(warned[i]) for i in ticks]
+    top = _history_panels(fig, grid, hist, tops,
+                          lambda i, n_points: dict(color=cmap(i), lw=0.8, alpha=0.9, zorder=2))
+    if top:
+        bar = fig.colorbar(ScalarMappable(Normalize(-0.5, n - 0.5), cmap), ax=top, pad=0.01, aspect=30)
+        bar.set_label("run")
+        bar.set_ticks(ticks, labels=tick_labels, fontsize=7)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    x = np.arange(n)
+    for c, (key, ylabel, title) in enumerate(AXLE_PANELS):
+        panel = fig.add_subplot(grid[1 if tops else 0, 2 * c:2 * c + 2])
+        y = np.array([_axle_values(r, key, n_ax) for r in runs], float)
+        for k in range(n_ax):
+            panel.plot(x, y[:, k], color=colors[k % len(colors)], marker="o", ms=3, lw=1,
+                       ls=("-", "--", "-.", ":")[(k // len(colors)) % 4], label=f"axle {k + 1}")
+        panel.set_xticks(ticks, tick_labels, rotation=90, fontsize=7)
+        panel.set_xlim(-0.5, n - 0.5)
+        panel.set(xlabel="run", ylabel=ylabel, title=title)
+        panel.title.set_fontsize(10)
+        panel.axhline(0, color="k", lw=0.6)
+        panel.grid(alpha=0.3)
+    fig.legend(*panel.get_legend_handles_labels(), loc="outside lower center", ncol=min(n_ax, 8), fontsize=8,
+               frameon=False)
+    return fig
+
+
+def compare_plot(paths, out: str | Path, labels=None) -> Path:
+    """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs distance) over
+    the per-axle wheel-load change, height change and temperature rise: grouped bars (one per run) for up to
+    MANY_RUNS runs, beyond that a line per axle against the run."""
+    plt = pyplot()
+    cmp = compare(paths)
+    runs = cmp["runs"]
+    labels = labels or [Path(r["file"]).stem for r in runs]
+    hist = [_history(p, check=False) for p in paths]          # `compare` checked every file
+    tops = [k for k in ("T", "h") if any(k in hh for hh in hist)]
     warned = [f"{lab} ({len(r['warnings'])} warning{'s' if len(r['warnings']) > 1 else ''})" if r.get("warnings") else lab
               for lab, r in zip(labels, runs)]
-    fig.legend(handles, warned, loc="outside lower center", ncol=min(len(runs), 4), fontsize=8, frameon=False)
+    draw = _compare_bars if len(runs) <= MANY_RUNS else _compare_lines
+    fig = draw(plt, cmp, hist, tops, warned)
     same = "" if len({json.dumps(r["axles"], sort_keys=True) for r in runs}) > 1 else " (identical results)"
-    fig.suptitle(f"{len(runs)} runs compared: temperatures, heights and load changes{same}")
+    flagged = [lab for lab, r in zip(labels, runs) if r.get("warnings")] if draw is _compare_lines else []
+    note = f"\nwith warnings: {', '.join(flagged[:6])}{', ...' if len(flagged) > 6 else ''}" if flagged else ""
+    fig.suptitle(f"{len(runs)} runs compared: temperatures, heights and load changes{same}{note}")
     return save_figure(fig, out)
 
 
