@@ -500,12 +500,12 @@ def _compare_lines(plt, cmp, hist, tops, warned):
     return fig
 
 
-def compare_plot(paths, out: str | Path, labels=None) -> Path:
+def compare_plot(paths, out: str | Path, labels=None, check: bool = True) -> Path:
     """Several runs: histories overlaid (mean strut temperature rise and mean hull height change vs distance) over
     the per-axle wheel-load change, height change and temperature rise: grouped bars (one per run) for up to
-    MANY_RUNS runs, beyond that a line per axle against the run."""
+    MANY_RUNS runs, beyond that a line per axle against the run. check: as `compare`."""
     plt = pyplot()
-    cmp = compare(paths)
+    cmp = compare(paths, check=check)
     runs = cmp["runs"]
     labels = labels or [Path(r["file"]).stem for r in runs]
     hist = [_history(p, check=False) for p in paths]          # `compare` checked every file
