@@ -32,7 +32,7 @@ import numpy as np
 
 from struts.params import load_strut
 
-from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
+from vehicle.physics.equilibrium import EquilibriumSolver, NumericFunction, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import VehicleParams
 from vehicle.physics.ride import seat_vertical_acceleration
@@ -159,28 +159,6 @@ def _jacobian_function(model: VehicleModel, outputs: tuple[str, ...]) -> ca.Func
 _JACOBIANS: dict = {}
 
 
-def dense_outputs(J: ca.Function, args: tuple) -> list[np.ndarray]:
-    """J's outputs at the numeric inputs `args` as dense arrays, equal to np.asarray of its DM outputs: evaluated
-    into NumPy buffers (CasADi's `Function.buffer`) and the non-zeros placed by each output's sparsity, which
-    spares the element-by-element conversion of the DM outputs (most of a linearisation's time)."""
-    buf, evaluate = J.buffer()
-    inputs = [np.ascontiguousarray(a, dtype=float) for a in args]
-    for k, a in enumerate(inputs):
-        buf.set_arg(k, memoryview(a))
-    nonzeros = [np.empty(J.nnz_out(k)) for k in range(J.n_out())]
-    for k, nz in enumerate(nonzeros):
-        buf.set_res(k, memoryview(nz))
-    evaluate()
-    out = []
-    for k, nz in enumerate(nonzeros):
-        sp = J.sparsity_out(k)
-        dense = np.zeros((sp.size1(), sp.size2()))
-        rows, cols = sp.get_triplet()
-        dense[rows, cols] = nz
-        out.append(dense)
-    return out
-
-
 def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.ndarray,
                      outputs: tuple[str, ...] = ("wheel_load",), J: ca.Function | None = None):
     """(df/dx, df/du, [(dy/dx, dy/du) per output], f) at (x0, u0) for run parameters p; y: the per-station
@@ -193,15 +171,16 @@ def _model_jacobians(model: VehicleModel, x0: np.ndarray, u0: np.ndarray, p: np.
     ill-defined exactly at rest, where the clamp's bounds meet.)
     """
     J = _jacobian_function(model, outputs) if J is None else J
+    jacobians = NumericFunction(J)          # evaluated into NumPy buffers: no element-by-element DM conversion
     z0 = np.zeros(model.nz)
     for _ in range(20):                     # the valve pressure drops at the equilibrium (0 at rest)
-        values = dense_outputs(J, (x0, z0, u0, p))
+        values = jacobians(x0, z0, u0, p)
         *_, gx, gz, gu, r, _ = values
         if model.nz == 0 or np.max(np.abs(r)) < 1e-12:
             break                           # the Jacobians at this z0 are the ones wanted
         z0 = z0 - np.linalg.solve(gz, r.ravel())
     else:
-        values = dense_outputs(J, (x0, z0, u0, p))
+        values = jacobians(x0, z0, u0, p)
     fx, fz, fu, yx, yz, yu, gx, gz, gu, _, rates = values
     if model.nz:
         zx, zu = -np.linalg.solve(gz, gx), -np.linalg.solve(gz, gu)

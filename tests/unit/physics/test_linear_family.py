@@ -3,7 +3,8 @@
 
 - at each amplitude V it equals `linearise(params, friction_velocity_m_s=V)` bit for bit, though it builds the
   vehicle once and sets V as the struts' friction smoothing in the run parameters;
-- the Jacobians read into NumPy buffers (`dense_outputs`) equal CasADi's DM outputs converted element by element,
+- the Jacobians read into NumPy buffers (`equilibrium.NumericFunction`, as `linear._model_jacobians` reads them)
+  equal CasADi's DM outputs converted element by element,
   at a state away from rest (non-zero valve pressure drops, every sparsity pattern exercised).
 """
 from __future__ import annotations
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 
 from vehicle.physics import linear
-from vehicle.physics.equilibrium import EquilibriumSolver, charge_gas_masses
+from vehicle.physics.equilibrium import EquilibriumSolver, NumericFunction, charge_gas_masses
 from vehicle.physics.model import VehicleModel
 from vehicle.physics.params import load_vehicle
 
@@ -45,7 +46,7 @@ def test_each_amplitude_equals_its_own_linearisation_bit_for_bit(vehicle):
         family.at(0.0)
 
 
-def test_dense_outputs_equal_the_dm_outputs_away_from_rest(vehicle):
+def test_buffered_jacobians_equal_the_dm_outputs_away_from_rest(vehicle):
     params, model, gas, T, eq = vehicle
     J = linear.jacobian_graph(model)
     rng = np.random.default_rng(1)
@@ -53,7 +54,7 @@ def test_dense_outputs_equal_the_dm_outputs_away_from_rest(vehicle):
     z = 1e4 * rng.standard_normal(model.nz)
     u = model.input_matrix(1, speed=5.0, ambient=300.0, road=0.01 * rng.standard_normal((model.n, 1)))[:, 0]
     p = model.run_parameters(gas, False)
-    got = linear.dense_outputs(J, (x, z, u, p))
+    got = NumericFunction(J)(x, z, u, p)
     want = [np.asarray(v, float) for v in J(x, z, u, p)]
     assert len(got) == len(want) == J.n_out()
     for g, w in zip(got, want):
